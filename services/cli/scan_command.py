@@ -1,0 +1,139 @@
+"""`prism scan`: run one scan locally, from flags or a spec file."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from pydantic import ValidationError
+from rich.console import Console
+
+from prismcore import InputError, ScanSpec, parse_points, run_scan
+from prismcore.images import load_image
+
+from .outputs import write_outputs
+
+__all__ = ["scan"]
+
+console = Console()
+
+
+def _one_line(error: ValidationError) -> str:
+    first = error.errors()[0]
+    where = ".".join(str(p) for p in first["loc"]) or "spec"
+    more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
+    return f"{where}: {first['msg']}{more}"
+
+
+def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | None,
+           height_mm: float | None, depth_mm: float | None) -> dict | None:
+    given = [v is not None for v in (mm_per_px, distance_mm, width_mm, height_mm, depth_mm)]
+    if sum(given) > 1:
+        raise InputError("give one scale: --mm-per-px, --distance-mm, or one of "
+                         "--width-mm/--height-mm/--depth-mm")
+    if mm_per_px is not None:
+        try:
+            values = [float(v) for v in mm_per_px.split(",")]
+        except ValueError:
+            raise InputError(f"--mm-per-px {mm_per_px!r}: expected F or FRONT,SIDE") from None
+        if len(values) not in (1, 2):
+            raise InputError(f"--mm-per-px {mm_per_px!r}: expected F or FRONT,SIDE")
+        return {"kind": "mm_per_px", "front": values[0],
+                "side": values[1] if len(values) == 2 else None}
+    if distance_mm is not None:
+        return {"kind": "pinhole", "distance_mm": distance_mm}
+    for edge, length in (("width", width_mm), ("height", height_mm), ("depth", depth_mm)):
+        if length is not None:
+            return {"kind": "edge", "edge": edge, "length_mm": length}
+    return None
+
+
+def _spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec:
+    if image is None or points is None:
+        raise InputError("give IMAGE and --points, or --spec FILE")
+    formats = [f.strip() for f in flags.pop("formats").split(",") if f.strip()]
+    scale = _scale(*(flags.pop(k) for k in ("mm_per_px", "distance_mm", "width_mm",
+                                             "height_mm", "depth_mm")))
+    try:
+        ref = parse_points(points)
+    except ValueError as exc:
+        raise InputError(f"--points: {exc}") from None
+    side = flags.pop("side")
+    return ScanSpec.model_validate({
+        "image": str(image), "side_image": str(side) if side else None,
+        "points": ref.model_dump(), "scale": scale, "formats": formats,
+        "csv": {"header": flags.pop("csv_header"), "colors": flags.pop("csv_colors")},
+        **flags,
+    })
+
+
+def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read spec {str(path)!r}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"spec {str(path)!r} is not JSON: {exc.msg} at line {exc.lineno}") from None
+    return ScanSpec.model_validate(data), path.parent
+
+
+def scan(
+    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply and report.json.")],
+    image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo).")] = None,
+    points: Annotated[str | None, typer.Option(
+        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels.')] = None,
+    side: Annotated[Path | None, typer.Option(help="Side photo (two-photo mode).")] = None,
+    spec_file: Annotated[Path | None, typer.Option("--spec", help="Job spec JSON.")] = None,
+    tolerance: Annotated[float, typer.Option(help="RGB tolerance per channel.")] = 12.0,
+    method: Annotated[str, typer.Option(help="default or paper.")] = "default",
+    mm_per_px: Annotated[str | None, typer.Option(help="F, or FRONT,SIDE for two photos.")] = None,
+    distance_mm: Annotated[float | None, typer.Option(help="Shooting distance, mm.")] = None,
+    focal_px: Annotated[float | None, typer.Option(help="Focal length, pixels.")] = None,
+    width_mm: Annotated[float | None, typer.Option(help="Known real width.")] = None,
+    height_mm: Annotated[float | None, typer.Option(help="Known real height.")] = None,
+    depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
+    cloud: Annotated[str, typer.Option(help="surface or volume.")] = "surface",
+    formats: Annotated[str, typer.Option("--format", help="csv,ply")] = "csv,ply",
+    csv_header: Annotated[bool, typer.Option(help="Header line in the CSV.")] = False,
+    csv_colors: Annotated[bool, typer.Option(help="r,g,b columns in the CSV.")] = False,
+    ply_ascii: Annotated[bool, typer.Option(help="ASCII PLY instead of binary.")] = False,
+    max_pixels: Annotated[int, typer.Option(help="Refuse larger images.")] = 50_000_000,
+    tiles: Annotated[int, typer.Option(help="Row bands per face (same result).", min=1)] = 1,
+) -> None:
+    """Turn a photo (or a front and a side photo) of a box into a measured point cloud."""
+    started = time.perf_counter()
+    try:
+        if spec_file is not None:
+            if image is not None or points is not None:
+                raise InputError("give either --spec or IMAGE with --points, not both")
+            spec, base = _spec_from_file(spec_file)
+        else:
+            spec, base = _spec_from_flags(
+                image, points, side=side, tolerance=tolerance, method=method,
+                mm_per_px=mm_per_px, distance_mm=distance_mm, focal_px=focal_px,
+                width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
+                formats=formats, csv_header=csv_header, csv_colors=csv_colors,
+                ply_ascii=ply_ascii, max_pixels=max_pixels), Path(".")
+        load_start = time.perf_counter()
+        front = load_image(base / spec.image, max_pixels=spec.max_pixels)
+        side_img = (load_image(base / spec.side_image, max_pixels=spec.max_pixels)
+                    if spec.side_image else None)
+        load_ms = (time.perf_counter() - load_start) * 1000
+        result = run_scan(spec, front, side_img, tiles=tiles)
+    except ValidationError as exc:
+        raise InputError(_one_line(exc)) from None
+    result.report["timings_ms"]["load"] = round(load_ms, 3)
+    paths = write_outputs(result, spec, out)
+    result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
+    paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
+    dims = result.report["dimensions"]
+    console.print(f"[bold]{result.report['points']:,} points[/]  "
+                  f"{dims['width']:.2f} x {dims['height']:.2f} x {dims['depth']:.2f} {dims['unit']}"
+                  f"  point loss {result.report['point_loss']:.1%}")
+    for warning in result.report["warnings"]:
+        console.print(f"[yellow]warning:[/] {warning}")
+    for kind, path in paths.items():
+        console.print(f"{kind:>6}: {path}")

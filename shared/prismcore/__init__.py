@@ -1,0 +1,28 @@
+"""prismcore: measured 3D point clouds of box-shaped parts from photos (the pure engine).
+
+No web, queue or storage code lives here: functions take arrays and return arrays.
+"""
+
+__version__ = "0.1.0"
+
+from .cloud import Cloud  # noqa: E402
+from .errors import InputError  # noqa: E402
+from .measure import Dimensions  # noqa: E402
+from .pipeline import ScanPlan, ScanResult, finish_scan, plan_scan, run_scan, scan_face  # noqa: E402
+from .spec import ReferencePoints, ScanSpec, parse_points  # noqa: E402
+
+__all__ = [
+    "Cloud",
+    "Dimensions",
+    "InputError",
+    "ReferencePoints",
+    "ScanPlan",
+    "ScanResult",
+    "ScanSpec",
+    "__version__",
+    "finish_scan",
+    "parse_points",
+    "plan_scan",
+    "run_scan",
+    "scan_face",
+]

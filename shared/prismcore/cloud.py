@@ -1,0 +1,142 @@
+"""3D assembly: scanned face pixels become world points (x, y, z) with their colours.
+
+World frame: origin at P1 (the front face's upper-left corner), X along P1 -> P2, Y down the
+front face (the paper's screen convention), Z into the object; right-handed. The front face
+gives X and Y (Z = 0), the side face (at X = width) gives Z and Y, as in the paper.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .errors import InputError
+from .scan import FaceScan
+
+__all__ = ["Cloud", "assemble", "face_points"]
+
+
+@dataclass(frozen=True)
+class Cloud:
+    """points: (N, 3) float32 world (x, y, z); colors: (N, 3) uint8 RGB."""
+
+    points: np.ndarray
+    colors: np.ndarray
+
+
+def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
+    """Map a face's object pixels onto the face rectangle.
+
+    Parameters
+    ----------
+    scan : FaceScan
+    image : ndarray, shape (H, W, 3)
+        RGB image the face was scanned in; 8-bit, or 0-255 floats for 16-bit inputs.
+    size : (float, float)
+        The face's real (horizontal, vertical) size; the face's quad maps onto
+        [0, size[0]] x [0, size[1]].
+
+    Returns
+    -------
+    uv : ndarray, shape (N, 2), float64
+        Face coordinates of each object pixel (u right, v down).
+    rgb : ndarray, shape (N, 3), uint8
+    """
+    row0, row1, col0, col1 = scan.plan.window
+    rows, cols = np.nonzero(scan.object_mask)
+    target = np.array([[0, 0], [size[0], 0], [size[0], size[1]], [0, size[1]]], dtype=np.float32)
+    H = cv2.getPerspectiveTransform(scan.plan.region.astype(np.float32), target).astype(np.float64)
+    xy = np.empty((1, rows.size, 2), dtype=np.float64)
+    xy[0, :, 0] = cols + col0
+    xy[0, :, 1] = rows + row0
+    uv = cv2.perspectiveTransform(xy, H)[0]
+    rgb = image[row0:row1, col0:col1][scan.object_mask]
+    if rgb.dtype != np.uint8:
+        rgb = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+    return uv, rgb
+
+
+def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.ndarray],
+             width: float, depth: float, kind: str, max_points: int) -> Cloud:
+    """Build the cloud of the prism.
+
+    Parameters
+    ----------
+    front, side : (uv, rgb)
+        Output of :func:`face_points` for each face (side u runs along the depth).
+    width, depth : float
+        Real width (X) and depth (Z) of the prism.
+    kind : {"surface", "volume"}
+        `surface`: the prism's six faces: the front and the side as seen, the back and the left
+        side as their copies at Z = depth and X = 0, top and bottom from the front's first and
+        last rows carried through every depth step. `volume`: every front pixel at every depth
+        step (the paper's cloud).
+    max_points : int
+        Refuse (InputError) a cloud larger than this before allocating it.
+    """
+    (f_uv, f_rgb), (s_uv, s_rgb) = front, side
+    zs = _pitch_steps(f_uv, width, depth)
+    if kind == "volume":
+        n = f_uv.shape[0] * zs.size
+        _check_size(n, max_points, kind)
+        pts = np.empty((zs.size, f_uv.shape[0], 3), dtype=np.float32)
+        pts[..., :2] = f_uv
+        pts[..., 2] = zs[:, None]
+        return Cloud(pts.reshape(-1, 3), np.tile(f_rgb, (zs.size, 1)))
+    top, bottom = _edge_rows(f_uv)
+    layers = [(f_uv[top], f_rgb[top]), (f_uv[bottom], f_rgb[bottom])]
+    n = 2 * len(f_uv) + 2 * len(s_uv) + sum(len(uv) for uv, _ in layers) * zs.size
+    _check_size(int(n), max_points, kind)
+    f32 = f_uv.astype(np.float32)
+    s32 = s_uv.astype(np.float32)
+
+    def face(x, y, z, count: int) -> np.ndarray:
+        block = np.empty((count, 3), dtype=np.float32)
+        block[:, 0], block[:, 1], block[:, 2] = x, y, z
+        return block
+
+    parts = [
+        face(f32[:, 0], f32[:, 1], 0.0, len(f32)),  # front
+        face(f32[:, 0], f32[:, 1], depth, len(f32)),  # back
+        face(width, s32[:, 1], s32[:, 0], len(s32)),  # right side, as seen
+        face(0.0, s32[:, 1], s32[:, 0], len(s32)),  # left side
+    ]
+    rgbs = [f_rgb, f_rgb, s_rgb, s_rgb]
+    for uv, rgb in layers:  # top and bottom, at every depth step
+        block = np.empty((zs.size, len(uv), 3), dtype=np.float32)
+        block[..., :2] = uv
+        block[..., 2] = zs[:, None]
+        parts.append(block.reshape(-1, 3))
+        rgbs.append(np.tile(rgb, (zs.size, 1)))
+    points = np.concatenate(parts)
+    colors = np.concatenate(rgbs)
+    return Cloud(points, colors)
+
+
+def _pitch_steps(front_uv: np.ndarray, width: float, depth: float) -> np.ndarray:
+    """Depth positions, spaced like the front pixels are across the face."""
+    if front_uv.shape[0] < 2:
+        return np.array([0.0, depth])
+    extent = np.ptp(front_uv[:, 0]) * np.ptp(front_uv[:, 1])
+    pitch = np.sqrt(extent / front_uv.shape[0]) if extent > 0 else width
+    return np.linspace(0.0, depth, max(2, int(round(depth / max(pitch, 1e-12))) + 1))
+
+
+def _edge_rows(front_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the front points on the face's top and bottom pixel rows (nearest v)."""
+    if front_uv.shape[0] == 0:
+        empty = np.zeros(0, dtype=bool)
+        return empty, empty
+    v = front_uv[:, 1]
+    pitch = np.sqrt(np.ptp(front_uv[:, 0]) * np.ptp(v) / front_uv.shape[0]) or 1.0
+    return v <= v.min() + 0.5 * pitch, v >= v.max() - 0.5 * pitch
+
+
+def _check_size(n: int, max_points: int, kind: str) -> None:
+    if n > max_points:
+        raise InputError(
+            f"the {kind} cloud would have {n:,} points, over the limit of {max_points:,}; "
+            "use cloud=surface or raise max_points"
+        )

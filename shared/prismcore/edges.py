@@ -1,0 +1,213 @@
+"""Sub-pixel location of a face's edges from the colour edges near the clicked corners.
+
+Clicks are a few pixels off; dimensions must not be. Each side of a clicked quad is searched
+in a band around it: the image is sampled on profiles normal to the side, a derivative-of-
+Gaussian gives the colour-edge strength along each profile, and every local maximum is a
+candidate at sub-pixel precision (parabola through the peak). A straight line is then chosen
+by consensus (the line that most profiles support, not the strongest one: a printed label
+near the edge is a strong but shorter line) and refined by weighted least squares.
+The corners are the intersections of adjacent lines.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+__all__ = ["EdgeFit", "fit_edge", "intersect", "line_through", "refine_quad"]
+
+_STEP = 0.5  # profile sample spacing, px
+_MAX_PROFILES = 200
+_CANDIDATES = 4  # local maxima kept per profile
+_MAX_TILT = np.tan(np.radians(12.0))  # the true edge is within this angle of the clicked one
+_HYPOTHESES = 150
+_SCORING_PROFILES = 80
+
+
+@dataclass(frozen=True)
+class EdgeFit:
+    """A fitted edge: the line a*x + b*y + c = 0 with (a, b) a unit normal."""
+
+    line: np.ndarray  # (3,) float64
+    support: float  # fraction of profiles that agree with the line, 0-1
+    rms_px: float  # RMS distance of the agreeing edge points to the line
+    fitted: bool  # False when no edge was found and the clicked side was kept
+
+
+def line_through(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The normalised line (a, b, c) through two image points."""
+    line = np.cross(np.append(p, 1.0), np.append(q, 1.0))
+    return line / np.hypot(line[0], line[1])
+
+
+def intersect(l1: np.ndarray, l2: np.ndarray) -> np.ndarray:
+    """Intersection (x, y) of two lines in (a, b, c) form."""
+    h = np.cross(l1, l2)
+    return h[:2] / h[2]
+
+
+def _profiles(image: np.ndarray, p: np.ndarray, q: np.ndarray, search_px: float):
+    length = float(np.linalg.norm(q - p))
+    d = (q - p) / length
+    n = np.array([-d[1], d[0]])
+    # Stay clear of the corners: a click a few px off must not put profiles past the face's end.
+    inset = min(max(0.1 * length, 8.0), 0.3 * length)
+    count = int(min(_MAX_PROFILES, max(8, length - 2 * inset)))
+    s = np.linspace(inset, length - inset, count)
+    margin = 3.0  # room for the derivative filter at the band's ends
+    t = np.arange(-search_px - margin, search_px + margin + 1e-9, _STEP)
+    xy = p + s[:, None, None] * d + t[None, :, None] * n
+    return s, t, d, n, _bilinear(image, xy[..., 0], xy[..., 1]), int(margin / _STEP)
+
+
+def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear samples of an (H, W, C) image at float positions, as float32 (..., C).
+
+    Sampling the few profile points directly keeps 8-bit precision without converting the
+    whole image to float (and OpenCV's remap would round its output back to 8 bits).
+    """
+    h, w = image.shape[:2]
+    x = np.clip(x, 0, w - 1.001)
+    y = np.clip(y, 0, h - 1.001)
+    x0 = x.astype(np.intp)
+    y0 = y.astype(np.intp)
+    fx = (x - x0).astype(np.float32)[..., None]
+    fy = (y - y0).astype(np.float32)[..., None]
+    img = image if image.ndim == 3 else image[..., None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx
+    bottom = img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+
+
+def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
+    """Sub-pixel edge positions (profiles, K) along t, with their strengths; NaN when absent."""
+    smooth = gaussian_filter1d(samples, sigma=1.0, axis=0, mode="nearest")
+    grad = gaussian_filter1d(smooth, sigma=1.0 / _STEP, axis=1, order=1, mode="nearest")
+    strength = np.sqrt((grad**2).sum(axis=2))
+    inner = strength[:, margin - 1 : strength.shape[1] - margin + 1]
+    left, mid, right = inner[:, :-2], inner[:, 1:-1], inner[:, 2:]
+    is_peak = (mid > left) & (mid >= right)
+    floor = max(0.5, 0.15 * float(np.percentile(mid.max(axis=1), 75)))
+    is_peak &= mid >= np.maximum(floor, 0.15 * mid.max(axis=1, keepdims=True))
+    score = np.where(is_peak, mid, -np.inf)
+    order = np.argsort(-score, axis=1)[:, :_CANDIDATES]
+    rows = np.arange(score.shape[0])[:, None]
+    valid = np.isfinite(score[rows, order])
+    denom = left[rows, order] - 2 * mid[rows, order] + right[rows, order]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(denom < 0, 0.5 * (left[rows, order] - right[rows, order]) / denom, 0.0)
+    pos = t[margin + order] + np.clip(delta, -0.5, 0.5) * _STEP
+    return np.where(valid, pos, np.nan), np.where(valid, mid[rows, order], 0.0)
+
+
+def _consensus(s: np.ndarray, pos: np.ndarray, weight: np.ndarray, tol: float):
+    """Offset and slope (a, b) of the line t = a + b*s that most profiles support."""
+    rng = np.random.default_rng(0)  # deterministic: the same image always gives the same line
+    rows, cols = np.nonzero(np.isfinite(pos))
+    if rows.size < 2:
+        return None
+    i = rng.integers(0, rows.size, _HYPOTHESES)
+    j = rng.integers(0, rows.size, _HYPOTHESES)
+    keep = rows[i] != rows[j]
+    i, j = i[keep], j[keep]
+    ti, tj = pos[rows[i], cols[i]], pos[rows[j], cols[j]]
+    si, sj = s[rows[i]], s[rows[j]]
+    b = (tj - ti) / (sj - si)
+    keep = np.abs(b) <= _MAX_TILT
+    if not keep.any():
+        return None
+    a, b = (ti - b * si)[keep], b[keep]
+    # Scoring on a subset of the profiles is enough to rank the hypotheses.
+    sub = slice(None, None, max(1, len(s) // _SCORING_PROFILES))
+    filled = np.where(np.isfinite(pos[sub]), pos[sub], np.inf).astype(np.float32)
+    line = (a[:, None] + b[:, None] * s[None, sub]).astype(np.float32)
+    near = np.abs(filled[None] - line[:, :, None]) <= tol
+    support = near.any(axis=2).sum(axis=1)
+    strength = (near * weight[sub][None]).max(axis=2).sum(axis=1)
+    # Prefer the line most profiles see; among equals, the stronger and the nearer to the click.
+    best = np.lexsort((np.abs(a), -strength, -support))[0]
+    return float(a[best]), float(b[best])
+
+
+def _refine(s, pos, weight, a, b):
+    filled = np.where(np.isfinite(pos), pos, np.inf)
+    resid = None
+    for tol in (1.0, 0.6, 0.6):
+        resid = np.abs(filled - (a + b * s)[:, None])
+        k = np.argmin(resid, axis=1)
+        r = resid[np.arange(len(s)), k]
+        use = r <= tol
+        if use.sum() < 3:
+            return None
+        w = weight[np.arange(len(s)), k][use]
+        A = np.stack([np.ones(use.sum()), s[use]], axis=1) * np.sqrt(w)[:, None]
+        y = pos[np.arange(len(s)), k][use] * np.sqrt(w)
+        a, b = np.linalg.lstsq(A, y, rcond=None)[0]
+        resid = (pos[np.arange(len(s)), k] - (a + b * s))[use]
+    return float(a), float(b), float(use.mean()), float(np.sqrt(np.mean(resid**2)))
+
+
+def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: float = 10.0) -> EdgeFit:
+    """Locate the colour edge near the clicked side p -> q to sub-pixel precision.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), float32
+        RGB image in 0-255 units.
+    p, q : ndarray, shape (2,)
+        Clicked ends of the side, image (x, y) in pixels.
+    search_px : float
+        How far (px) on either side of the clicked side the edge may lie.
+
+    Returns
+    -------
+    EdgeFit
+        The fitted line; `fitted` is False (and the clicked line is kept) when fewer than
+        40 % of the profiles agree on any line.
+    """
+    s, t, d, n, samples, margin = _profiles(image, p, q, search_px)
+    pos, weight = _candidates(samples, t, margin)
+    found = _consensus(s, pos, weight, tol=0.75)
+    refined = _refine(s, pos, weight, *found) if found else None
+    if refined is None or refined[2] < 0.4:
+        return EdgeFit(line_through(p, q), 0.0 if refined is None else refined[2], 0.0, False)
+    a, b, support, rms = refined
+    start = p + a * n
+    end = p + (q - p) + (a + b * float(np.linalg.norm(q - p))) * n
+    return EdgeFit(line_through(start, end), support, rms, True)
+
+
+def refine_quad(
+    image: np.ndarray,
+    quad: np.ndarray,
+    *,
+    search_px: float = 10.0,
+    known: dict[int, EdgeFit] | None = None,
+) -> tuple[np.ndarray, list[EdgeFit]]:
+    """Fit all four sides of a clicked quad and return the refined corners.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3), float32
+    quad : ndarray, shape (4, 2)
+        Clicked corners, TL, TR, BR, BL, image (x, y) px.
+    known : dict, optional
+        Sides already fitted (index 0 top, 1 right, 2 bottom, 3 left), e.g. the edge a side
+        face shares with the front face.
+
+    Returns
+    -------
+    corners : ndarray, shape (4, 2), float64
+    fits : list of EdgeFit
+    """
+    known = known or {}
+    fits = [
+        known[i] if i in known else fit_edge(image, quad[i], quad[(i + 1) % 4], search_px=search_px)
+        for i in range(4)
+    ]
+    corners = np.stack([intersect(fits[(i - 1) % 4].line, fits[i].line) for i in range(4)])
+    return corners, fits
