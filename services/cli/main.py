@@ -9,7 +9,6 @@ import sys
 
 import click
 import typer
-
 from prismcore import InputError
 
 from .sample_command import sample

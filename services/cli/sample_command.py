@@ -7,9 +7,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
-
 from prismcore.synth import Box, render_oblique_view, save_image
+from rich.console import Console
 
 __all__ = ["sample"]
 

@@ -121,7 +121,7 @@ def _pitch_steps(front_uv: np.ndarray, width: float, depth: float) -> np.ndarray
         return np.array([0.0, depth])
     extent = np.ptp(front_uv[:, 0]) * np.ptp(front_uv[:, 1])
     pitch = np.sqrt(extent / front_uv.shape[0]) if extent > 0 else width
-    return np.linspace(0.0, depth, max(2, int(round(depth / max(pitch, 1e-12))) + 1))
+    return np.linspace(0.0, depth, max(2, round(depth / max(pitch, 1e-12)) + 1))
 
 
 def _edge_rows(front_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

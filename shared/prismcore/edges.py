@@ -169,7 +169,7 @@ def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: floa
         The fitted line; `fitted` is False (and the clicked line is kept) when fewer than
         40 % of the profiles agree on any line.
     """
-    s, t, d, n, samples, margin = _profiles(image, p, q, search_px)
+    s, t, _d, n, samples, margin = _profiles(image, p, q, search_px)
     pos, weight = _candidates(samples, t, margin)
     found = _consensus(s, pos, weight, tol=0.75)
     refined = _refine(s, pos, weight, *found) if found else None

@@ -14,7 +14,8 @@ import numpy as np
 from .errors import InputError
 from .spec import ReferencePoints
 
-__all__ = ["FaceQuads", "clicked_quads", "paper_rectangles", "quad_area", "validate_quad"]
+__all__ = ["FaceQuads", "clicked_quads", "paper_rectangles", "quad_area", "validate_points",
+           "validate_quad"]
 
 MIN_FACE_PX = 4.0
 
@@ -88,10 +89,6 @@ def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...]) -> 
     """
     height, width = image_shape[:2]
     corners = ", ".join(f"({x:g},{y:g})" for x, y in quad)
-    outside = (quad[:, 0] < -0.5) | (quad[:, 0] > width - 0.5)
-    outside |= (quad[:, 1] < -0.5) | (quad[:, 1] > height - 0.5)
-    if outside.any():
-        raise InputError(f"{name} corners {corners} fall outside the {width}x{height} image")
     edges = np.roll(quad, -1, axis=0) - quad
     lengths = np.linalg.norm(edges, axis=1)
     if (lengths < MIN_FACE_PX).any():
@@ -105,3 +102,16 @@ def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...]) -> 
             f"{name} corners {corners} are not in order (upper-left, upper-right, lower-right, "
             "lower-left) or the face is not convex"
         )
+    outside = (quad[:, 0] < -0.5) | (quad[:, 0] > width - 0.5)
+    outside |= (quad[:, 1] < -0.5) | (quad[:, 1] > height - 0.5)
+    if outside.any():
+        raise InputError(f"{name} corners {corners} fall outside the {width}x{height} image")
+
+
+def validate_points(points: ReferencePoints, front_shape: tuple[int, ...],
+                    side_shape: tuple[int, ...]) -> None:
+    """Check each clicked point lies in the image it belongs to (p4, p5, p7: the side image)."""
+    for name, (x, y) in points.as_dict().items():
+        height, width = (side_shape if name in ("p4", "p5", "p7") else front_shape)[:2]
+        if not (-0.5 <= x <= width - 0.5 and -0.5 <= y <= height - 0.5):
+            raise InputError(f"point {name} ({x:g},{y:g}) is outside the {width}x{height} image")

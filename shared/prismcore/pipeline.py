@@ -17,7 +17,7 @@ from . import __version__
 from .cloud import Cloud, assemble, face_points
 from .edges import EdgeFit, refine_quad
 from .errors import InputError
-from .faces import FaceQuads, clicked_quads, paper_rectangles, validate_quad
+from .faces import FaceQuads, clicked_quads, paper_rectangles, validate_points, validate_quad
 from .measure import Dimensions, camera_matrix, measure_affine, measure_perspective
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
 from .spec import ScanSpec
@@ -119,6 +119,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
     timings: dict[str, float] = {}
     warnings: list[str] = []
     side_index = 1 if spec.two_photo else 0
+    validate_points(spec.points, front.shape, images[side_index].shape)
     with _timed(timings, "refine"):
         if spec.method == "paper":
             quads = paper_rectangles(spec.points, two_photo=spec.two_photo)

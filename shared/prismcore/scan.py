@@ -20,6 +20,7 @@ default
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,7 +89,7 @@ def row_tiles(plan: FacePlan, count: int) -> list[tuple[int, int]]:
     """Split the plan's window rows into at most `count` bands (row offsets within the window)."""
     rows = plan.window[1] - plan.window[0]
     edges = np.linspace(0, rows, min(max(count, 1), max(rows, 1)) + 1).round().astype(int)
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
 
 
 def polygon_mask(quad: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
