@@ -5,11 +5,11 @@ No web, queue or storage code lives here: functions take arrays and return array
 
 __version__ = "0.1.0"
 
-from .cloud import Cloud  # noqa: E402
-from .errors import InputError  # noqa: E402
-from .measure import Dimensions  # noqa: E402
-from .pipeline import ScanPlan, ScanResult, finish_scan, plan_scan, run_scan, scan_face  # noqa: E402
-from .spec import ReferencePoints, ScanSpec, parse_points  # noqa: E402
+from .cloud import Cloud
+from .errors import InputError
+from .measure import Dimensions
+from .pipeline import ScanPlan, ScanResult, finish_scan, plan_scan, run_scan, scan_face
+from .spec import ReferencePoints, ScanSpec, parse_points
 
 __all__ = [
     "Cloud",
