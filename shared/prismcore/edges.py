@@ -14,16 +14,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import gaussian_filter
 
-__all__ = ["EdgeFit", "fit_edge", "intersect", "line_through", "refine_quad"]
+__all__ = ["EdgeFit", "fit_edge", "intersect", "inward", "line_through", "refine_quad", "side_bounds"]
 
 _STEP = 0.5  # profile sample spacing, px
 _MAX_PROFILES = 200
 _CANDIDATES = 4  # local maxima kept per profile
 _MAX_TILT = np.tan(np.radians(12.0))  # the true edge is within this angle of the clicked one
-_HYPOTHESES = 150
-_SCORING_PROFILES = 80
+_CHROMA_WEIGHT = 0.25
+# RGB -> (Y, Cb, Cr) of JPEG (BT.601), chroma rows scaled by _CHROMA_WEIGHT.
+_YCC_WEIGHTED = (np.array([[0.299, 0.587, 0.114],
+                           [-0.168736, -0.331264, 0.5],
+                           [0.5, -0.418688, -0.081312]])
+                 * np.array([[1.0], [_CHROMA_WEIGHT], [_CHROMA_WEIGHT]])).astype(np.float32)
+_HYPOTHESES = 120
+_SCORING_PROFILES = 60
 
 
 @dataclass(frozen=True)
@@ -85,8 +91,12 @@ def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
     """Sub-pixel edge positions (profiles, K) along t, with their strengths; NaN when absent."""
-    smooth = gaussian_filter1d(samples, sigma=1.0, axis=0, mode="nearest")
-    grad = gaussian_filter1d(smooth, sigma=1.0 / _STEP, axis=1, order=1, mode="nearest")
+    # JPEG keeps chroma at half resolution, which blurs and shifts colour edges by up to half a
+    # pixel; luminance is kept at full resolution. So luminance locates the edge, and chroma,
+    # down-weighted, still finds edges between colours of equal brightness.
+    samples = samples @ _YCC_WEIGHTED.T
+    # Smooth along the side (noise) and differentiate across it (the edge), in one pass.
+    grad = gaussian_filter(samples, sigma=(1.0, 1.0 / _STEP, 0.0), order=(0, 1, 0), mode="nearest")
     strength = np.sqrt((grad**2).sum(axis=2))
     inner = strength[:, margin - 1 : strength.shape[1] - margin + 1]
     left, mid, right = inner[:, :-2], inner[:, 1:-1], inner[:, 2:]
@@ -94,7 +104,7 @@ def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
     floor = max(0.5, 0.15 * float(np.percentile(mid.max(axis=1), 75)))
     is_peak &= mid >= np.maximum(floor, 0.15 * mid.max(axis=1, keepdims=True))
     score = np.where(is_peak, mid, -np.inf)
-    order = np.argsort(-score, axis=1)[:, :_CANDIDATES]
+    order = np.argpartition(-score, _CANDIDATES - 1, axis=1)[:, :_CANDIDATES]
     rows = np.arange(score.shape[0])[:, None]
     valid = np.isfinite(score[rows, order])
     denom = left[rows, order] - 2 * mid[rows, order] + right[rows, order]
@@ -151,17 +161,25 @@ def _refine(s, pos, weight, a, b):
     return float(a), float(b), float(use.mean()), float(np.sqrt(np.mean(resid**2)))
 
 
-def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: float = 10.0) -> EdgeFit:
+Bound = tuple[np.ndarray, float]
+"""A half-plane (line, minimum): candidates must satisfy a*x + b*y + c >= minimum."""
+
+
+def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: float = 10.0,
+             bounds: tuple[Bound, ...] = ()) -> EdgeFit:
     """Locate the colour edge near the clicked side p -> q to sub-pixel precision.
 
     Parameters
     ----------
-    image : ndarray, shape (H, W, 3), float32
-        RGB image in 0-255 units.
+    image : ndarray, shape (H, W, 3)
+        RGB image, 0-255 units (uint8, or float for 16-bit inputs).
     p, q : ndarray, shape (2,)
         Clicked ends of the side, image (x, y) in pixels.
     search_px : float
         How far (px) on either side of the clicked side the edge may lie.
+    bounds : tuple of (line, minimum)
+        Half-planes the edge must lie in (e.g. not beyond the neighbouring sides, nor past the
+        middle of the face), so that a stronger nearby edge cannot be taken for this one.
 
     Returns
     -------
@@ -169,8 +187,14 @@ def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: floa
         The fitted line; `fitted` is False (and the clicked line is kept) when fewer than
         40 % of the profiles agree on any line.
     """
-    s, t, _d, n, samples, margin = _profiles(image, p, q, search_px)
+    s, t, d, n, samples, margin = _profiles(image, p, q, search_px)
     pos, weight = _candidates(samples, t, margin)
+    if bounds:
+        xy = p + s[:, None, None] * d + np.nan_to_num(pos)[..., None] * n
+        for line, minimum in bounds:
+            outside = xy @ line[:2] + line[2] < minimum
+            pos[outside] = np.nan
+            weight[outside] = 0.0
     found = _consensus(s, pos, weight, tol=0.75)
     refined = _refine(s, pos, weight, *found) if found else None
     if refined is None or refined[2] < 0.4:
@@ -181,23 +205,43 @@ def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: floa
     return EdgeFit(line_through(start, end), support, rms, True)
 
 
+def inward(line: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The line oriented so that `inside` gives a positive value."""
+    return line if line[:2] @ inside + line[2] >= 0 else -line
+
+
+def side_bounds(quad: np.ndarray, side: int, *, margin_px: float = 3.0) -> tuple[Bound, ...]:
+    """Where side `side` of a clicked quad may lie: within `margin_px` of the neighbouring sides'
+    clicked lines, and nearer to its own click than to the opposite side."""
+    centre = quad.mean(axis=0)
+    lines = [inward(line_through(quad[i], quad[(i + 1) % 4]), centre) for i in range(4)]
+    own_mid = (quad[side] + quad[(side + 1) % 4]) / 2
+    opposite = lines[(side + 2) % 4]
+    half_width = 0.5 * float(opposite[:2] @ own_mid + opposite[2])
+    return ((lines[(side - 1) % 4], -margin_px), (lines[(side + 1) % 4], -margin_px),
+            (opposite, half_width))
+
+
 def refine_quad(
     image: np.ndarray,
     quad: np.ndarray,
     *,
     search_px: float = 10.0,
     known: dict[int, EdgeFit] | None = None,
+    extra_bounds: dict[int, tuple[Bound, ...]] | None = None,
 ) -> tuple[np.ndarray, list[EdgeFit]]:
     """Fit all four sides of a clicked quad and return the refined corners.
 
     Parameters
     ----------
-    image : ndarray, shape (H, W, 3), float32
+    image : ndarray, shape (H, W, 3)
     quad : ndarray, shape (4, 2)
         Clicked corners, TL, TR, BR, BL, image (x, y) px.
     known : dict, optional
         Sides already fitted (index 0 top, 1 right, 2 bottom, 3 left), e.g. the edge a side
         face shares with the front face.
+    extra_bounds : dict, optional
+        Further half-planes per side (see :func:`fit_edge`).
 
     Returns
     -------
@@ -205,9 +249,13 @@ def refine_quad(
     fits : list of EdgeFit
     """
     known = known or {}
+    extra_bounds = extra_bounds or {}
     fits = [
-        known[i] if i in known else fit_edge(image, quad[i], quad[(i + 1) % 4], search_px=search_px)
+        known[i] if i in known else fit_edge(
+            image, quad[i], quad[(i + 1) % 4], search_px=search_px,
+            bounds=side_bounds(quad, i) + extra_bounds.get(i, ()))
         for i in range(4)
     ]
-    corners = np.stack([intersect(fits[(i - 1) % 4].line, fits[i].line) for i in range(4)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corners = np.stack([intersect(fits[(i - 1) % 4].line, fits[i].line) for i in range(4)])
     return corners, fits

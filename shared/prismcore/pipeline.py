@@ -15,12 +15,13 @@ import numpy as np
 
 from . import __version__
 from .cloud import Cloud, assemble, face_points
-from .edges import EdgeFit, refine_quad
+from .edges import EdgeFit, inward, line_through, refine_quad
 from .errors import InputError
 from .faces import FaceQuads, clicked_quads, paper_rectangles, validate_points, validate_quad
 from .measure import Dimensions, camera_matrix, measure_affine, measure_perspective
+from .perspective import FaceEvidence
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
-from .spec import ScanSpec
+from .spec import MmPerPx, Pinhole, ScanSpec
 
 __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "run_scan", "scan_face"]
 
@@ -69,8 +70,17 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
     jobs = [("front", 0, clicked.front), ("side", 1 if spec.two_photo else 0, clicked.side)]
     for name, index, quad in jobs:
         r = search(quad)
-        known = {3: fits["front"][1]} if name == "side" and not spec.two_photo else None
-        corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known)
+        known = extra = None
+        if not spec.two_photo:
+            if name == "side":
+                known = {3: fits["front"][1]}
+            else:
+                # In one photo the side face lies beyond the front's right edge: the edge must
+                # not be taken from the side face's far (right) side.
+                far = inward(line_through(clicked.side[1], clicked.side[2]), clicked.side[0])
+                extra = {1: ((far, 0.5 * float(far[:2] @ clicked.side[0] + far[2])),)}
+        corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known,
+                                         extra_bounds=extra)
         moved = np.linalg.norm(corners - quad, axis=1).max() if np.isfinite(corners).all() else np.inf
         try:
             if moved > 3 * r + 4:
@@ -89,18 +99,37 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
                      clicked.side_complete), fits
 
 
-def _measure(spec: ScanSpec, quads: FaceQuads, images: list[np.ndarray],
-             warnings: list[str]) -> Dimensions:
+def _side_height_guess(spec: ScanSpec) -> float | None:
+    """Two photos without p7: the front's height in side-photo pixels, when the scales tell it."""
+    if not spec.two_photo or spec.points.p7 is not None:
+        return None
+    front_px = float(np.hypot(*np.subtract(spec.points.p3, spec.points.p2)))
+    scale = spec.scale
+    if isinstance(scale, MmPerPx) and scale.side:
+        return front_px * scale.front / scale.side
+    if isinstance(scale, Pinhole) and scale.side_distance_mm:
+        return front_px * scale.distance_mm / scale.side_distance_mm
+    return None
+
+
+def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
+             images: list[np.ndarray], warnings: list[str]) -> tuple[Dimensions, FaceQuads]:
+    """The prism's dimensions, and the face quads to scan (the fitted model's, in perspective)."""
     complete = quads.front_complete and quads.side_complete
     if spec.method == "default" and spec.focal_px is not None and complete:
         Ks = [camera_matrix(spec.focal_px, spec.principal_point or
                             ((img.shape[1] - 1) / 2, (img.shape[0] - 1) / 2)) for img in images]
-        return measure_perspective(quads.front, quads.side, spec.scale, K_front=Ks[0],
-                                   K_side=Ks[-1], two_photo=spec.two_photo)
+        evidence = [FaceEvidence(getattr(quads, n), getattr(marked, n),
+                                 tuple(f.line if f.fitted else None for f in fits[n]))
+                    for n in ("front", "side")]
+        dims, front, side = measure_perspective(*evidence, spec.scale, K_front=Ks[0],
+                                                K_side=Ks[-1], two_photo=spec.two_photo)
+        return dims, FaceQuads(front, side, True, True)
     if spec.method == "default" and spec.focal_px is not None:
         warnings.append("perspective not corrected: it needs p6 and p7 besides the focal length")
-    return measure_affine(quads.front, quads.side, spec.scale, focal_px=spec.focal_px,
+    dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=spec.focal_px,
                           two_photo=spec.two_photo)
+    return dims, quads
 
 
 def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None) -> ScanPlan:
@@ -125,14 +154,15 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
             quads = paper_rectangles(spec.points, two_photo=spec.two_photo)
             marked = quads
         else:
-            marked = clicked_quads(spec.points, two_photo=spec.two_photo)
+            marked = clicked_quads(spec.points, two_photo=spec.two_photo,
+                                   side_height_px=_side_height_guess(spec))
         validate_quad(marked.front, "front face", front.shape)
         validate_quad(marked.side, "side face", images[side_index].shape)
         fits: dict[str, list[EdgeFit]] = {}
         if spec.method == "default":
             quads, fits = _refine(spec, images, marked, warnings)
     with _timed(timings, "measure"):
-        dims = _measure(spec, quads, images, warnings)
+        dims, quads = _measure(spec, quads, marked, fits, images, warnings)
     faces = []
     for name, index, region, mark in (("front", 0, quads.front, marked.front),
                                       ("side", side_index, quads.side, marked.side)):
