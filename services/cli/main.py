@@ -9,6 +9,7 @@ import sys
 
 import click
 import typer
+
 from prismcore import InputError
 
 from .sample_command import sample

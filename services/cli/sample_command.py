@@ -7,8 +7,9 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from prismcore.synth import Box, render_oblique_view, save_image
 from rich.console import Console
+
+from prismcore.synth import Box, render_oblique_view, save_image
 
 __all__ = ["sample"]
 

@@ -8,10 +8,11 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from prismcore import InputError, ScanSpec, parse_points, run_scan
-from prismcore.images import load_image
 from pydantic import ValidationError
 from rich.console import Console
+
+from prismcore import InputError, ScanSpec, parse_points, run_scan
+from prismcore.images import load_image
 
 from .outputs import write_outputs
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from prismcore import InputError, ScanSpec, parse_points, run_scan
 
 GOOD = "61,51 258,49 261,249 262,50 339,52"

@@ -6,6 +6,7 @@ import itertools
 
 import numpy as np
 import pytest
+
 from prismcore import ScanSpec
 from prismcore.pipeline import plan_scan, scan_face
 from prismcore.scan import merge_bands, row_tiles, scan_band

@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from plyfile import PlyData
+
 from prismcore import writers
 from prismcore.errors import InputError
 from prismcore.writers import write_csv, write_ply
