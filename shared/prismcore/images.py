@@ -1,0 +1,765 @@
+"""Safe decoding of input photos (BMP, PNG, JPEG, TIFF, WebP) into RGB arrays.
+
+:func:`load_image` turns a file path or the bytes of an image into an RGB array of shape
+(H, W, 3): ``uint8`` for 8-bit images, ``float32`` in 0..255 units (value / 257) for 16-bit
+PNG and TIFF so the extra precision is kept. :func:`probe_image` reads the header only.
+
+Everything a caller can get wrong raises :class:`~prismcore.errors.InputError` with a one-line
+message quoting the file name (or ``name=``), the size or the format at fault:
+
+* The format is recognised from the content, never from the file name, and only the five
+  formats above are handed to a decoder (Pillow's plugins are called directly, so no other
+  Pillow plugin ever parses untrusted bytes).
+* Decompression bombs: the dimensions are read from the header first (by Pillow's lazy open, or
+  by our own parse for WebP, whose Pillow open already allocates the canvas), and an image of
+  more than ``max_pixels`` pixels is refused before anything of its size is allocated.
+* Truncated or corrupt files are refused, never returned as a partial image. Pixels are decoded
+  by Pillow, which raises on missing data as long as ``PIL.ImageFile.LOAD_TRUNCATED_IMAGES``
+  keeps its default (False; this module never changes it) and keeps libjpeg's and libpng's
+  messages off stderr (OpenCV prints them, and depending on its version returns a cut JPEG with
+  a grey tail). Where Pillow would only *warn*, or accept a cut file, this module checks the
+  structure itself first: a TIFF's first directory, the EXIF/GPS directories it points to, and
+  its strip and tile ranges; a PNG's chunk chain up to IEND; a WebP's RIFF length.
+* EXIF orientation (JPEG APP1, PNG eXIf, WebP EXIF, the TIFF Orientation tag) is applied, so the
+  array is upright the way a browser shows the photo. EXIF blocks are read by this module, and a
+  malformed one is ignored; Pillow is given a JPEG whose EXIF segments are renamed, because its
+  own EXIF reader warns on a malformed block while opening the file.
+
+Known gap: damaged *compressed data* inside a complete file is found only as far as the codec
+finds it. A JPEG with scrambled entropy-coded data decodes to scrambled pixels without an error
+(libjpeg only counts warnings), and libtiff reports bad LZW/Deflate data through its
+process-wide handler, which prints to stderr (the file is still refused).
+
+Nothing global is changed: Pillow's ``MAX_IMAGE_PIXELS`` is left alone (its check in
+``Image.open`` is bypassed by opening with the format's plugin class), and no warning filter is
+touched, except in one case: when ``max_pixels`` is raised above Pillow's own limit (about
+89 Mpx) and an image exceeds the latter, the decode runs inside ``warnings.catch_warnings``
+to silence Pillow's bomb warning; beyond twice Pillow's limit Pillow refuses (an InputError).
+
+Speed: an 8-bit image is decoded once, by Pillow (libjpeg-turbo, libpng, libwebp, libtiff), then
+copied once into the numpy result. Only 16-bit colour images, which Pillow cannot decode at
+full depth, are decoded twice: by Pillow to prove the file complete, then by OpenCV at 16 bits.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import mmap
+import operator
+import os
+import struct
+import warnings
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import BinaryIO
+
+import cv2
+import numpy as np
+from PIL import (
+    BmpImagePlugin,
+    Image,
+    ImageFile,
+    JpegImagePlugin,
+    PngImagePlugin,
+    TiffImagePlugin,
+    TiffTags,
+    WebPImagePlugin,
+)
+
+from .errors import InputError
+
+__all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "ImageInfo", "load_image", "probe_image"]
+
+DEFAULT_MAX_PIXELS = 50_000_000
+"""Largest image (width * height) :func:`load_image` decodes unless told otherwise."""
+
+FORMATS = ("BMP", "PNG", "JPEG", "TIFF", "WEBP")
+"""Formats :func:`load_image` and :func:`probe_image` accept, as :attr:`ImageInfo.format` names them."""
+
+Source = str | os.PathLike | bytes | bytearray | memoryview
+
+_PLUGINS: dict[str, type[ImageFile.ImageFile]] = {
+    "BMP": BmpImagePlugin.BmpImageFile,
+    "PNG": PngImagePlugin.PngImageFile,
+    "JPEG": JpegImagePlugin.JpegImageFile,
+    "TIFF": TiffImagePlugin.TiffImageFile,
+    "WEBP": WebPImagePlugin.WebPImageFile,
+}
+# What Pillow raises for a damaged file while opening or decoding it (ImageFile wraps parser
+# slips in SyntaxError; decoders raise OSError; zlib and struct errors can escape from plugins).
+_PIL_ERRORS = (
+    OSError,
+    SyntaxError,
+    ValueError,
+    EOFError,
+    struct.error,
+    zlib.error,
+    IndexError,
+    KeyError,
+    TypeError,
+    NotImplementedError,
+)
+_GRAY16_MODES = frozenset({"I;16", "I;16L", "I;16B", "I;16N"})
+_OTHER_FORMATS = (  # recognised only to say what a refused file is
+    (b"GIF87a", "GIF"),
+    (b"GIF89a", "GIF"),
+    (b"%PDF", "PDF"),
+    (b"\x00\x00\x00\x0cJXL ", "JPEG XL"),
+    (b"\xff\x0a", "JPEG XL"),
+    (b"\x00\x00\x00\x0cjP  ", "JPEG 2000"),
+)
+_ORIENTATION_TAG = 0x0112
+
+
+@dataclass(frozen=True)
+class ImageInfo:
+    """What an image file's header says, as :func:`probe_image` reads it.
+
+    Attributes
+    ----------
+    width, height : int
+        Stored pixel size, before EXIF orientation (the size the decompression-bomb limit
+        applies to).
+    format : str
+        One of :data:`FORMATS`: "BMP", "PNG", "JPEG", "TIFF" or "WEBP".
+    mode : str
+        Pillow's name for the stored pixel layout: "RGB", "RGBA", "L" (grayscale), "LA", "P"
+        (palette), "1" (bilevel), "CMYK", "I;16" (16-bit grayscale), ... A 16-bit colour file is
+        "RGB" or "RGBA" with ``bit_depth`` 16.
+    bit_depth : int
+        Bits per sample as decoded: 8 (also for 1-, 2-, 4-bit and palette images), 16 (16-bit
+        PNG and TIFF, returned as float32) or 32 (32-bit TIFF, which :func:`load_image` refuses).
+    orientation : int
+        EXIF orientation 1..8 (1 = upright; anything missing or invalid counts as 1).
+    """
+
+    width: int
+    height: int
+    format: str
+    mode: str
+    bit_depth: int
+    orientation: int = 1
+
+    @property
+    def pixels(self) -> int:
+        """width * height."""
+        return self.width * self.height
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """Shape (H, W, 3) of the array :func:`load_image` returns (after orientation)."""
+        if self.orientation >= 5:  # 5..8 turn the image by 90 degrees
+            return self.width, self.height, 3
+        return self.height, self.width, 3
+
+    @property
+    def dtype(self) -> np.dtype:
+        """dtype :func:`load_image` returns: uint8, or float32 for 16-bit images."""
+        return np.dtype(np.float32 if self.bit_depth == 16 else np.uint8)
+
+
+# --------------------------------------------------------------------------------------------
+# public API
+
+
+def load_image(
+    source: Source, *, max_pixels: int = DEFAULT_MAX_PIXELS, name: str | None = None
+) -> np.ndarray:
+    """Decode an image file into an upright RGB array.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or bytes
+        Path of the file, or its content (bytes, bytearray or memoryview). The format is told
+        from the content (BMP, PNG, JPEG, TIFF or WebP), whatever the file name says.
+    max_pixels : int, default DEFAULT_MAX_PIXELS
+        Largest width * height accepted; checked from the header before decoding.
+    name : str, optional
+        Name used in error messages (e.g. the uploaded file name when ``source`` is bytes or a
+        temporary path).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3)
+        RGB (never BGR), C-contiguous, writable and owned by the caller. dtype uint8 for 8-bit
+        images; float32 in 0..255 units (16-bit value / 257, so 65535 -> 255.0) for 16-bit PNG
+        and TIFF. Grayscale is replicated into the three channels, alpha is dropped (not
+        composited), palette, bilevel and CMYK images are converted to RGB. The EXIF orientation
+        is applied, so H and W are the displayed height and width; the first frame is returned
+        for multi-frame files.
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable or empty file; not an image or not one of the five formats; more
+        than ``max_pixels`` pixels; truncated or corrupt data; a 32-bit or otherwise unsupported
+        pixel layout; ``source`` or ``max_pixels`` of the wrong type.
+    """
+    limit = _check_limit(max_pixels)
+    data, label = _read_all(source, name)
+    info, im, tags = _inspect(data, io.BytesIO(data), label, whole=True)
+    if info.pixels > limit:
+        raise InputError(
+            f"{label} is {info.width}x{info.height} = {info.pixels} pixels, over the limit of {limit} pixels"
+        )
+    if info.format == "TIFF":
+        _check_tiff_ranges(tags, len(data), label)
+    elif info.format == "PNG":
+        _check_png_chunks(data, label)
+    if im is None:  # WebP: opened only now that its size is known to be acceptable
+        im = _pil_open(info.format, io.BytesIO(data), label)
+    colour16 = info.bit_depth == 16 and im.mode in ("RGB", "RGBA")
+    # (older Pillow versions open 16-bit grayscale PNG as mode "I")
+    gray16 = info.bit_depth == 16 and im.mode in _GRAY16_MODES | {"I"}
+    if info.bit_depth != 8 and not (colour16 or gray16):
+        raise InputError(
+            f"{label} has {info.bit_depth}-bit samples in mode {im.mode!r}; "
+            "only 8- and 16-bit images are supported"
+        )
+    _pil_load(im, info, label)
+    orientation = info.orientation
+    if info.format == "TIFF" and not colour16 and 274 not in getattr(im, "tag_v2", {274: 0}):
+        # Recent Pillow turns a TIFF upright while loading it, then drops the Orientation tag;
+        # older versions leave both the pixels and the tag alone.
+        orientation = 1
+
+    if colour16:
+        # Pillow decodes 16-bit colour to 8 bits (it has already proved the file complete), so
+        # decode again with OpenCV, which keeps 16 bits. IMREAD_UNCHANGED keeps the depth and
+        # the channels, and ignores EXIF orientation (applied below, as for every format).
+        planes = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if planes is None or planes.shape[:2] != (info.height, info.width) or planes.dtype != np.uint16:
+            raise InputError(f"{label} is truncated or corrupt ({info.format}: 16-bit decode failed)")
+        if planes.ndim == 3 and planes.shape[2] in (3, 4):
+            # OpenCV returns channels in BGR(A) order; convert to RGB, dropping alpha.
+            code = cv2.COLOR_BGRA2RGB if planes.shape[2] == 4 else cv2.COLOR_BGR2RGB
+            planes = cv2.cvtColor(planes, code)
+        elif planes.ndim == 3:  # gray (+ alpha)
+            planes = planes[..., 0]
+    elif gray16:
+        planes = np.asarray(im)  # uint16 (any byte order), or int32 holding 0..65535 for "I"
+    else:
+        planes = _rgb_or_gray8(im)
+
+    planes = _orient(planes, orientation)
+    if info.bit_depth == 16:
+        planes = planes.astype(np.float32, order="C")
+        planes /= np.float32(257.0)
+    if planes.ndim == 2:  # grayscale: the same value in R, G and B
+        out = np.empty((*planes.shape, 3), dtype=planes.dtype)
+        out[...] = planes[..., None]
+        return out
+    out = np.ascontiguousarray(planes)
+    return out if out.flags.writeable else out.copy()
+
+
+def probe_image(source: Source, *, name: str | None = None) -> ImageInfo:
+    """Read an image's size, format, pixel layout and orientation from its header.
+
+    Nothing is decoded and, for a path, only the parts of the file the header parse touches are
+    read (the file is memory-mapped), so this is safe and fast on decompression bombs.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or bytes
+        Path of the file, or its content.
+    name : str, optional
+        Name used in error messages.
+
+    Returns
+    -------
+    ImageInfo
+        ``info.shape`` and ``info.dtype`` are what :func:`load_image` would return.
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable or empty file; not one of the five formats; an unreadable header.
+        Damage after the header is found only by :func:`load_image`.
+    """
+    with _mapped(source, name) as (buf, fp, label):
+        info, _, _ = _inspect(buf, fp, label, whole=False)
+    return info
+
+
+# --------------------------------------------------------------------------------------------
+# reading the source
+
+
+def _check_limit(max_pixels: int) -> int:
+    try:
+        if isinstance(max_pixels, bool):
+            raise TypeError
+        limit = operator.index(max_pixels)
+    except TypeError:
+        raise InputError(f"max_pixels must be an integer, got {max_pixels!r}") from None
+    if limit < 1:
+        raise InputError(f"max_pixels must be at least 1, got {limit}")
+    return limit
+
+
+def _path_label(source: object, name: str | None) -> tuple[str | bytes, str]:
+    if not isinstance(source, (str, os.PathLike)):
+        raise InputError(
+            f"image source must be a path or bytes, got {type(source).__name__}"
+            + (f" for {name!r}" if name else "")
+        )
+    path = os.fspath(source)
+    return path, repr(name if name is not None else path)
+
+
+def _read_error(path: str | bytes, label: str, exc: OSError | ValueError) -> InputError:
+    if isinstance(exc, ValueError):
+        return InputError(f"image path {label} is not a valid path ({exc})")
+    if isinstance(exc, FileNotFoundError):
+        return InputError(f"image file {label} does not exist")
+    if isinstance(exc, IsADirectoryError) or os.path.isdir(path):
+        return InputError(f"image file {label} is a directory")
+    return InputError(f"cannot read image file {label}: {exc.strerror or exc}")
+
+
+def _read_all(source: Source, name: str | None) -> tuple[bytes, str]:
+    """The whole content and the label for messages."""
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        data = bytes(source)
+        label = repr(name) if name is not None else f"image data ({len(data)} bytes)"
+    else:
+        path, label = _path_label(source, name)
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
+            raise _read_error(path, label, exc) from exc
+    if not data:
+        raise InputError(f"{label} is empty (0 bytes)")
+    return data, label
+
+
+@contextlib.contextmanager
+def _mapped(source: Source, name: str | None) -> Iterator[tuple[bytes | mmap.mmap, BinaryIO, str]]:
+    """Content as a bytes-like object (a read-only map for files), a file object and the label."""
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        data, label = _read_all(source, name)
+        yield data, io.BytesIO(data), label
+        return
+    path, label = _path_label(source, name)
+    try:
+        f = open(path, "rb")  # noqa: SIM115 (closed below, after the map)
+    except (OSError, ValueError) as exc:
+        raise _read_error(path, label, exc) from exc
+    with f:
+        try:
+            size = os.fstat(f.fileno()).st_size
+            buf: bytes | mmap.mmap = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+        except (OSError, ValueError):  # not mappable (a pipe, a special file): read it
+            buf = f.read()
+        if not buf:
+            raise InputError(f"{label} is empty (0 bytes)")
+        try:
+            f.seek(0)
+            yield buf, f, label
+        finally:
+            if isinstance(buf, mmap.mmap):
+                buf.close()
+
+
+# --------------------------------------------------------------------------------------------
+# header inspection
+
+
+def _sniff(buf: bytes | mmap.mmap, label: str) -> str:
+    head = bytes(buf[:16])
+    if head.startswith(b"\x89PNG\r\n\x1a\n"):
+        return "PNG"
+    if head.startswith(b"\xff\xd8\xff"):
+        return "JPEG"
+    if head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        return "TIFF"
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        return "WEBP"
+    if head.startswith(b"BM"):
+        return "BMP"
+    kind = next((k for magic, k in _OTHER_FORMATS if head.startswith(magic)), None)
+    if head[4:8] == b"ftyp":
+        kind = "HEIF/AVIF (" + head[8:12].decode("latin-1").strip() + ")"
+    if kind:
+        raise InputError(f"{label} is a {kind} image; supported formats are BMP, PNG, JPEG, TIFF, WebP")
+    raise InputError(f"{label} is not a BMP, PNG, JPEG, TIFF or WebP image (it starts with {head[:8]!r})")
+
+
+def _corrupt(label: str, fmt: str, reason: object) -> InputError:
+    text = " ".join(str(reason).split())[:200] or type(reason).__name__
+    return InputError(f"{label} is truncated or corrupt ({fmt}: {text})")
+
+
+def _bomb(label: str, size: tuple[int, int], exc: Exception) -> InputError:
+    w, h = size
+    return InputError(
+        f"{label} is {w}x{h} = {w * h} pixels, over Pillow's decompression-bomb limit "
+        f"of {Image.MAX_IMAGE_PIXELS} pixels ({exc.__class__.__name__})"
+    )
+
+
+def _pil_open(fmt: str, fp: BinaryIO, label: str) -> ImageFile.ImageFile:
+    """Pillow's lazy open of one known format: reads the header, decodes nothing.
+
+    The plugin class is used directly instead of ``Image.open``: no other plugin gets to parse
+    the bytes, and ``Image.open``'s bomb warning (ruled by Pillow's global limit, not ours) is
+    not triggered; our own limit is checked by the caller.
+    """
+    try:
+        return _PLUGINS[fmt](fp)
+    except Image.DecompressionBombError as exc:  # WebP checks its canvas while opening
+        raise InputError(f"{label} is over Pillow's decompression-bomb limit ({exc})") from exc
+    except _PIL_ERRORS as exc:
+        raise _corrupt(label, fmt, exc) from exc
+
+
+def _pil_load(im: ImageFile.ImageFile, info: ImageInfo, label: str) -> None:
+    """Decode the pixels; damage raises (Pillow's LOAD_TRUNCATED_IMAGES is left False)."""
+    ceiling = Image.MAX_IMAGE_PIXELS
+    try:
+        if ceiling is not None and info.pixels > ceiling:
+            # Only reachable when the caller raised max_pixels above Pillow's own limit: TIFF
+            # loading re-checks Pillow's limit and would warn (or raise, beyond twice it).
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                im.load()
+        else:
+            im.load()
+    except Image.DecompressionBombError as exc:
+        raise _bomb(label, im.size, exc) from exc
+    except _PIL_ERRORS as exc:
+        raise _corrupt(label, info.format, exc) from exc
+
+
+def _inspect(
+    buf: bytes | mmap.mmap, fp: BinaryIO, label: str, *, whole: bool
+) -> tuple[ImageInfo, ImageFile.ImageFile | None, dict[int, np.ndarray]]:
+    """ImageInfo from the header, the lazily opened Pillow image (None for WebP) and, for
+    TIFF, the integer tags of the first directory.
+
+    ``fp`` reads the same bytes as ``buf``; ``whole`` says the Pillow image will be decoded, so
+    a JPEG must be handed over complete rather than up to its first scan.
+    """
+    fmt = _sniff(buf, label)
+    tags: dict[int, np.ndarray] = {}
+    orientation = 1
+    if fmt == "WEBP":
+        width, height, alpha, exif = _webp_header(buf, label)
+        info = ImageInfo(width, height, fmt, "RGBA" if alpha else "RGB", 8, _exif_orientation(exif))
+        return info, None, tags
+    if fmt == "JPEG":
+        header_end, idents, exif = _jpeg_header(buf)
+        orientation = _exif_orientation(exif)
+        if idents or not whole:
+            # Pillow parses a JPEG's EXIF block while opening it (for a dpi value) and only
+            # *warns* if the block is malformed. The block is read here instead, and Pillow gets
+            # a copy in which each EXIF segment is renamed, which it skips.
+            head = bytearray(buf[: len(buf) if whole else header_end])
+            for at in idents:
+                if at + 4 <= len(head):
+                    head[at : at + 4] = b"ExiF"
+            fp = io.BytesIO(head)
+    if fmt == "TIFF":
+        try:
+            tags = _tiff_ifd0(buf, _TIFF_WANTED)
+        except _CorruptError as exc:
+            raise _corrupt(label, fmt, exc) from None
+    im = _pil_open(fmt, fp, label)
+    width, height = im.size
+    depth = 8
+    if fmt == "PNG":
+        depth = 16 if buf[24] == 16 else 8  # IHDR bit depth (Pillow has checked the IHDR chunk)
+        orientation = _exif_orientation(im.info.get("exif"))  # an eXIf chunk before IDAT
+    elif fmt == "TIFF":
+        # Recent Pillow reports a TIFF's size already turned by its Orientation tag: use the tags.
+        width, height = (int(tags[t][0]) if t in tags and tags[t].size else 0 for t in (256, 257))
+        bits = int(tags[258].max()) if 258 in tags and tags[258].size else 1
+        depth = 8 if bits <= 8 else 16 if bits <= 16 else 32
+        if 274 in tags and tags[274].size:
+            orientation = _valid_orientation(int(tags[274][0]))
+    return ImageInfo(width, height, fmt, im.mode, depth, orientation), im, tags
+
+
+def _jpeg_header(buf: bytes | mmap.mmap) -> tuple[int, list[int], bytes | None]:
+    """Walk a JPEG's marker segments up to the first scan.
+
+    Returns the offset just past the start-of-scan segment (the whole header; the length of
+    ``buf`` if no scan is found), the offsets of the "Exif" identifiers of the EXIF (APP1)
+    segments, and the first EXIF payload.
+    """
+    size = len(buf)
+    pos = 2
+    idents: list[int] = []
+    exif = None
+    while pos + 4 <= size and buf[pos] == 0xFF:
+        marker = buf[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker == 0x01 or 0xD0 <= marker <= 0xD8:  # markers without a length
+            pos += 2
+            continue
+        if marker == 0xD9:  # end of image before any scan
+            break
+        (length,) = struct.unpack(">H", bytes(buf[pos + 2 : pos + 4]))
+        end = pos + 2 + length
+        if marker == 0xDA:  # start of scan: the header ends with this segment
+            return min(end, size), idents, exif
+        if marker == 0xE1 and bytes(buf[pos + 4 : pos + 10]) == b"Exif\x00\x00":
+            idents.append(pos + 4)
+            if exif is None:
+                exif = bytes(buf[pos + 4 : min(end, size)])
+        pos = end
+    return size, idents, exif
+
+
+def _check_png_chunks(data: bytes, label: str) -> None:
+    """The chunk chain must reach a complete IEND chunk (Pillow accepts a file cut within it,
+    and the 16-bit path's libpng would then print an error)."""
+    pos, size = 8, len(data)
+    while pos + 12 <= size:
+        (length,) = struct.unpack_from(">I", data, pos)
+        kind = data[pos + 4 : pos + 8]
+        pos += 12 + length
+        if kind == b"IEND":
+            if pos <= size:
+                return
+            break
+    raise _corrupt(label, "PNG", "the file ends before its IEND chunk")
+
+
+# --------------------------------------------------------------------------------------------
+# WebP
+
+
+def _webp_header(buf: bytes | mmap.mmap, label: str) -> tuple[int, int, bool, bytes | None]:
+    """(width, height, has_alpha, EXIF payload) from a WebP RIFF header, without decoding."""
+    head = bytes(buf[:30])
+    if len(head) < 30:
+        raise _corrupt(label, "WEBP", f"{len(buf)}-byte file is shorter than a WebP header")
+    (riff_size,) = struct.unpack_from("<I", head, 4)
+    if riff_size + 8 > len(buf):
+        raise _corrupt(label, "WEBP", f"header declares {riff_size + 8} bytes, file has {len(buf)}")
+    kind = head[12:16]
+    exif = None
+    if kind == b"VP8 ":
+        if head[23:26] != b"\x9d\x01\x2a":
+            raise _corrupt(label, "WEBP", "bad VP8 start code")
+        width, height = (v & 0x3FFF for v in struct.unpack_from("<HH", head, 26))
+        alpha = False
+    elif kind == b"VP8L":
+        if head[20] != 0x2F:
+            raise _corrupt(label, "WEBP", "bad VP8L signature")
+        (bits,) = struct.unpack_from("<I", head, 21)
+        width, height = (bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1
+        alpha = bool((bits >> 28) & 1)
+    elif kind == b"VP8X":
+        flags = head[20]
+        width = int.from_bytes(head[24:27], "little") + 1
+        height = int.from_bytes(head[27:30], "little") + 1
+        alpha = bool(flags & 0x10)
+        if flags & 0x08:  # an EXIF chunk follows somewhere
+            pos, end = 12, min(len(buf), riff_size + 8)
+            while pos + 8 <= end:
+                fourcc = bytes(buf[pos : pos + 4])
+                (size,) = struct.unpack("<I", bytes(buf[pos + 4 : pos + 8]))
+                if fourcc == b"EXIF":
+                    exif = bytes(buf[pos + 8 : pos + 8 + size])
+                    break
+                pos += 8 + size + (size & 1)
+    else:
+        raise _corrupt(label, "WEBP", f"unknown WebP chunk {kind!r}")
+    if width == 0 or height == 0:
+        raise _corrupt(label, "WEBP", f"header declares a {width}x{height} image")
+    return width, height, alpha, exif
+
+
+# --------------------------------------------------------------------------------------------
+# TIFF structure (TIFF files and EXIF blocks)
+
+
+class _CorruptError(Exception):
+    """A TIFF structure that points outside its data."""
+
+
+# TIFF field type -> bytes per value; integer types -> numpy type code.
+_TIFF_SIZES = {
+    1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 13: 4, 16: 8, 17: 8, 18: 8
+}  # fmt: skip
+_TIFF_INTS = {1: "u1", 3: "u2", 4: "u4", 6: "i1", 8: "i2", 9: "i4", 13: "u4", 16: "u8", 17: "i8", 18: "u8"}
+# width, height, bits per sample, strip offsets, orientation, strip byte counts, tile offsets,
+# tile byte counts, and the pointers to the EXIF, GPS and interoperability directories
+_TIFF_WANTED = frozenset({256, 257, 258, 273, 274, 279, 324, 325, 34665, 34853, 40965})
+_SUB_IFD_TAGS = (34665, 34853, 40965)
+_MAX_TIFF_ENTRIES = 4096  # real directories hold a few dozen; more is a crafted file
+
+
+def _tiff_ifd0(
+    buf: bytes | mmap.mmap, wanted: frozenset[int], *, strict: bool = True
+) -> dict[int, np.ndarray]:
+    """Integer values of the ``wanted`` tags of the first directory (IFD) of a TIFF structure.
+
+    ``strict`` (for TIFF files): any tag's data outside ``buf`` raises _CorruptError, and the
+    directories the EXIF, GPS and interoperability pointers lead to are checked the same way
+    (Pillow reads them while loading a TIFF, and only warns if they are cut off). Otherwise (for
+    EXIF blocks) such tags are skipped. A header or first directory outside ``buf`` always
+    raises. Handles classic TIFF and BigTIFF, either byte order.
+    """
+    head = bytes(buf[:16])
+    if len(head) < 8 or head[:2] not in (b"II", b"MM"):
+        raise _CorruptError("no TIFF header")
+    bo = "<" if head[:2] == b"II" else ">"
+    (magic,) = struct.unpack_from(bo + "H", head, 2)
+    if magic == 42:
+        (ifd,) = struct.unpack_from(bo + "I", head, 4)
+        big = False
+    elif magic == 43 and len(head) == 16:
+        (ifd,) = struct.unpack_from(bo + "Q", head, 8)
+        big = True
+    else:
+        raise _CorruptError(f"bad TIFF header {head[:8]!r}")
+    tags = _tiff_ifd(buf, ifd, bo, big, wanted | frozenset(_SUB_IFD_TAGS), strict, None)
+    for pointer in _SUB_IFD_TAGS if strict else ():
+        if pointer in tags and tags[pointer].size:
+            sub = _tiff_ifd(buf, int(tags[pointer][0]), bo, big, frozenset({40965}), strict, pointer)
+            if 40965 in sub and sub[40965].size:  # interoperability directory, inside EXIF's
+                _tiff_ifd(buf, int(sub[40965][0]), bo, big, frozenset(), strict, 40965)
+    return {tag: values for tag, values in tags.items() if tag in wanted}
+
+
+def _tiff_ifd(
+    buf: bytes | mmap.mmap,
+    ifd: int,
+    bo: str,
+    big: bool,
+    wanted: frozenset[int],
+    strict: bool,
+    group: int | None,
+) -> dict[int, np.ndarray]:
+    """Integer values of the ``wanted`` tags of the directory at byte ``ifd``.
+
+    ``group`` is the pointer tag that led here (None for the first directory); in ``strict``
+    mode a tag the TIFF/EXIF specifications give a single value must have one value (Pillow
+    warns and drops the rest otherwise).
+    """
+    size = len(buf)
+    if big:
+        count_fmt, entry_fmt, entry_size, inline, offset_fmt = "Q", "HHQ8s", 20, 8, "Q"
+    else:
+        count_fmt, entry_fmt, entry_size, inline, offset_fmt = "H", "HHI4s", 12, 4, "I"
+    count_size = struct.calcsize(count_fmt)
+    if ifd < 8 or ifd + count_size > size:
+        raise _CorruptError(f"directory at byte {ifd} is outside the {size}-byte data")
+    (n,) = struct.unpack(bo + count_fmt, bytes(buf[ifd : ifd + count_size]))
+    start = ifd + count_size
+    if n == 0 or n > _MAX_TIFF_ENTRIES or start + n * entry_size > size:
+        raise _CorruptError(f"directory of {n} entries at byte {ifd} does not fit in {size} bytes")
+    table = bytes(buf[start : start + n * entry_size])
+    tags: dict[int, np.ndarray] = {}
+    total = 0
+    for tag, typ, count, raw in struct.iter_unpack(bo + entry_fmt, table):
+        unit = _TIFF_SIZES.get(typ)
+        if unit is None:
+            continue  # unknown field types are skipped, as TIFF readers do
+        if strict and count != 1 and typ not in (1, 2, 7) and TiffTags.lookup(tag, group).length == 1:
+            raise _CorruptError(f"tag {tag} has {count} values, expected 1")
+        nbytes = count * unit
+        if nbytes <= inline:
+            data = raw[:nbytes]
+        else:
+            (offset,) = struct.unpack(bo + offset_fmt, raw)
+            total += nbytes
+            if offset > size or nbytes > size - offset or total > size:
+                if not strict:
+                    continue
+                raise _CorruptError(
+                    f"tag {tag} data at bytes {offset}..{offset + nbytes} is past the end ({size})"
+                )
+            data = bytes(buf[offset : offset + nbytes]) if tag in wanted else b""
+        if tag in wanted and typ in _TIFF_INTS:
+            tags[tag] = np.frombuffer(data, dtype=np.dtype(_TIFF_INTS[typ]).newbyteorder(bo))
+    return tags
+
+
+def _check_tiff_ranges(tags: dict[int, np.ndarray], size: int, label: str) -> None:
+    """Every strip or tile of the first image must lie inside the file."""
+    for offsets_tag, counts_tag in ((273, 279), (324, 325)):
+        if offsets_tag not in tags or counts_tag not in tags:
+            continue
+        offsets = tags[offsets_tag].astype(np.uint64)
+        counts = tags[counts_tag].astype(np.uint64)
+        if offsets.shape != counts.shape:
+            raise _corrupt(label, "TIFF", f"{offsets.size} data offsets but {counts.size} byte counts")
+        end = np.uint64(size)
+        outside = (offsets > end) | (counts > end - np.minimum(offsets, end))
+        if outside.any():
+            i = int(np.argmax(outside))
+            raise _corrupt(
+                label,
+                "TIFF",
+                f"image data at bytes {int(offsets[i])}..{int(offsets[i]) + int(counts[i])} "
+                f"is past the end of the {size}-byte file",
+            )
+
+
+def _valid_orientation(value: int) -> int:
+    return value if 1 <= value <= 8 else 1
+
+
+def _exif_orientation(exif: bytes | None) -> int:
+    """EXIF Orientation (1..8) from an EXIF block (with or without the "Exif\\0\\0" prefix);
+    1 when absent or unreadable, as browsers treat a broken EXIF block."""
+    if not exif:
+        return 1
+    if exif.startswith(b"Exif\x00\x00"):
+        exif = exif[6:]
+    try:
+        values = _tiff_ifd0(exif, frozenset({_ORIENTATION_TAG}), strict=False).get(_ORIENTATION_TAG)
+    except (_CorruptError, struct.error, ValueError):
+        return 1
+    return _valid_orientation(int(values[0])) if values is not None and values.size else 1
+
+
+# --------------------------------------------------------------------------------------------
+# pixels
+
+
+def _rgb_or_gray8(im: ImageFile.ImageFile) -> np.ndarray:
+    """8-bit pixels of a loaded image as (H, W, 3) RGB or (H, W) gray; may be a read-only view."""
+    mode = im.mode
+    if mode in ("RGB", "L"):
+        return np.asarray(im)
+    if mode in ("RGBA", "RGBX", "RGBa"):
+        return np.asarray(im)[..., :3]
+    if mode in ("LA", "La"):
+        return np.asarray(im)[..., 0]
+    if mode in ("P", "PA"):
+        # via RGBA: Pillow warns when converting a palette with transparency straight to RGB
+        return np.asarray(im.convert("RGBA"))[..., :3]
+    if mode == "1":
+        return np.asarray(im.convert("L"))
+    return np.asarray(im.convert("RGB"))  # CMYK, YCbCr, LAB, ...
+
+
+def _orient(a: np.ndarray, orientation: int) -> np.ndarray:
+    """View of ``a`` (H, W[, C]) turned upright for EXIF ``orientation`` 1..8."""
+    if orientation == 2:  # mirrored left-right
+        return a[:, ::-1]
+    if orientation == 3:  # rotated 180
+        return a[::-1, ::-1]
+    if orientation == 4:  # mirrored top-bottom
+        return a[::-1]
+    t = a.swapaxes(0, 1)
+    if orientation == 5:  # transpose
+        return t
+    if orientation == 6:  # stored turned 90 counter-clockwise: turn 90 clockwise
+        return t[:, ::-1]
+    if orientation == 7:  # transverse
+        return t[::-1, ::-1]
+    if orientation == 8:  # stored turned 90 clockwise: turn 90 counter-clockwise
+        return t[::-1]
+    return a
