@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import sys
 
-import click
 import typer
+from typer.exceptions import TyperException
 
 from prismcore import InputError
 
@@ -32,13 +32,15 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"prism: error: {exc}", file=sys.stderr)
         return 2
-    except click.UsageError as exc:
-        print(f"prism: error: {exc.format_message()}", file=sys.stderr)
+    except TyperException as exc:  # typer's own (vendored click) usage errors
+        message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+        if message:  # empty when the usage text was just shown
+            print(f"prism: error: {message}", file=sys.stderr)
         return 2
-    except click.Abort:
+    except typer.Abort:
         print("prism: aborted", file=sys.stderr)
         return 1
-    except click.exceptions.Exit as exc:
+    except typer.Exit as exc:
         return exc.exit_code
     return 0
 

@@ -44,7 +44,7 @@ def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
         Face coordinates of each object pixel (u right, v down).
     rgb : ndarray, shape (N, 3), uint8
     """
-    row0, row1, col0, col1 = scan.plan.window
+    row0, _, col0, _ = scan.plan.window
     rows, cols = np.nonzero(scan.object_mask)
     target = np.array([[0, 0], [size[0], 0], [size[0], size[1]], [0, size[1]]], dtype=np.float32)
     H = cv2.getPerspectiveTransform(scan.plan.region.astype(np.float32), target).astype(np.float64)
@@ -52,7 +52,9 @@ def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
     xy[0, :, 0] = cols + col0
     xy[0, :, 1] = rows + row0
     uv = cv2.perspectiveTransform(xy, H)[0]
-    rgb = image[row0:row1, col0:col1][scan.object_mask]
+    # A flat-index gather is several times faster than boolean-indexing a 3-channel window.
+    flat = (rows + row0) * image.shape[1] + (cols + col0)
+    rgb = np.take(image.reshape(-1, image.shape[2]), flat, axis=0)
     if rgb.dtype != np.uint8:
         rgb = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
     return uv, rgb

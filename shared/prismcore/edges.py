@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 __all__ = ["EdgeFit", "fit_edge", "intersect", "inward", "line_through", "refine_quad", "side_bounds"]
 
@@ -22,6 +22,17 @@ _STEP = 0.5  # profile sample spacing, px
 _MAX_PROFILES = 200
 _CANDIDATES = 4  # local maxima kept per profile
 _MAX_TILT = np.tan(np.radians(12.0))  # the true edge is within this angle of the clicked one
+
+
+def _gaussian(sigma: float, order: int) -> np.ndarray:
+    x = np.arange(-int(4 * sigma + 0.5), int(4 * sigma + 0.5) + 1, dtype=np.float64)
+    g = np.exp(-0.5 * (x / sigma) ** 2)
+    g /= g.sum()
+    return (g if order == 0 else -x / sigma**2 * g).astype(np.float32)
+
+
+_SMOOTH = _gaussian(1.0, 0)  # along the side, in profiles
+_DERIVATIVE = _gaussian(1.0 / _STEP, 1)  # across the side: sigma 1 px
 _CHROMA_WEIGHT = 0.25
 # RGB -> (Y, Cb, Cr) of JPEG (BT.601), chroma rows scaled by _CHROMA_WEIGHT.
 _YCC_WEIGHTED = (np.array([[0.299, 0.587, 0.114],
@@ -71,22 +82,18 @@ def _profiles(image: np.ndarray, p: np.ndarray, q: np.ndarray, search_px: float)
 def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Bilinear samples of an (H, W, C) image at float positions, as float32 (..., C).
 
-    Sampling the few profile points directly keeps 8-bit precision without converting the
-    whole image to float (and OpenCV's remap would round its output back to 8 bits).
+    Only the small box the samples fall in is converted to float (OpenCV's remap would round
+    its output back to 8 bits on a uint8 image, losing the sub-pixel information).
     """
     h, w = image.shape[:2]
-    x = np.clip(x, 0, w - 1.001)
-    y = np.clip(y, 0, h - 1.001)
-    x0 = x.astype(np.intp)
-    y0 = y.astype(np.intp)
-    fx = (x - x0).astype(np.float32)[..., None]
-    fy = (y - y0).astype(np.float32)[..., None]
-    img = image if image.ndim == 3 else image[..., None]
-    top = img[y0, x0] * (1 - fx) + img[y0, x0 + 1] * fx
-    bottom = img[y0 + 1, x0] * (1 - fx) + img[y0 + 1, x0 + 1] * fx
-    return (top * (1 - fy) + bottom * fy).astype(np.float32)
-
-
+    x0 = int(np.clip(np.floor(x.min()) - 1, 0, w - 1))
+    y0 = int(np.clip(np.floor(y.min()) - 1, 0, h - 1))
+    x1 = int(np.clip(np.ceil(x.max()) + 2, x0 + 1, w))
+    y1 = int(np.clip(np.ceil(y.max()) + 2, y0 + 1, h))
+    crop = np.ascontiguousarray(image[y0:y1, x0:x1], dtype=np.float32)
+    out = cv2.remap(crop, (x - x0).astype(np.float32), (y - y0).astype(np.float32),
+                    interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out if out.ndim == 3 else out[..., None]
 
 
 def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
@@ -96,7 +103,8 @@ def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
     # down-weighted, still finds edges between colours of equal brightness.
     samples = samples @ _YCC_WEIGHTED.T
     # Smooth along the side (noise) and differentiate across it (the edge), in one pass.
-    grad = gaussian_filter(samples, sigma=(1.0, 1.0 / _STEP, 0.0), order=(0, 1, 0), mode="nearest")
+    grad = cv2.sepFilter2D(np.ascontiguousarray(samples, dtype=np.float32), -1, _DERIVATIVE,
+                           _SMOOTH, borderType=cv2.BORDER_REPLICATE)
     strength = np.sqrt((grad**2).sum(axis=2))
     inner = strength[:, margin - 1 : strength.shape[1] - margin + 1]
     left, mid, right = inner[:, :-2], inner[:, 1:-1], inner[:, 2:]

@@ -168,8 +168,11 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
                                       ("side", side_index, quads.side, marked.side)):
         seed = None
         if spec.method == "paper":
+            # The first pixel of the region, read as the median of the 3x3 pixels just inside
+            # the corner: a click exactly on the corner must not seed the scan with background.
             x, y = np.rint(mark[0]).astype(int)
-            seed = tuple(float(c) for c in images[index][y, x])
+            patch = images[index][y + 1 : y + 4, x + 1 : x + 4].reshape(-1, 3)
+            seed = tuple(float(c) for c in np.median(patch, axis=0))
         window = window_for([region, mark], images[index].shape)
         faces.append(FacePlan(name, index, region, mark, window, spec.method, seed, spec.tolerance))
     return ScanPlan(spec, (faces[0], faces[1]), dims, fits,

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 import pytest
 from PIL import Image, ImageFile, ImageOps
+
 from prismcore import images
 from prismcore.errors import InputError
 from prismcore.images import DEFAULT_MAX_PIXELS, ImageInfo, load_image, probe_image
