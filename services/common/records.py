@@ -1,0 +1,57 @@
+"""What the service remembers about a job: the durable records kept in the job store."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from enum import StrEnum
+
+from pydantic import BaseModel, Field
+
+from prismcore.spec import ScanSpec
+
+__all__ = ["FINAL_STATES", "ItemRecord", "ItemResult", "JobRecord", "State"]
+
+
+class State(StrEnum):
+    queued = "queued"
+    running = "running"
+    succeeded = "succeeded"
+    failed = "failed"
+    cancelled = "cancelled"
+
+
+FINAL_STATES = frozenset({State.succeeded, State.failed, State.cancelled})
+
+
+class ItemResult(BaseModel):
+    """The measurements of one item (the rest is in its report.json)."""
+
+    points: int
+    dimensions: dict[str, float | str]
+    point_loss: float
+    warnings: list[str] = Field(default_factory=list)
+
+
+class ItemRecord(BaseModel):
+    """One scan of a job: its spec (image fields are references) and what became of it."""
+
+    index: int
+    spec: ScanSpec
+    state: State = State.queued
+    error: str | None = None
+    result: ItemResult | None = None
+    outputs: dict[str, str] = Field(default_factory=dict)  # "csv"/"ply"/"report" -> object key
+
+
+class JobRecord(BaseModel):
+    id: str
+    tenant: str
+    state: State = State.queued
+    progress: int = 0
+    created_at: datetime
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+    client_reference: str | None = None
+    webhook_url: str | None = None
+    error: str | None = None
+    items: list[ItemRecord]

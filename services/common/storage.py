@@ -1,0 +1,94 @@
+"""Object storage through boto3, against any S3-compatible endpoint (AWS S3, MinIO, SeaweedFS).
+
+Keys are built from checked segments only (`object_key`), so no input can name an object
+outside the prefix it belongs in.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import BinaryIO
+
+import boto3
+from botocore.client import Config
+from botocore.exceptions import ClientError
+
+from .settings import Settings
+
+__all__ = ["ObjectStore", "object_key"]
+
+_SEGMENT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
+
+
+def object_key(*segments: str | int) -> str:
+    """Join checked segments with '/': each one a plain name, never '..', '/' or empty."""
+    parts = [str(s) for s in segments]
+    for part in parts:
+        if not _SEGMENT.match(part) or ".." in part:
+            raise ValueError(f"unsafe object key segment {part!r}")
+    return "/".join(parts)
+
+
+class ObjectStore:
+    """The service's bucket (and read access to configured input buckets)."""
+
+    def __init__(self, client, bucket: str) -> None:
+        self.client = client
+        self.bucket = bucket
+
+    @classmethod
+    def from_settings(cls, settings: Settings) -> ObjectStore:
+        secret = settings.s3_secret_access_key
+        key_id = settings.s3_access_key_id
+        client = boto3.client(
+            "s3",
+            endpoint_url=settings.s3_endpoint_url,
+            region_name=settings.s3_region,
+            aws_access_key_id=key_id.get_secret_value() if key_id else None,
+            aws_secret_access_key=secret.get_secret_value() if secret else None,
+            config=Config(signature_version="s3v4", s3={"addressing_style": "path"},
+                          retries={"max_attempts": 5, "mode": "standard"},
+                          connect_timeout=5, read_timeout=60),
+        )
+        return cls(client, settings.s3_bucket)
+
+    def ensure_bucket(self) -> None:
+        try:
+            self.client.head_bucket(Bucket=self.bucket)
+        except ClientError:
+            self.client.create_bucket(Bucket=self.bucket)
+
+    def ping(self) -> bool:
+        self.client.head_bucket(Bucket=self.bucket)
+        return True
+
+    def put_bytes(self, key: str, data: bytes, content_type: str = "application/octet-stream") -> None:
+        self.client.put_object(Bucket=self.bucket, Key=key, Body=data, ContentType=content_type)
+
+    def put_stream(self, key: str, stream: BinaryIO,
+                   content_type: str = "application/octet-stream") -> None:
+        """Stream a file object up (multipart for large ones) without holding it in memory."""
+        self.client.upload_fileobj(stream, self.bucket, key, ExtraArgs={"ContentType": content_type})
+
+    def get_bytes(self, key: str, *, bucket: str | None = None) -> bytes:
+        return self.client.get_object(Bucket=bucket or self.bucket, Key=key)["Body"].read()
+
+    def exists(self, key: str) -> bool:
+        try:
+            self.client.head_object(Bucket=self.bucket, Key=key)
+        except ClientError as exc:
+            if exc.response.get("Error", {}).get("Code") in ("404", "NoSuchKey", "NotFound"):
+                return False
+            raise
+        return True
+
+    def list_keys(self, prefix: str) -> list[str]:
+        paginator = self.client.get_paginator("list_objects_v2")
+        return [obj["Key"] for page in paginator.paginate(Bucket=self.bucket, Prefix=prefix)
+                for obj in page.get("Contents", [])]
+
+    def presign_get(self, key: str, ttl_s: int, filename: str | None = None) -> str:
+        params = {"Bucket": self.bucket, "Key": key}
+        if filename:
+            params["ResponseContentDisposition"] = f'attachment; filename="{filename}"'
+        return self.client.generate_presigned_url("get_object", Params=params, ExpiresIn=ttl_s)

@@ -1,0 +1,200 @@
+"""The job store: job records in Redis, updated atomically by the API and the workers.
+
+Layout (all keys under ``prism:``):
+
+* ``job:{id}`` hash: ``doc`` (the record as submitted), ``state``, timestamps, ``error``,
+  ``item:{i}`` (each item's state, error, result and outputs), ``units_total``/``units_done``
+  (progress), ``tenant``.
+* ``job:{id}:tiles:{i}`` set of finished tiles, ``job:{id}:done`` set of finished items,
+  ``job:{id}:next`` the next item to start: counting by set membership makes a re-run task
+  count once.
+* ``tenant:{t}:jobs`` and ``tenant:{t}:state:{s}`` sorted sets (score: creation time, us), and
+  ``state:{s}`` across tenants (for metrics).
+* ``idem:{t}:{key}`` the job an idempotency key made; ``upload:{id}`` an uploaded file.
+
+A state never goes backwards: transitions run in one Lua script that compares ranks.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from datetime import UTC, datetime
+
+import redis
+
+from .records import FINAL_STATES, ItemRecord, JobRecord, State
+
+__all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
+
+_P = "prism:"
+UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
+_RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
+
+_TRANSITION = """
+local cur = redis.call('HGET', KEYS[1], 'state')
+if not cur then return 0 end
+local rank = {queued=0, running=1, succeeded=2, failed=2, cancelled=2}
+if rank[ARGV[1]] <= rank[cur] then return 0 end
+redis.call('HSET', KEYS[1], 'state', ARGV[1])
+if ARGV[1] == 'running' then redis.call('HSET', KEYS[1], 'started_at', ARGV[2]) end
+if rank[ARGV[1]] == 2 then redis.call('HSET', KEYS[1], 'finished_at', ARGV[2]) end
+if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'error', ARGV[3]) end
+local tenant = redis.call('HGET', KEYS[1], 'tenant')
+local score = redis.call('HGET', KEYS[1], 'score')
+local id = ARGV[4]
+redis.call('ZREM', ARGV[5] .. 'tenant:' .. tenant .. ':state:' .. cur, id)
+redis.call('ZADD', ARGV[5] .. 'tenant:' .. tenant .. ':state:' .. ARGV[1], score, id)
+redis.call('ZREM', ARGV[5] .. 'state:' .. cur, id)
+redis.call('ZADD', ARGV[5] .. 'state:' .. ARGV[1], score, id)
+return 1
+"""
+
+_TILE_DONE = """
+if redis.call('SADD', KEYS[2], ARGV[1]) == 1 then
+  redis.call('HINCRBY', KEYS[1], 'units_done', 1)
+  return 1
+end
+return 0
+"""
+
+
+class IdempotencyConflictError(Exception):
+    """The idempotency key was used before with a different request body."""
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+class JobStore:
+    """Job records in Redis. Pass a client (tests give their own server's)."""
+
+    def __init__(self, client: redis.Redis) -> None:
+        self._r = client
+        self._transition = client.register_script(_TRANSITION)
+        self._tile_done = client.register_script(_TILE_DONE)
+
+    @classmethod
+    def from_url(cls, url: str) -> JobStore:
+        return cls(redis.Redis.from_url(url, decode_responses=True, health_check_interval=30))
+
+    def ping(self) -> bool:
+        return bool(self._r.ping())
+
+    # -- jobs -------------------------------------------------------------------------------
+    def create(self, job: JobRecord, *, idempotency_key: str | None = None,
+               body: bytes = b"") -> tuple[JobRecord, bool]:
+        """Store a new job, or return the one this idempotency key already made.
+
+        Returns
+        -------
+        (job, created)
+
+        Raises
+        ------
+        IdempotencyConflictError
+            The key was used with a different body.
+        """
+        digest = hashlib.sha256(body).hexdigest()
+        if idempotency_key:
+            idem = f"{_P}idem:{job.tenant}:{hashlib.sha256(idempotency_key.encode()).hexdigest()}"
+            if not self._r.set(idem, f"{job.id} {digest}", nx=True, ex=7 * 86400):
+                existing_id, existing_digest = (self._r.get(idem) or " ").split(" ", 1)
+                if existing_digest != digest:
+                    raise IdempotencyConflictError(
+                        "this Idempotency-Key was already used with a different request body")
+                existing = self.get(existing_id)
+                if existing is not None:
+                    return existing, False
+                # The first request's job write never landed: this one takes the key over.
+                self._r.set(idem, f"{job.id} {digest}", ex=7 * 86400)
+        score = job.created_at.timestamp() * 1e6
+        units = UNITS_PER_ITEM_ESTIMATE * len(job.items)
+        with self._r.pipeline() as pipe:
+            pipe.hset(f"{_P}job:{job.id}", mapping={
+                "doc": job.model_dump_json(), "state": State.queued.value,
+                "tenant": job.tenant, "score": score, "units_total": units, "units_done": 0})
+            pipe.zadd(f"{_P}tenant:{job.tenant}:jobs", {job.id: score})
+            pipe.zadd(f"{_P}tenant:{job.tenant}:state:queued", {job.id: score})
+            pipe.zadd(f"{_P}state:queued", {job.id: score})
+            pipe.execute()
+        return self.get(job.id), True  # type: ignore[return-value]
+
+    def get(self, job_id: str) -> JobRecord | None:
+        """The job as it stands now, or None."""
+        fields = self._r.hgetall(f"{_P}job:{job_id}")
+        if not fields:
+            return None
+        job = JobRecord.model_validate_json(fields["doc"])
+        job.state = State(fields["state"])
+        for name in ("started_at", "finished_at"):
+            if fields.get(name):
+                setattr(job, name, datetime.fromisoformat(fields[name]))
+        job.error = fields.get("error") or None
+        for item in job.items:
+            if f"item:{item.index}" in fields:
+                job.items[item.index] = ItemRecord.model_validate_json(fields[f"item:{item.index}"])
+        total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
+        job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
+        return job
+
+    def list(self, tenant: str, *, state: State | None = None, limit: int = 50,
+             cursor: float | None = None) -> tuple[list[JobRecord], float | None]:
+        """The tenant's jobs, newest first; returns the page and the next page's cursor."""
+        key = f"{_P}tenant:{tenant}:state:{state.value}" if state else f"{_P}tenant:{tenant}:jobs"
+        top = f"({cursor!r}" if cursor is not None else "+inf"
+        rows = self._r.zrevrangebyscore(key, top, "-inf", start=0, num=limit + 1, withscores=True)
+        jobs = [job for job_id, _ in rows[:limit] if (job := self.get(job_id)) is not None]
+        return jobs, (rows[limit - 1][1] if len(rows) > limit else None)
+
+    def transition(self, job_id: str, state: State, *, error: str | None = None) -> bool:
+        """Move the job forward to `state`; False (and no change) if that would go backwards."""
+        return bool(self._transition(keys=[f"{_P}job:{job_id}"], args=[
+            state.value, _now().isoformat(), error or "", job_id, _P]))
+
+    def state(self, job_id: str) -> State | None:
+        value = self._r.hget(f"{_P}job:{job_id}", "state")
+        return State(value) if value else None
+
+    # -- items and progress -----------------------------------------------------------------
+    def put_item(self, job_id: str, item: ItemRecord) -> None:
+        self._r.hset(f"{_P}job:{job_id}", f"item:{item.index}", item.model_dump_json())
+
+    def next_item(self, job_id: str) -> int:
+        """Claim the next item to start (0, 1, 2, ...); each index is handed out once."""
+        return int(self._r.incr(f"{_P}job:{job_id}:next")) - 1
+
+    def add_units(self, job_id: str, *, total: int = 0, done: int = 0) -> None:
+        with self._r.pipeline() as pipe:
+            if total:
+                pipe.hincrby(f"{_P}job:{job_id}", "units_total", total)
+            if done:
+                pipe.hincrby(f"{_P}job:{job_id}", "units_done", done)
+            pipe.execute()
+
+    def tile_done(self, job_id: str, item: int, tile: str) -> bool:
+        """Count a finished tile once, however often its task ran."""
+        return bool(self._tile_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:tiles:{item}"],
+                                    args=[tile]))
+
+    def item_done(self, job_id: str, item: int) -> int:
+        """Mark an item finished (once); returns how many items of the job are finished."""
+        with self._r.pipeline() as pipe:
+            pipe.sadd(f"{_P}job:{job_id}:done", item)
+            pipe.scard(f"{_P}job:{job_id}:done")
+            return int(pipe.execute()[1])
+
+    def count_by_state(self) -> dict[str, int]:
+        with self._r.pipeline() as pipe:
+            for s in State:
+                pipe.zcard(f"{_P}state:{s.value}")
+            return dict(zip([s.value for s in State], pipe.execute(), strict=True))
+
+    # -- uploads ----------------------------------------------------------------------------
+    def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str) -> None:
+        self._r.hset(f"{_P}upload:{upload_id}", mapping={
+            "tenant": tenant, "key": key, "size": size, "name": name,
+            "created_at": _now().isoformat()})
+
+    def get_upload(self, upload_id: str) -> dict[str, str] | None:
+        return self._r.hgetall(f"{_P}upload:{upload_id}") or None

@@ -1,0 +1,75 @@
+"""The job store against a real Redis: records, transitions, idempotency, listing, restart."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import UTC, datetime, timedelta
+
+import pytest
+
+from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.store import IdempotencyConflictError
+from prismcore.spec import ScanSpec
+
+SPEC = ScanSpec(image="upload:abc", points=[[1, 1], [9, 1], [9, 9], [9, 1], [12, 1]])
+
+
+def _job(tenant: str = "acme", minutes: int = 0) -> JobRecord:
+    return JobRecord(id=uuid.uuid4().hex, tenant=tenant, items=[ItemRecord(index=0, spec=SPEC)],
+                     created_at=datetime.now(UTC) + timedelta(minutes=minutes))
+
+
+def test_create_get_round_trip(store):
+    job, created = store.create(_job())
+    assert created and store.get(job.id) == job
+    assert job.state == State.queued and job.progress == 0
+
+
+@pytest.mark.parametrize(
+    ("path", "final"),
+    [(["running", "succeeded"], "succeeded"), (["running", "queued"], "running"),
+     (["cancelled", "running", "succeeded"], "cancelled"), (["failed", "succeeded"], "failed")],
+)
+def test_state_never_goes_backwards(store, path, final):
+    job, _ = store.create(_job())
+    for state in path:
+        store.transition(job.id, State(state))
+    assert store.get(job.id).state == State(final)
+
+
+def test_idempotency_same_body_same_job_other_body_conflicts(store):
+    first, created = store.create(_job(), idempotency_key="k1", body=b"{}")
+    again, created_again = store.create(_job(), idempotency_key="k1", body=b"{}")
+    assert created and not created_again and again.id == first.id
+    with pytest.raises(IdempotencyConflictError):
+        store.create(_job(), idempotency_key="k1", body=b"{other}")
+    other_tenant, created = store.create(_job("globex"), idempotency_key="k1", body=b"{}")
+    assert created and other_tenant.id != first.id
+
+
+def test_list_newest_first_with_cursor_and_state(store):
+    tenant = "list-" + uuid.uuid4().hex[:6]
+    ids = [store.create(_job(tenant, minutes=i))[0].id for i in range(7)]
+    store.transition(ids[3], State.running)
+    page, cursor = store.list(tenant, limit=3)
+    seen = [j.id for j in page]
+    while cursor is not None:
+        page, cursor = store.list(tenant, limit=3, cursor=cursor)
+        seen += [j.id for j in page]
+    assert seen == ids[::-1]
+    running, _ = store.list(tenant, state=State.running)
+    assert [j.id for j in running] == [ids[3]]
+
+
+def test_tiles_count_once_and_progress(store):
+    job, _ = store.create(_job())
+    assert store.tile_done(job.id, 0, "front-0-10") and not store.tile_done(job.id, 0, "front-0-10")
+    assert 0 < store.get(job.id).progress < 100
+    assert store.item_done(job.id, 0) == 1 and store.item_done(job.id, 0) == 1
+
+
+def test_records_survive_a_redis_restart(store, redis_server):
+    job, _ = store.create(_job())
+    store.transition(job.id, State.running)
+    redis_server.restart()
+    assert store.get(job.id).state == State.running
