@@ -22,7 +22,7 @@ _UPLOAD = re.compile(r"^upload:([0-9a-f]{32})$")
 _S3 = re.compile(r"^s3://([a-z0-9][a-z0-9.-]{1,61}[a-z0-9])/(.+)$")
 
 
-class ReferenceError(ValueError):  # noqa: A001 - the name says what it is; builtins unaffected
+class ReferenceError(ValueError):
     """A reference the service will not read; the message says why."""
 
 

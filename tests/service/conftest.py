@@ -6,7 +6,6 @@ from collections.abc import Iterator
 
 import pytest
 import redis
-
 from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore

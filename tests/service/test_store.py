@@ -6,9 +6,9 @@ import uuid
 from datetime import UTC, datetime, timedelta
 
 import pytest
-
 from prism_common.records import ItemRecord, JobRecord, State
 from prism_common.store import IdempotencyConflictError
+
 from prismcore.spec import ScanSpec
 
 SPEC = ScanSpec(image="upload:abc", points=[[1, 1], [9, 1], [9, 9], [9, 1], [12, 1]])
