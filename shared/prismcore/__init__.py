@@ -27,7 +27,21 @@ _EXPORTS = {
     "scan_face": "pipeline",
 }
 
-__all__ = ["__version__", *sorted(_EXPORTS)]
+__all__ = [
+    "Cloud",
+    "Dimensions",
+    "InputError",
+    "ReferencePoints",
+    "ScanPlan",
+    "ScanResult",
+    "ScanSpec",
+    "__version__",
+    "finish_scan",
+    "parse_points",
+    "plan_scan",
+    "run_scan",
+    "scan_face",
+]
 
 if TYPE_CHECKING:
     from .cloud import Cloud
