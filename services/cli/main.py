@@ -12,9 +12,12 @@ from typer.exceptions import TyperException
 
 from prismcore import InputError
 
+from .client import ApiError
+from .client_commands import download, status, submit, wait
 from .sample_command import sample
 from .scan_command import scan
 from .schema_command import schema
+from .serve_command import serve
 
 __all__ = ["app", "main"]
 
@@ -23,13 +26,18 @@ cli = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 cli.command()(scan)
 cli.command()(sample)
 cli.command()(schema)
+cli.command()(submit)
+cli.command()(status)
+cli.command()(wait)
+cli.command()(download)
+cli.command()(serve)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit code (0 ok, 2 bad input or usage)."""
     try:
         cli(args=argv, standalone_mode=False)
-    except InputError as exc:
+    except (InputError, ApiError) as exc:
         print(f"prism: error: {exc}", file=sys.stderr)
         return 2
     except TyperException as exc:  # typer's own (vendored click) usage errors

@@ -16,7 +16,7 @@ from prismcore.images import load_image
 
 from .outputs import write_outputs
 
-__all__ = ["scan"]
+__all__ = ["scan", "spec_from_flags"]
 
 console = Console()
 
@@ -51,21 +51,21 @@ def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | N
     return None
 
 
-def _spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec:
+def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec:
     if image is None or points is None:
         raise InputError("give IMAGE and --points, or --spec FILE")
-    formats = [f.strip() for f in flags.pop("formats").split(",") if f.strip()]
-    scale = _scale(*(flags.pop(k) for k in ("mm_per_px", "distance_mm", "width_mm",
-                                             "height_mm", "depth_mm")))
+    formats = [f.strip() for f in flags.pop("formats", "csv,ply").split(",") if f.strip()]
+    scale = _scale(*(flags.pop(k, None) for k in ("mm_per_px", "distance_mm", "width_mm",
+                                                   "height_mm", "depth_mm")))
     try:
         ref = parse_points(points)
     except ValueError as exc:
         raise InputError(f"--points: {exc}") from None
-    side = flags.pop("side")
+    side = flags.pop("side", None)
     return ScanSpec.model_validate({
         "image": str(image), "side_image": str(side) if side else None,
         "points": ref.model_dump(), "scale": scale, "formats": formats,
-        "csv": {"header": flags.pop("csv_header"), "colors": flags.pop("csv_colors")},
+        "csv": {"header": flags.pop("csv_header", False), "colors": flags.pop("csv_colors", False)},
         **flags,
     })
 
@@ -111,7 +111,7 @@ def scan(
                 raise InputError("give either --spec or IMAGE with --points, not both")
             spec, base = _spec_from_file(spec_file)
         else:
-            spec, base = _spec_from_flags(
+            spec, base = spec_from_flags(
                 image, points, side=side, tolerance=tolerance, method=method,
                 mm_per_px=mm_per_px, distance_mm=distance_mm, focal_px=focal_px,
                 width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,

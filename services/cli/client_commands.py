@@ -1,0 +1,124 @@
+"""`prism submit`, `prism status`, `prism wait`, `prism download`: the job service from scripts."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from prismcore import InputError
+
+from .client import ApiClient
+from .scan_command import spec_from_flags
+
+__all__ = ["download", "status", "submit", "wait"]
+
+console = Console()
+ApiUrl = Annotated[str, typer.Option("--api", envvar="PRISM_API_URL", help="API base URL.")]
+ApiKey = Annotated[str, typer.Option("--key", envvar="PRISM_API_KEY", help="API key.")]
+_REFERENCE_PREFIXES = ("upload:", "s3://", "https://")
+
+
+def _client(api: str, key: str) -> ApiClient:
+    if not key:
+        raise InputError("no API key: pass --key or set PRISM_API_KEY")
+    return ApiClient(api, key)
+
+
+def _upload_local(client: ApiClient, item: dict, base: Path) -> dict:
+    """Replace local file paths in an item by upload references (uploading them)."""
+    for field in ("image", "side_image"):
+        value = item.get(field)
+        if value and not value.startswith(_REFERENCE_PREFIXES):
+            path = base / value
+            if not path.is_file():
+                raise InputError(f"{field} {value!r}: no such file")
+            item[field] = client.upload(path)
+    return item
+
+
+def _print_job(job: dict) -> None:
+    console.print(f"job {job['id']}: [bold]{job['state']}[/] {job['progress']}%")
+    for item in job["items"]:
+        line = f"  item {item['index']}: {item['state']}"
+        if item.get("result"):
+            d = item["result"]["dimensions"]
+            line += (f"  {d['width']:.2f} x {d['height']:.2f} x {d['depth']:.2f} {d['unit']}, "
+                     f"{item['result']['points']:,} points")
+        if item.get("error"):
+            line += f"  error: {item['error']}"
+        console.print(line)
+
+
+def submit(
+    api: ApiUrl = "http://127.0.0.1:8000",
+    key: ApiKey = "",
+    image: Annotated[Path | None, typer.Argument(help="Photo (or give --spec).")] = None,
+    points: Annotated[str | None, typer.Option(help="Reference points, as for prism scan.")] = None,
+    spec_file: Annotated[Path | None, typer.Option("--spec", help="A scan spec or {items: [...]}.")] = None,
+    side: Annotated[Path | None, typer.Option(help="Side photo.")] = None,
+    mm_per_px: Annotated[str | None, typer.Option(help="F or FRONT,SIDE.")] = None,
+    distance_mm: Annotated[float | None, typer.Option()] = None,
+    focal_px: Annotated[float | None, typer.Option()] = None,
+    width_mm: Annotated[float | None, typer.Option()] = None,
+    method: Annotated[str, typer.Option()] = "default",
+    cloud: Annotated[str, typer.Option()] = "surface",
+    webhook: Annotated[str | None, typer.Option(help="URL to POST the finished job to.")] = None,
+    reference: Annotated[str | None, typer.Option(help="Your own reference for the job.")] = None,
+    idempotency_key: Annotated[str | None, typer.Option(help="Resubmits return the same job.")] = None,
+    then_wait: Annotated[bool, typer.Option("--wait", help="Wait for the job to finish.")] = False,
+) -> None:
+    """Submit a job (local files are uploaded first) and print its id."""
+    client = _client(api, key)
+    if spec_file is not None:
+        data = json.loads(spec_file.read_text())
+        items, base = data.get("items", [data]), spec_file.parent
+    else:
+        spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
+                               distance_mm=distance_mm, focal_px=focal_px, width_mm=width_mm,
+                               method=method, cloud=cloud)
+        items, base = [spec.model_dump(mode="json", exclude_defaults=True)], Path(".")
+    body = {"items": [_upload_local(client, dict(item), base) for item in items],
+            "client_reference": reference, "webhook_url": webhook}
+    job = client.submit(body, idempotency_key=idempotency_key)
+    console.print(job["id"])
+    if then_wait:
+        _wait(client, job["id"], timeout=3600)
+
+
+def status(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
+           as_json: Annotated[bool, typer.Option("--json", help="Print the raw job.")] = False) -> None:
+    """Print a job's state, progress and per-item results."""
+    job = _client(api, key).job(job_id)
+    console.print_json(json.dumps(job)) if as_json else _print_job(job)
+
+
+def _wait(client: ApiClient, job_id: str, timeout: float) -> dict:
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                  TimeElapsedColumn(), console=console, transient=not console.is_terminal) as bar:
+        task = bar.add_task(job_id, total=100)
+        job = client.wait(job_id, timeout=timeout, on_update=lambda j: bar.update(
+            task, completed=j["progress"], description=f"{job_id} {j['state']}"))
+    _print_job(job)
+    if job["state"] != "succeeded":
+        raise typer.Exit(1)
+    return job
+
+
+def wait(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
+         timeout: Annotated[float, typer.Option(help="Give up after this many seconds.")] = 3600) -> None:
+    """Wait for a job with a progress bar; exit 0 if it succeeded, 1 otherwise."""
+    _wait(_client(api, key), job_id, timeout)
+
+
+def download(job_id: str, out: Annotated[Path, typer.Option(help="Folder for the outputs.")],
+             api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
+    """Download every item's CSV, PLY and report into OUT/item-N/."""
+    client = _client(api, key)
+    for path in client.download(client.job(job_id), out):
+        console.print(str(path))
+
