@@ -1,0 +1,218 @@
+"""The whole service, for real: the API under uvicorn, a Celery worker process, redis-server
+and SeaweedFS, all on loopback. Jobs go in over HTTP and results come out through the
+presigned URLs, as a factory system would use it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import io
+import json
+import threading
+import time
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, HTTPServer
+
+import cv2
+import httpx
+import numpy as np
+import pytest
+from plyfile import PlyData
+
+from prism_cli.stack import ManagedProcess, free_port, start_api, start_worker
+from prismcore import ScanSpec, run_scan
+from prismcore.images import load_image
+from prismcore.synth import Box, render_oblique_view
+
+from .conftest import API_KEYS, WEBHOOK_SECRET
+from .servers import S3_KEY_ID, S3_SECRET
+
+BOX = Box(120.0, 80.0, 60.0)
+NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+ACME = {"X-API-Key": API_KEYS["acme"]}
+GLOBEX = {"X-API-Key": API_KEYS["globex"]}
+
+
+class Stack:
+    def __init__(self, api: ManagedProcess, worker: ManagedProcess, env: dict, tmp) -> None:
+        self.api, self.worker, self.env, self.tmp = api, worker, env, tmp
+        self.http = httpx.Client(base_url=f"http://127.0.0.1:{api.port}", timeout=30)
+
+    def upload(self, data: bytes, name: str = "box.jpg", headers=ACME) -> str:
+        r = self.http.post("/v1/uploads", files={"file": (name, data)}, headers=headers)
+        assert r.status_code == 201, r.text
+        return r.json()["reference"]
+
+    def submit(self, items: list[dict], headers=ACME, **extra) -> httpx.Response:
+        return self.http.post("/v1/jobs", json={"items": items, **extra}, headers=headers)
+
+    def wait(self, job_id: str, timeout: float = 120, headers=ACME) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            job = self.http.get(f"/v1/jobs/{job_id}", headers=headers).json()
+            if job["state"] in ("succeeded", "failed", "cancelled"):
+                return job
+            time.sleep(0.25)
+        raise AssertionError(f"job {job_id} not final after {timeout} s: {job}\n"
+                             f"{self.worker.log[-3000:]}")
+
+
+@pytest.fixture(scope="module")
+def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
+    tmp = tmp_path_factory.mktemp("stack")
+    env = {
+        "PRISM_API_KEYS": json.dumps(API_KEYS), "PRISM_WEBHOOK_SECRET": WEBHOOK_SECRET,
+        "PRISM_REDIS_URL": f"redis://127.0.0.1:{redis_server.port}/1",
+        "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{s3_server.port}",
+        "PRISM_S3_BUCKET": "stack-e2e", "PRISM_S3_ACCESS_KEY_ID": S3_KEY_ID,
+        "PRISM_S3_SECRET_ACCESS_KEY": S3_SECRET,
+        "PRISM_WEBHOOK_ALLOWED_HOSTS": '["127.0.0.1"]', "PRISM_WEBHOOK_ALLOW_PRIVATE": "true",
+        "PRISM_TILES_PER_FACE": "4", "PRISM_VISIBILITY_TIMEOUT_S": "10",
+    }
+    api = start_api(tmp / "api", env)
+    worker = start_worker(tmp / "worker", env, concurrency=2)
+    stack = Stack(api, worker, env, tmp)
+    yield stack
+    stack.http.close()
+    worker.stop()
+    api.stop()
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return render_oblique_view(BOX, seed=1)
+
+
+def _jpeg(image: np.ndarray) -> bytes:
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
+                            [cv2.IMWRITE_JPEG_QUALITY, 92])
+    assert ok
+    return data.tobytes()
+
+
+def _item(reference: str, scene, **extra) -> dict:
+    return {"image": reference, "points": [list(map(round, scene.points[n])) for n in NAMES],
+            "focal_px": scene.focal_px,
+            "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm}, **extra}
+
+
+def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
+    photo = _jpeg(scene.image)
+    second = _jpeg(render_oblique_view(Box(90, 140, 45), seed=4).image)
+    scene2 = render_oblique_view(Box(90, 140, 45), seed=4)
+    r = stack.submit([_item(stack.upload(photo), scene), _item(stack.upload(second), scene2)],
+                     client_reference="batch-1")
+    assert r.status_code == 202, r.text
+    assert r.headers["Location"].endswith(f"/v1/jobs/{r.json()['id']}")
+    job = stack.wait(r.json()["id"])
+    assert job["state"] == "succeeded" and job["progress"] == 100, job
+    assert job["client_reference"] == "batch-1"
+    for item, box in zip(job["items"], (BOX, Box(90, 140, 45)), strict=True):
+        dims = item["result"]["dimensions"]
+        assert abs(dims["width"] / box.width_mm - 1) < 0.02, dims
+        assert abs(dims["depth"] / box.depth_mm - 1) < 0.02, dims
+    # The service's tiled result is exactly the engine's own on the same input.
+    first = job["items"][0]
+    csv = np.loadtxt(io.BytesIO(httpx.get(first["downloads"]["csv"]).content), delimiter=",")
+    ply = PlyData.read(io.BytesIO(httpx.get(first["downloads"]["ply"]).content))["vertex"]
+    report = httpx.get(first["downloads"]["report"]).json()
+    local = run_scan(ScanSpec.model_validate(_item("x", scene)), load_image(photo))
+    assert report["points"] == local.report["points"] == csv.shape[0] == ply.count
+    assert report["dimensions"] == local.report["dimensions"]
+    np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]),
+                                  local.cloud.points)
+
+
+def test_idempotent_submit(stack, scene):
+    items = [_item(stack.upload(_jpeg(scene.image)), scene)]
+    headers = {**ACME, "Idempotency-Key": "order-42"}
+    first = stack.http.post("/v1/jobs", json={"items": items}, headers=headers)
+    again = stack.http.post("/v1/jobs", json={"items": items}, headers=headers)
+    assert first.status_code == again.status_code == 202
+    assert first.json()["id"] == again.json()["id"]
+    other = stack.http.post("/v1/jobs", json={"items": items * 2}, headers=headers)
+    assert other.status_code == 409
+
+
+def test_failing_item_beside_a_good_one(stack, scene):
+    bad = stack.upload(b"\x89PNG but not really" * 50, name="bad.png")
+    job = stack.wait(stack.submit([_item(bad, scene),
+                                   _item(stack.upload(_jpeg(scene.image)), scene)]).json()["id"])
+    assert job["state"] == "succeeded"
+    failed, good = job["items"]
+    assert failed["state"] == "failed" and "bad.png" in failed["error"] or "corrupt" in failed["error"]
+    assert good["state"] == "succeeded" and good["downloads"]
+
+
+def test_cancel_stops_a_job(stack, scene):
+    ref = stack.upload(_jpeg(scene.image))
+    r = stack.submit([_item(ref, scene) for _ in range(12)])
+    cancelled = stack.http.post(f"/v1/jobs/{r.json()['id']}/cancel", headers=ACME)
+    assert cancelled.status_code == 200 and cancelled.json()["state"] == "cancelled"
+    time.sleep(3)
+    job = stack.http.get(f"/v1/jobs/{r.json()['id']}", headers=ACME).json()
+    assert job["state"] == "cancelled"
+    assert sum(item["state"] == "succeeded" for item in job["items"]) < 12
+
+
+def test_keys_are_isolated(stack, scene):
+    job_id = stack.submit([_item(stack.upload(_jpeg(scene.image)), scene)]).json()["id"]
+    assert stack.http.get(f"/v1/jobs/{job_id}", headers=GLOBEX).status_code == 404
+    assert stack.http.post(f"/v1/jobs/{job_id}/cancel", headers=GLOBEX).status_code == 404
+    listed = stack.http.get("/v1/jobs", headers=GLOBEX).json()["jobs"]
+    assert job_id not in [j["id"] for j in listed]
+    assert stack.http.get(f"/v1/jobs/{job_id}").status_code == 401
+    assert stack.http.get(f"/v1/jobs/{job_id}", headers={"X-API-Key": "nope"}).status_code == 401
+    stack.wait(job_id)
+
+
+class _Receiver(BaseHTTPRequestHandler):
+    received: list[tuple[dict, bytes]] = []
+
+    def do_POST(self) -> None:  # noqa: N802 - http.server's name
+        body = self.rfile.read(int(self.headers["Content-Length"]))
+        self.received.append((dict(self.headers), body))
+        self.send_response(204)
+        self.end_headers()
+
+    def log_message(self, *args) -> None:
+        pass
+
+
+def test_webhook_is_delivered_signed(stack, scene):
+    port = free_port()
+    server = HTTPServer(("127.0.0.1", port), _Receiver)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        r = stack.submit([_item(stack.upload(_jpeg(scene.image)), scene)],
+                         webhook_url=f"http://127.0.0.1:{port}/hook")
+        job = stack.wait(r.json()["id"])
+        deadline = time.monotonic() + 30
+        while not _Receiver.received and time.monotonic() < deadline:
+            time.sleep(0.2)
+        headers, body = _Receiver.received[0]
+        expected = hmac.new(WEBHOOK_SECRET.encode(), body, hashlib.sha256).hexdigest()
+        assert hmac.compare_digest(headers["X-Prism-Signature"], f"sha256={expected}")
+        payload = json.loads(body)
+        assert payload["id"] == job["id"] and payload["state"] == "succeeded"
+    finally:
+        server.shutdown()
+
+
+def test_worker_killed_mid_job_still_finishes_without_duplicates(stack, scene):
+    ref = stack.upload(_jpeg(scene.image))
+    job_id = stack.submit([_item(ref, scene) for _ in range(6)]).json()["id"]
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        job = stack.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
+        if job["progress"] > 5:
+            break
+        time.sleep(0.1)
+    stack.worker.kill()  # SIGKILL: tasks in flight are lost with their process
+    stack.worker.start()
+    job = stack.wait(job_id, timeout=180)
+    assert job["state"] == "succeeded", job
+    assert all(item["state"] == "succeeded" for item in job["items"])
+    points = {item["result"]["points"] for item in job["items"]}
+    assert len(points) == 1  # six identical items, one identical result each
