@@ -1,0 +1,143 @@
+"""Service benchmark: photos through the real stack against the engine alone, side by side.
+
+Starts redis-server, SeaweedFS, a Celery worker (2 processes) and the API on loopback, uploads
+N photos of 1280x1024, submits them as jobs at a steady rate, and prints:
+* images per second end to end (first submit to last job final) and for the engine alone on
+  the same images with the same number of processes (decode, scan, CSV + PLY into memory);
+  their ratio shows the queue's overhead (target >= 0.7 with 2 processes on 2 cores);
+* submit latency p50/p99 at the steady request rate, and status-poll latency p50/p99.
+
+Run: .venv/bin/python benchmarks/service.py [--images 200] [--per-job 10] [--rate 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import secrets
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import cv2
+import httpx
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from prism_cli.stack import start_api, start_redis, start_s3, start_worker
+from prismcore import ScanSpec, run_scan
+from prismcore.images import load_image
+from prismcore.synth import Box, render_oblique_view
+from prismcore.writers import write_csv, write_ply
+
+NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+PROCESSES = 2
+
+
+def _scenes(count: int) -> list[tuple[bytes, dict]]:
+    out = []
+    for seed in range(count):
+        box = Box(80 + 20 * (seed % 4), 60 + 15 * (seed % 3), 40 + 10 * (seed % 5))
+        scene = render_oblique_view(box, seed=seed)
+        ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR),
+                                [cv2.IMWRITE_JPEG_QUALITY, 90])
+        item = {"points": [list(map(round, scene.points[n])) for n in NAMES],
+                "focal_px": scene.focal_px,
+                "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm}}
+        out.append((jpeg.tobytes(), item))
+    return out
+
+
+def _engine_one(args: tuple[bytes, dict]) -> int:
+    data, item = args
+    result = run_scan(ScanSpec.model_validate({"image": "x", **item}), load_image(data))
+    write_csv(io.BytesIO(), result.cloud.points)
+    write_ply(io.BytesIO(), result.cloud.points, result.cloud.colors)
+    return result.report["points"]
+
+
+def engine_alone(work: list[tuple[bytes, dict]]) -> float:
+    """Images per second with PROCESSES engine processes, no queue."""
+    with ProcessPoolExecutor(PROCESSES) as pool:
+        list(pool.map(_engine_one, work[:PROCESSES]))  # warm the processes up
+        start = time.perf_counter()
+        list(pool.map(_engine_one, work))
+        return len(work) / (time.perf_counter() - start)
+
+
+def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, tmp: Path) -> dict:
+    key = secrets.token_urlsafe(16)
+    creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
+    redis = start_redis(tmp / "redis")
+    s3 = start_s3(tmp / "s3", *creds)
+    env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
+           "PRISM_REDIS_URL": f"redis://127.0.0.1:{redis.port}/0",
+           "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{s3.port}",
+           "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+    procs = [redis, s3, start_api(tmp / "api", env), start_worker(tmp / "w", env, PROCESSES)]
+    try:
+        http = httpx.Client(base_url=f"http://127.0.0.1:{procs[2].port}", timeout=60,
+                            headers={"X-API-Key": key})
+        refs = [http.post("/v1/uploads", files={"file": ("p.jpg", data)}).json()["reference"]
+                for data, _ in work]
+        jobs, submit_ms = [], []
+        start = time.perf_counter()
+        for n, first in enumerate(range(0, len(work), per_job)):
+            time.sleep(max(0.0, start + n / rate - time.perf_counter()))  # steady rate
+            items = [{"image": ref, **item} for ref, (_, item) in
+                     zip(refs[first:first + per_job], work[first:first + per_job], strict=True)]
+            t = time.perf_counter()
+            response = http.post("/v1/jobs", json={"items": items})
+            submit_ms.append((time.perf_counter() - t) * 1000)
+            jobs.append(response.json()["id"])
+        poll_ms, pending = [], set(jobs)
+        while pending:
+            for job_id in list(pending):
+                t = time.perf_counter()
+                state = http.get(f"/v1/jobs/{job_id}").json()["state"]
+                poll_ms.append((time.perf_counter() - t) * 1000)
+                if state in ("succeeded", "failed", "cancelled"):
+                    pending.discard(job_id)
+            time.sleep(0.2)
+        elapsed = time.perf_counter() - start
+        failed = sum(item["state"] != "succeeded" for job_id in jobs
+                     for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
+        return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
+                "failed_items": failed}
+    finally:
+        for proc in reversed(procs):
+            proc.stop()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--images", type=int, default=200)
+    parser.add_argument("--per-job", type=int, default=10)
+    parser.add_argument("--rate", type=float, default=20.0, help="job submissions per second")
+    parser.add_argument("--distinct", type=int, default=8, help="distinct rendered scenes")
+    args = parser.parse_args()
+    scenes = _scenes(args.distinct)
+    work = [scenes[i % len(scenes)] for i in range(args.images)]
+    engine_rate = engine_alone(work)
+    with tempfile.TemporaryDirectory() as tmp:
+        service = through_service(work, args.per_job, args.rate, Path(tmp))
+    table = Table(title=f"{args.images} photos of 1280x1024, {PROCESSES} processes on "
+                        f"{PROCESSES} workers")
+    for col in ("measure", "value"):
+        table.add_column(col)
+    table.add_row("engine alone, images/s", f"{engine_rate:.2f}")
+    table.add_row("through the service, images/s", f"{service['images_per_s']:.2f}")
+    table.add_row("service / engine (target >= 0.7)", f"{service['images_per_s'] / engine_rate:.2f}")
+    for name in ("submit_ms", "poll_ms"):
+        values = np.array(service[name])
+        table.add_row(f"{name[:-3]} latency p50 / p99 ms ({len(values)} requests)",
+                      f"{np.percentile(values, 50):.1f} / {np.percentile(values, 99):.1f}")
+    table.add_row("failed items", str(service["failed_items"]))
+    Console().print(table)
+
+
+if __name__ == "__main__":
+    main()
