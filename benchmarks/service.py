@@ -42,7 +42,7 @@ def _scenes(count: int) -> list[tuple[bytes, dict]]:
     for seed in range(count):
         box = Box(80 + 20 * (seed % 4), 60 + 15 * (seed % 3), 40 + 10 * (seed % 5))
         scene = render_oblique_view(box, seed=seed)
-        ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR),
+        _, jpeg = cv2.imencode(".jpg", cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR),
                                 [cv2.IMWRITE_JPEG_QUALITY, 90])
         item = {"points": [list(map(round, scene.points[n])) for n in NAMES],
                 "focal_px": scene.focal_px,
