@@ -33,12 +33,12 @@ def _gaussian(sigma: float, order: int) -> np.ndarray:
 
 _SMOOTH = _gaussian(1.0, 0)  # along the side, in profiles
 _DERIVATIVE = _gaussian(1.0 / _STEP, 1)  # across the side: sigma 1 px
-_CHROMA_WEIGHT = 0.25
-# RGB -> (Y, Cb, Cr) of JPEG (BT.601), chroma rows scaled by _CHROMA_WEIGHT.
-_YCC_WEIGHTED = (np.array([[0.299, 0.587, 0.114],
-                           [-0.168736, -0.331264, 0.5],
-                           [0.5, -0.418688, -0.081312]])
-                 * np.array([[1.0], [_CHROMA_WEIGHT], [_CHROMA_WEIGHT]])).astype(np.float32)
+_YCC = np.array([[0.299, 0.587, 0.114],  # RGB -> (Y, Cb, Cr) as JPEG has them (BT.601)
+                 [-0.168736, -0.331264, 0.5],
+                 [0.5, -0.418688, -0.081312]])
+# Luminance-led first (precise under JPEG); full colour as the second try for edges between
+# colours of nearly equal brightness, which the first one cannot see.
+_COLOUR_PASSES = tuple((_YCC * np.array([[1.0], [w], [w]])).astype(np.float32) for w in (0.25, 1.0))
 _HYPOTHESES = 120
 _SCORING_PROFILES = 60
 
@@ -96,12 +96,12 @@ def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out if out.ndim == 3 else out[..., None]
 
 
-def _candidates(samples: np.ndarray, t: np.ndarray, margin: int):
+def _candidates(samples: np.ndarray, t: np.ndarray, margin: int, colour: np.ndarray):
     """Sub-pixel edge positions (profiles, K) along t, with their strengths; NaN when absent."""
     # JPEG keeps chroma at half resolution, which blurs and shifts colour edges by up to half a
     # pixel; luminance is kept at full resolution. So luminance locates the edge, and chroma,
     # down-weighted, still finds edges between colours of equal brightness.
-    samples = samples @ _YCC_WEIGHTED.T
+    samples = samples @ colour.T
     # Smooth along the side (noise) and differentiate across it (the edge), in one pass.
     grad = cv2.sepFilter2D(np.ascontiguousarray(samples, dtype=np.float32), -1, _DERIVATIVE,
                            _SMOOTH, borderType=cv2.BORDER_REPLICATE)
@@ -196,15 +196,19 @@ def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: floa
         40 % of the profiles agree on any line.
     """
     s, t, d, n, samples, margin = _profiles(image, p, q, search_px)
-    pos, weight = _candidates(samples, t, margin)
-    if bounds:
-        xy = p + s[:, None, None] * d + np.nan_to_num(pos)[..., None] * n
-        for line, minimum in bounds:
-            outside = xy @ line[:2] + line[2] < minimum
-            pos[outside] = np.nan
-            weight[outside] = 0.0
-    found = _consensus(s, pos, weight, tol=0.75)
-    refined = _refine(s, pos, weight, *found) if found else None
+    refined = None
+    for colour in _COLOUR_PASSES:
+        pos, weight = _candidates(samples, t, margin, colour)
+        if bounds:
+            xy = p + s[:, None, None] * d + np.nan_to_num(pos)[..., None] * n
+            for line, minimum in bounds:
+                outside = xy @ line[:2] + line[2] < minimum
+                pos[outside] = np.nan
+                weight[outside] = 0.0
+        found = _consensus(s, pos, weight, tol=0.75)
+        refined = _refine(s, pos, weight, *found) if found else None
+        if refined is not None and refined[2] >= 0.4:
+            break
     if refined is None or refined[2] < 0.4:
         return EdgeFit(line_through(p, q), 0.0 if refined is None else refined[2], 0.0, False)
     a, b, support, rms = refined
