@@ -1,0 +1,64 @@
+"""`prism serve`: the whole stack from one command, usable within a minute, stopped by Ctrl-C."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import httpx
+import psutil
+import pytest
+
+from prism_cli.stack import free_port
+
+
+@pytest.fixture
+def served(tmp_path):
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PRISM_")}
+    proc = subprocess.Popen([sys.executable, "-m", "prism_cli", "serve", "--data-dir",
+                             str(tmp_path), "--port", str(port), "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    yield proc, port, tmp_path
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
+def test_serve_runs_a_job_and_stops_cleanly(served):
+    proc, port, data_dir = served
+    base = f"http://127.0.0.1:{port}"
+    started = time.monotonic()
+    deadline = started + 90
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{base}/readyz", timeout=2).status_code == 200:
+                break
+        except httpx.HTTPError:
+            pass
+        assert proc.poll() is None, proc.stdout.read()
+        time.sleep(0.5)
+    else:
+        raise AssertionError("prism serve did not become ready")
+    key = json.loads((data_dir / "credentials.json").read_text())["api_key"]
+    headers = {"X-API-Key": key}
+    with open("samples/box.jpg", "rb") as fh:
+        ref = httpx.post(f"{base}/v1/uploads", files={"file": ("box.jpg", fh)},
+                         headers=headers).json()["reference"]
+    spec = json.loads(open("samples/job.json").read()) | {"image": ref}
+    job = httpx.post(f"{base}/v1/jobs", json={"items": [spec]}, headers=headers).json()
+    while job["state"] not in ("succeeded", "failed") and time.monotonic() < deadline:
+        time.sleep(0.5)
+        job = httpx.get(f"{base}/v1/jobs/{job['id']}", headers=headers).json()
+    assert job["state"] == "succeeded", job
+    assert time.monotonic() - started < 60  # a new user submits and polls within a minute
+    children = psutil.Process(proc.pid).children(recursive=True)
+    assert len(children) >= 4
+    proc.send_signal(signal.SIGINT)
+    proc.wait(60)
+    gone, alive = psutil.wait_procs(children, timeout=30)
+    assert not alive, alive
