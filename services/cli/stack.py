@@ -111,10 +111,15 @@ def start_redis(workdir: Path, port: int | None = None) -> ManagedProcess:
 
 def start_s3(workdir: Path, key_id: str, secret: str, port: int | None = None) -> ManagedProcess:
     """SeaweedFS `weed mini` (S3 API); anonymous access is refused, only key_id/secret work."""
+    # Every listener gets a free port: weed's defaults (e.g. 8182 for the Iceberg catalog)
+    # would collide with a second instance on the machine.
     ports = {"s3": port or free_port()}
-    ports |= {name: free_port() for name in ("master", "volume", "filer", "admin", "webdav")}
+    ports |= {name: free_port() for name in (
+        "master", "volume", "filer", "admin", "webdav", "master.port.grpc", "volume.port.grpc",
+        "filer.port.grpc", "admin.port.grpc", "s3.port.grpc", "s3.port.iceberg", "s3.port.lance")}
     argv = [_binary("weed", "seaweedfs"), "mini", f"-dir={workdir}", "-ip=127.0.0.1",
-            "-ip.bind=127.0.0.1", *[f"-{name}.port={p}" for name, p in ports.items()]]
+            "-ip.bind=127.0.0.1",
+            *[f"-{name}={p}" if "." in name else f"-{name}.port={p}" for name, p in ports.items()]]
     proc = ManagedProcess(argv, ports["s3"], workdir, ready_timeout=60,
                           env={"AWS_ACCESS_KEY_ID": key_id, "AWS_SECRET_ACCESS_KEY": secret})
     proc.start()

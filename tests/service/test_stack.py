@@ -198,6 +198,7 @@ def test_webhook_is_delivered_signed(stack, scene):
         assert payload["id"] == job["id"] and payload["state"] == "succeeded"
     finally:
         server.shutdown()
+        server.server_close()
 
 
 def test_worker_killed_mid_job_still_finishes_without_duplicates(stack, scene):
