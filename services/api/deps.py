@@ -1,0 +1,103 @@
+"""Dependencies of the routes, and their `Annotated` aliases.
+
+Everything comes from `get_settings`, so a test overrides that one dependency and the store,
+object storage and Celery app follow. Clients are built once per configuration and shared by
+requests (connection pools), not once per request.
+"""
+
+from __future__ import annotations
+
+import hmac
+import threading
+from collections.abc import Callable
+from typing import Annotated, TypeVar
+
+import redis
+from celery import Celery
+from fastapi import Depends, HTTPException, Security, status
+from fastapi.security import APIKeyHeader
+from prism_common.queue import make_celery
+from prism_common.settings import Settings, get_settings
+from prism_common.storage import ObjectStore
+from prism_common.store import JobStore
+
+from .presign import Presigner
+
+__all__ = ["CeleryDep", "ObjectsDep", "PresignerDep", "RedisDep", "SettingsDep", "StoreDep",
+           "TenantDep", "get_celery", "get_objects", "get_presigner", "get_redis", "get_store",
+           "get_tenant"]
+
+T = TypeVar("T")
+_lock = threading.Lock()
+_built: dict[tuple, object] = {}
+
+
+def _once(key: tuple, build: Callable[[], T]) -> T:
+    # Settings objects are not hashable, so each client is keyed by the settings it is built from.
+    with _lock:
+        if key not in _built:
+            _built[key] = build()
+        return _built[key]  # type: ignore[return-value]
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+def get_redis(settings: SettingsDep) -> redis.Redis:
+    # Timeouts: a stuck Redis fails the request (503) instead of holding it forever.
+    return _once(("redis", settings.redis_url), lambda: redis.Redis.from_url(
+        settings.redis_url, decode_responses=True, socket_connect_timeout=5, socket_timeout=15,
+        health_check_interval=30))
+
+
+RedisDep = Annotated[redis.Redis, Depends(get_redis)]
+
+
+def get_store(settings: SettingsDep, client: RedisDep) -> JobStore:
+    return _once(("store", settings.redis_url), lambda: JobStore(client))
+
+
+def get_objects(settings: SettingsDep) -> ObjectStore:
+    key_id, secret = settings.s3_access_key_id, settings.s3_secret_access_key
+    key = ("s3", settings.s3_endpoint_url, settings.s3_region, settings.s3_bucket,
+           key_id.get_secret_value() if key_id else None, secret.get_secret_value() if secret else None)
+    return _once(key, lambda: ObjectStore.from_settings(settings))
+
+
+def get_presigner(settings: SettingsDep,
+                  objects: Annotated[ObjectStore, Depends(get_objects)]) -> Presigner:
+    # id() is safe here: the object store it names is kept in _built for good.
+    return _once(("presign", id(objects), settings.presign_ttl_s),
+                 lambda: Presigner(objects, settings.presign_ttl_s))
+
+
+def get_celery(settings: SettingsDep) -> Celery:
+    # make_celery reads the broker URL and the visibility timeout, nothing else.
+    return _once(("celery", settings.redis_url, settings.visibility_timeout_s),
+                 lambda: make_celery(settings))
+
+
+_api_key = APIKeyHeader(name="X-API-Key", auto_error=False,
+                        description="The key of your tenant; every /v1 call needs it.")
+
+
+def get_tenant(settings: SettingsDep, api_key: Annotated[str | None, Security(_api_key)]) -> str:
+    """The tenant whose key came in the X-API-Key header; 401 otherwise."""
+    given = (api_key or "").encode()
+    tenant = None
+    # Every key is compared, in constant time, whichever matches: the time taken says nothing
+    # about which key (or how much of one) was right.
+    for name, key in settings.api_keys.items():
+        if hmac.compare_digest(given, key.get_secret_value().encode()) and given:
+            tenant = name
+    if tenant is None:
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing or invalid X-API-Key header",
+                            headers={"WWW-Authenticate": "ApiKey"})
+    return tenant
+
+
+StoreDep = Annotated[JobStore, Depends(get_store)]
+ObjectsDep = Annotated[ObjectStore, Depends(get_objects)]
+PresignerDep = Annotated[Presigner, Depends(get_presigner)]
+CeleryDep = Annotated[Celery, Depends(get_celery)]
+TenantDep = Annotated[str, Depends(get_tenant)]

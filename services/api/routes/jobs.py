@@ -1,0 +1,132 @@
+"""/v1/jobs: submit a batch of scans, follow it, list and cancel jobs.
+
+A job is only ever visible to its tenant: another tenant's id is answered like an unknown one.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import logging
+import math
+import re
+from datetime import UTC, datetime
+from typing import Annotated
+from uuid import uuid4
+
+from fastapi import APIRouter, Depends, Header, HTTPException, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
+from kombu.exceptions import OperationalError
+from prism_common.queue import TASK_RUN_JOB
+from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.store import IdempotencyConflictError, JobStore
+
+from ..deps import CeleryDep, PresignerDep, SettingsDep, StoreDep, TenantDep
+from ..presign import Presigner
+from ..schemas import ItemPublic, JobCreate, JobList, JobPublic, ResultPublic
+from ..validation import check_job
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+log = logging.getLogger(__name__)
+
+_JOB_ID = re.compile(r"^[0-9a-f]{32}$")
+_FILENAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}
+
+
+def to_public(job: JobRecord, presigner: Presigner) -> JobPublic:
+    items = []
+    for item in job.items:
+        downloads = {kind: presigner.url(
+            key, f"{job.id[:8]}-item-{item.index}-{_FILENAMES.get(kind, kind)}")
+            for kind, key in item.outputs.items()}
+        result = ResultPublic.model_validate(item.result.model_dump()) if item.result else None
+        items.append(ItemPublic(index=item.index, state=item.state, error=item.error, result=result,
+                                downloads=downloads))
+    return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items)
+
+
+def _own_job(store: JobStore, job_id: str, tenant: str) -> JobRecord:
+    job = store.get(job_id) if _JOB_ID.match(job_id) else None
+    if job is None or job.tenant != tenant:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id[:64]!r}")
+    return job
+
+
+async def _raw_body(request: Request) -> bytes:
+    return await request.body()  # already read for the JobCreate parameter: served from memory
+
+
+@router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=JobPublic,
+             responses={409: {"description": "Idempotency-Key reused with another body"}})
+def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, settings: SettingsDep,
+               store: StoreDep, presigner: PresignerDep, celery: CeleryDep,
+               body: Annotated[bytes, Depends(_raw_body)],
+               idempotency_key: Annotated[str | None, Header(max_length=200)] = None) -> JobPublic:
+    """Queue a batch of scans. Repeating a request with the same Idempotency-Key returns its job."""
+    check_job(job_in, settings, store, tenant)
+    items = [ItemRecord(index=i, spec=spec.model_copy(
+        update={"max_pixels": min(spec.max_pixels, settings.max_pixels)}))
+        for i, spec in enumerate(job_in.items)]
+    record = JobRecord(id=uuid4().hex, tenant=tenant, items=items, created_at=datetime.now(UTC),
+                       client_reference=job_in.client_reference, webhook_url=job_in.webhook_url)
+    try:
+        job, created = store.create(record, idempotency_key=idempotency_key, body=body)
+    except IdempotencyConflictError as exc:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
+    if created:
+        try:
+            # ignore_result: the API never reads run_job's result; without it Celery's Redis
+            # backend subscribes this process to every task's result channel, for good.
+            celery.send_task(TASK_RUN_JOB, args=[job.id], ignore_result=True)
+        except OperationalError as exc:
+            # Failed rather than left queued forever: a retry with the key would not re-send it.
+            log.error("job %s could not be queued: %s", job.id, exc)
+            store.transition(job.id, State.failed, error="the job could not be queued")
+            raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE,
+                                f"the job queue is unavailable; job {job.id} was not started") from None
+    response.headers["Location"] = f"{(settings.public_base_url or '').rstrip('/')}/v1/jobs/{job.id}"
+    return to_public(job, presigner)
+
+
+def _encode_cursor(score: float | None) -> str | None:
+    # Opaque to clients: the store's position (a creation time in us), which may change shape.
+    return base64.urlsafe_b64encode(repr(score).encode()).decode() if score is not None else None
+
+
+def _decode_cursor(cursor: str | None) -> float | None:
+    if cursor is None:
+        return None
+    try:
+        value = float(base64.urlsafe_b64decode(cursor.encode()).decode())
+    except (ValueError, binascii.Error, UnicodeError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise RequestValidationError([{"type": "value_error", "loc": ("query", "cursor"),
+                                       "msg": f"cursor {cursor!r} is not one this API gave out"}])
+    return value
+
+
+@router.get("", response_model=JobList)
+def list_jobs(tenant: TenantDep, store: StoreDep, presigner: PresignerDep,
+              state: State | None = None, limit: Annotated[int, Query(ge=1, le=200)] = 50,
+              cursor: Annotated[str | None, Query(max_length=100)] = None) -> JobList:
+    """Your jobs, newest first; follow `next_cursor` for the next page."""
+    jobs, next_score = store.list(tenant, state=state, limit=limit, cursor=_decode_cursor(cursor))
+    return JobList(jobs=[to_public(j, presigner) for j in jobs], next_cursor=_encode_cursor(next_score))
+
+
+@router.get("/{job_id}", response_model=JobPublic, responses={404: {"description": "No such job"}})
+def get_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep) -> JobPublic:
+    return to_public(_own_job(store, job_id, tenant), presigner)
+
+
+@router.post("/{job_id}/cancel", response_model=JobPublic,
+             responses={404: {"description": "No such job"}, 409: {"description": "Already over"}})
+def cancel_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep) -> JobPublic:
+    """Stop a queued or running job; cancelling a cancelled job again changes nothing."""
+    _own_job(store, job_id, tenant)
+    if not store.transition(job_id, State.cancelled):
+        state = store.state(job_id)
+        if state in (State.succeeded, State.failed):
+            raise HTTPException(status.HTTP_409_CONFLICT, f"job is already {state.value}")
+    return to_public(_own_job(store, job_id, tenant), presigner)

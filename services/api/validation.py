@@ -1,0 +1,70 @@
+"""Checks of a submitted job that need the settings or the store, beyond its schema.
+
+Failures are reported like schema errors (422, one entry per problem with its location), so a
+client handles both the same way.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+from urllib.parse import urlsplit
+
+from fastapi.exceptions import RequestValidationError
+from prism_common.references import ReferenceError, check_reference, parse_reference
+from prism_common.settings import Settings
+from prism_common.store import JobStore
+
+from .schemas import JobCreate
+
+__all__ = ["check_job", "webhook_problem"]
+
+_MAX_REPORTED = 50  # a 5000-item batch with one bad upload gets a readable answer, not 5000 lines
+
+
+def webhook_problem(url: str, settings: Settings) -> str | None:
+    """Why the service will not POST to `url`, or None if it will."""
+    try:
+        parts = urlsplit(url)
+        parts.port  # noqa: B018 - raises ValueError on a bad port
+    except ValueError as exc:
+        return f"webhook_url is not a valid URL: {exc}"
+    if parts.scheme != "https" and not (parts.scheme == "http" and settings.webhook_allow_private):
+        return "webhook_url must be an https:// URL"
+    if not parts.hostname:
+        return "webhook_url has no host"
+    if parts.username or parts.password:
+        return "credentials in webhook_url are not accepted"
+    if parts.hostname.lower() not in {h.lower() for h in settings.webhook_allowed_hosts}:
+        return f"webhook host {parts.hostname!r} is not on the allow-list"
+    return None
+
+
+def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) -> None:
+    """Raise RequestValidationError naming every item (and field) the service will not run."""
+    errors: list[dict[str, Any]] = []
+
+    def fail(loc: tuple, msg: str) -> None:
+        errors.append({"type": "value_error", "loc": ("body", *loc), "msg": msg})
+
+    if len(job.items) > settings.max_items_per_job:
+        fail(("items",), f"at most {settings.max_items_per_job} items per job, got {len(job.items)}")
+    if job.webhook_url is not None and (problem := webhook_problem(job.webhook_url, settings)):
+        fail(("webhook_url",), problem)
+    owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
+    for i, item in enumerate(job.items):
+        if len(errors) >= _MAX_REPORTED:
+            break
+        for field in ("image", "side_image"):
+            text = getattr(item, field)
+            if text is None:
+                continue
+            try:
+                ref = parse_reference(text)
+                if ref.kind == "upload" and ref.upload_id not in owners:
+                    upload = store.get_upload(ref.upload_id)
+                    owners[ref.upload_id] = upload["tenant"] if upload else None
+                check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
+            except ReferenceError as exc:
+                fail(("items", i, field), f"item {i} {field}: {exc}")
+    if errors:
+        raise RequestValidationError(errors[:_MAX_REPORTED])
