@@ -134,6 +134,13 @@ class ScanSpec(_Strict):
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
     max_points: int = Field(default=20_000_000, gt=0, description="Refuse larger clouds.")
 
+    @field_validator("principal_point")
+    @classmethod
+    def _finite_point(cls, value: Point | None) -> Point | None:
+        if value is not None and not all(math.isfinite(c) for c in value):
+            raise ValueError(f"principal_point {value} is not finite")
+        return value
+
     @model_validator(mode="after")
     def _pinhole_needs_focal(self) -> ScanSpec:
         if isinstance(self.scale, Pinhole) and self.focal_px is None:

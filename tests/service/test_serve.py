@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import httpx
 import psutil
@@ -27,6 +28,7 @@ def served(tmp_path):
     if proc.poll() is None:
         proc.kill()
         proc.wait()
+    proc.stdout.close()
 
 
 def test_serve_runs_a_job_and_stops_cleanly(served):
@@ -46,10 +48,10 @@ def test_serve_runs_a_job_and_stops_cleanly(served):
         raise AssertionError("prism serve did not become ready")
     key = json.loads((data_dir / "credentials.json").read_text())["api_key"]
     headers = {"X-API-Key": key}
-    with open("samples/box.jpg", "rb") as fh:
+    with Path("samples/box.jpg").open("rb") as fh:
         ref = httpx.post(f"{base}/v1/uploads", files={"file": ("box.jpg", fh)},
                          headers=headers).json()["reference"]
-    spec = json.loads(open("samples/job.json").read()) | {"image": ref}
+    spec = json.loads(Path("samples/job.json").read_text()) | {"image": ref}
     job = httpx.post(f"{base}/v1/jobs", json={"items": [spec]}, headers=headers).json()
     while job["state"] not in ("succeeded", "failed") and time.monotonic() < deadline:
         time.sleep(0.5)
@@ -60,5 +62,5 @@ def test_serve_runs_a_job_and_stops_cleanly(served):
     assert len(children) >= 4
     proc.send_signal(signal.SIGINT)
     proc.wait(60)
-    gone, alive = psutil.wait_procs(children, timeout=30)
+    _, alive = psutil.wait_procs(children, timeout=30)
     assert not alive, alive

@@ -13,6 +13,7 @@ import threading
 import time
 from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, HTTPServer
+from typing import ClassVar
 
 import cv2
 import httpx
@@ -141,7 +142,7 @@ def test_failing_item_beside_a_good_one(stack, scene):
                                    _item(stack.upload(_jpeg(scene.image)), scene)]).json()["id"])
     assert job["state"] == "succeeded"
     failed, good = job["items"]
-    assert failed["state"] == "failed" and "bad.png" in failed["error"] or "corrupt" in failed["error"]
+    assert (failed["state"] == "failed" and "bad.png" in failed["error"]) or "corrupt" in failed["error"]
     assert good["state"] == "succeeded" and good["downloads"]
 
 
@@ -168,9 +169,9 @@ def test_keys_are_isolated(stack, scene):
 
 
 class _Receiver(BaseHTTPRequestHandler):
-    received: list[tuple[dict, bytes]] = []
+    received: ClassVar[list[tuple[dict, bytes]]] = []
 
-    def do_POST(self) -> None:  # noqa: N802 - http.server's name
+    def do_POST(self) -> None:
         body = self.rfile.read(int(self.headers["Content-Length"]))
         self.received.append((dict(self.headers), body))
         self.send_response(204)
