@@ -1,0 +1,196 @@
+"""The rules for https inputs (and webhook targets), against real sockets on 127.0.0.1.
+
+Refusals must happen before any connection: a plain listening socket stands in for an internal
+service, and must not have been connected to.
+"""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import ssl
+import subprocess
+import threading
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import ClassVar
+
+import pytest
+from prism_common.references import ReferenceError
+from prism_common.settings import Settings
+
+from prism_worker.egress import check_target
+from prism_worker.fetch import FetchError, fetch_url
+
+from .conftest import API_KEYS, WEBHOOK_SECRET
+
+LIMIT = 2000
+
+
+class _Handler(BaseHTTPRequestHandler):
+    hosts: ClassVar[list[str]] = []  # the Host header of every request received
+
+    def do_GET(self) -> None:
+        self.hosts.append(self.headers["Host"])
+        path, _, query = self.path.partition("?")
+        if path == "/ok":
+            self._send(200, b"x" * (LIMIT - 1))
+        elif path == "/declared-big":
+            self._send(200, b"x" * (LIMIT + 1))
+        elif path == "/streamed-big":  # no Content-Length: the body ends when the socket does
+            self.send_response(200)
+            self.end_headers()
+            for _ in range(3):
+                self.wfile.write(b"y" * 1000)
+        elif path == "/redirect":
+            self.send_response(302)
+            self.send_header("Location", query)
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+        elif path == "/loop":
+            self.send_response(301)
+            self.send_header("Location", "/loop")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+        else:
+            self._send(404, b"no")
+
+    def _send(self, status: int, body: bytes) -> None:
+        self.send_response(status)
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, *args) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def cert(tmp_path_factory) -> Path:
+    if shutil.which("openssl") is None:
+        pytest.skip("the openssl command is needed to make a test certificate")
+    folder = tmp_path_factory.mktemp("tls")
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2",
+                    "-keyout", str(folder / "key.pem"), "-out", str(folder / "cert.pem"),
+                    "-subj", "/CN=localhost", "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1"],
+                   check=True, capture_output=True)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def https_port(cert) -> Iterator[int]:
+    server = ThreadingHTTPServer(("127.0.0.1", 0), _Handler)
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.load_cert_chain(cert / "cert.pem", cert / "key.pem")
+    server.socket = context.wrap_socket(server.socket, server_side=True)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield server.server_address[1]
+    server.shutdown()
+    server.server_close()
+
+
+@pytest.fixture
+def listener() -> Iterator[socket.socket]:
+    """A port on 127.0.0.1 that must never see a connection."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen(8)
+        sock.setblocking(False)
+        yield sock
+        with pytest.raises(BlockingIOError):  # nothing is waiting to be accepted
+            sock.accept()
+
+
+def _settings(cert: Path | None = None, hosts: tuple[str, ...] = ("localhost",),
+              private: bool = True) -> Settings:
+    return Settings(api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET, fetch_allowed_hosts=list(hosts),
+                    fetch_allow_private=private, fetch_max_bytes=LIMIT,
+                    fetch_ca_bundle=str(cert / "cert.pem") if cert else None)
+
+
+def test_fetches_an_allowed_host_with_its_name_in_host_and_tls(cert, https_port):
+    _Handler.hosts.clear()
+    assert fetch_url(f"https://localhost:{https_port}/ok", _settings(cert)) == b"x" * (LIMIT - 1)
+    # Connected to the checked address, but the server saw the name (Host header; the
+    # certificate was verified against it).
+    assert _Handler.hosts == [f"localhost:{https_port}"]
+
+
+def test_certificates_are_verified(https_port):
+    with pytest.raises(FetchError, match=r"CERTIFICATE_VERIFY_FAILED|certificate verify failed"):
+        fetch_url(f"https://localhost:{https_port}/ok", _settings(None))
+
+
+@pytest.mark.parametrize("url", [
+    "https://127.0.0.1:{port}/x",  # a host that is not on the list, although it resolves
+    "https://LOCALHOST.:{port}/x",  # no trailing-dot or case games: not the listed name
+    "http://localhost:{port}/x",  # plain http
+    "ftp://localhost:{port}/x",
+    "file:///etc/passwd",
+    "gopher://localhost:{port}/x",
+    "https://user:secret@localhost:{port}/x",  # credentials
+])
+def test_refused_before_connecting(listener, url):
+    port = listener.getsockname()[1]
+    with pytest.raises(ReferenceError):
+        fetch_url(url.format(port=port), _settings())
+
+
+@pytest.mark.parametrize("host", ["localhost", "127.0.0.1", "169.254.169.254", "10.0.0.7",
+                                  "192.168.1.1", "0.0.0.0", "::1", "fd00::1"])
+def test_private_and_link_local_addresses_are_refused(listener, host):
+    port = listener.getsockname()[1]
+    netloc = f"[{host}]" if ":" in host else host
+    with pytest.raises(ReferenceError, match="private or local"):
+        fetch_url(f"https://{netloc}:{port}/latest/meta-data", _settings(hosts=(host,), private=False))
+
+
+def test_redirect_is_followed_to_an_allowed_host(cert, https_port):
+    url = f"https://localhost:{https_port}/redirect?/ok"
+    assert len(fetch_url(url, _settings(cert))) == LIMIT - 1
+
+
+@pytest.mark.parametrize("target", ["https://127.0.0.1:{port}/", "http://localhost:{port}/",
+                                    "https://169.254.169.254:{port}/"])
+def test_redirect_to_a_refused_target_is_not_followed(cert, https_port, listener, target):
+    target = target.format(port=listener.getsockname()[1])
+    with pytest.raises(ReferenceError):
+        fetch_url(f"https://localhost:{https_port}/redirect?{target}", _settings(cert))
+
+
+def test_redirects_are_limited(cert, https_port):
+    with pytest.raises(FetchError, match="more than 3 redirects"):
+        fetch_url(f"https://localhost:{https_port}/loop", _settings(cert))
+
+
+@pytest.mark.parametrize("path", ["/declared-big", "/streamed-big"])
+def test_size_limit(cert, https_port, path):
+    with pytest.raises(FetchError, match=f"limit of {LIMIT} bytes"):
+        fetch_url(f"https://localhost:{https_port}{path}", _settings(cert))
+
+
+def test_http_errors_fail_with_the_status(cert, https_port):
+    with pytest.raises(FetchError, match="HTTP 404"):
+        fetch_url(f"https://localhost:{https_port}/missing", _settings(cert))
+
+
+def test_nothing_listening_is_a_fetch_error(cert):
+    with socket.socket() as sock:  # a port that was free a moment ago
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    with pytest.raises(FetchError, match="cannot fetch"):
+        fetch_url(f"https://localhost:{port}/ok", _settings(cert))
+
+
+def test_webhook_targets_have_their_own_rules():
+    settings = _settings(hosts=())
+    target = check_target("http://127.0.0.1:9/hook", settings, schemes={"http", "https"},
+                          allowed_hosts=["127.0.0.1"], allow_private=True)
+    assert target.addresses == ["127.0.0.1"] and target.netloc == "127.0.0.1:9"
+    with pytest.raises(ReferenceError, match="private or local"):
+        check_target("http://127.0.0.1:9/hook", settings, schemes={"http", "https"},
+                     allowed_hosts=["127.0.0.1"], allow_private=False)
+    with pytest.raises(ReferenceError, match="allow-list"):
+        check_target("https://example.com/hook", settings, schemes={"http", "https"},
+                     allowed_hosts=["127.0.0.1"], allow_private=True)

@@ -1,0 +1,399 @@
+"""The Celery worker for real: a `celery worker` process (2 prefork children) on the test
+Redis and SeaweedFS, fed jobs through the job store and the broker as the API feeds it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import io
+import json
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from http.server import BaseHTTPRequestHandler, HTTPServer
+from typing import ClassVar
+
+import cv2
+import httpx
+import numpy as np
+import pytest
+import redis
+from celery import Celery
+from plyfile import PlyData
+from prism_common.metrics import read_task_durations
+from prism_common.queue import TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE, make_celery
+from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.settings import Settings
+from prism_common.storage import ObjectStore, object_key
+from prism_common.store import JobStore
+
+from prism_worker import plans, tiles
+from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
+from prismcore.images import load_image
+from prismcore.scan import merge_bands, row_tiles, scan_band
+from prismcore.synth import Box, render_oblique_view
+from prismcore.writers import write_csv
+
+from .conftest import API_KEYS, WEBHOOK_SECRET
+from .servers import S3_KEY_ID, S3_SECRET, ManagedProcess, free_port
+
+NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+INPUTS_BUCKET = "t-worker-inputs"
+TILES_PER_FACE = 4
+
+
+class Env:
+    """What the tests drive the worker with: the store, the bucket, a client Celery app."""
+
+    def __init__(self, settings: Settings, worker: ManagedProcess) -> None:
+        self.settings, self.worker = settings, worker
+        self.redis = redis.Redis.from_url(settings.redis_url, decode_responses=True)
+        self.store = JobStore(self.redis)
+        self.objects = ObjectStore.from_settings(settings)
+        self.celery: Celery = make_celery(settings)
+
+    def upload(self, data: bytes, name: str = "box.png", tenant: str = "acme") -> str:
+        upload_id = uuid.uuid4().hex
+        key = object_key("uploads", tenant, upload_id)
+        self.objects.put_bytes(key, data)
+        self.store.put_upload(upload_id, tenant=tenant, key=key, size=len(data), name=name)
+        return f"upload:{upload_id}"
+
+    def create(self, specs: list[ScanSpec], **extra) -> str:
+        job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
+                        items=[ItemRecord(index=i, spec=s) for i, s in enumerate(specs)], **extra)
+        self.store.create(job)
+        return job.id
+
+    def submit(self, specs: list[ScanSpec], **extra) -> str:
+        job_id = self.create(specs, **extra)
+        self.celery.send_task(TASK_RUN_JOB, (job_id,))
+        return job_id
+
+    def wait(self, job_id: str, timeout: float = 60) -> JobRecord:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            job = self.store.get(job_id)
+            if job is not None and job.state in (State.succeeded, State.failed, State.cancelled):
+                return job
+            time.sleep(0.1)
+        raise AssertionError(f"job {job_id} not final after {timeout} s: {job}\n{self.worker.log[-4000:]}")
+
+    def keys(self, job_id: str) -> set[str]:
+        prefix = f"jobs/{job_id}/"
+        return {k.removeprefix(prefix) for k in self.objects.list_keys(prefix)}
+
+    def units(self, job_id: str) -> tuple[int, int]:
+        fields = self.redis.hmget(f"prism:job:{job_id}", "units_total", "units_done")
+        return int(fields[0]), int(fields[1])
+
+    def runs(self, task: str) -> int:
+        return int(read_task_durations(self.redis).get(task, {}).get("count", 0))
+
+
+@pytest.fixture(scope="module")
+def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
+    # One bucket and one Redis database for the module: the worker process is started once.
+    settings = Settings(
+        api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
+        redis_url=f"redis://127.0.0.1:{redis_server.port}/2",
+        s3_endpoint_url=f"http://127.0.0.1:{s3_server.port}", s3_bucket="t-worker",
+        s3_access_key_id=S3_KEY_ID, s3_secret_access_key=S3_SECRET,
+        readable_buckets=[INPUTS_BUCKET], webhook_allowed_hosts=["127.0.0.1"],
+        webhook_allow_private=True, tiles_per_face=TILES_PER_FACE, items_in_flight_per_job=1,
+        visibility_timeout_s=10)
+    variables = {
+        "PRISM_API_KEYS": json.dumps(API_KEYS), "PRISM_WEBHOOK_SECRET": WEBHOOK_SECRET,
+        "PRISM_REDIS_URL": settings.redis_url, "PRISM_S3_ENDPOINT_URL": settings.s3_endpoint_url,
+        "PRISM_S3_BUCKET": settings.s3_bucket, "PRISM_S3_ACCESS_KEY_ID": S3_KEY_ID,
+        "PRISM_S3_SECRET_ACCESS_KEY": S3_SECRET, "PRISM_READABLE_BUCKETS": json.dumps([INPUTS_BUCKET]),
+        "PRISM_WEBHOOK_ALLOWED_HOSTS": '["127.0.0.1"]', "PRISM_WEBHOOK_ALLOW_PRIVATE": "true",
+        "PRISM_TILES_PER_FACE": str(TILES_PER_FACE), "PRISM_VISIBILITY_TIMEOUT_S": "10",
+        # One item at a time per job: the second item only starts if the first one refills.
+        "PRISM_ITEMS_IN_FLIGHT_PER_JOB": "1",
+    }
+    objects = ObjectStore.from_settings(settings)
+    objects.ensure_bucket()
+    ObjectStore(objects.client, INPUTS_BUCKET).ensure_bucket()
+    argv = [sys.executable, "-m", "celery", "-A", "prism_worker.app", "worker", "-Q",
+            "scans,webhooks", "--concurrency", "2", "--pool", "prefork", "-l", "info",
+            "--hostname", "test-worker@%h", "--without-gossip", "--without-mingle"]
+    worker = ManagedProcess(argv, None, tmp_path_factory.mktemp("worker"), env=variables).start()
+    env = Env(settings, worker)
+    try:
+        deadline = time.monotonic() + 60
+        while " ready." not in worker.log:
+            assert worker.proc is not None and worker.proc.poll() is None, worker.log[-4000:]
+            assert time.monotonic() < deadline, f"worker not ready:\n{worker.log[-4000:]}"
+            time.sleep(0.1)
+        yield env
+    finally:
+        worker.stop()
+        env.celery.close()
+    assert "could not record" not in worker.log, worker.log[-4000:]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return render_oblique_view(Box(120.0, 80.0, 60.0), seed=1)
+
+
+def _encode(image: np.ndarray, ext: str = ".png") -> bytes:
+    ok, data = cv2.imencode(ext, cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    assert ok
+    return data.tobytes()
+
+
+def _spec(reference: str, scene, **extra) -> ScanSpec:
+    return ScanSpec.model_validate({
+        "image": reference, "points": [list(map(round, scene.points[n])) for n in NAMES],
+        "focal_px": scene.focal_px, "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm},
+        **extra})
+
+
+def _item_files(i: int, tile_names: list[str]) -> set[str]:
+    return {f"items/{i}/{name}" for name in ("front", "plan.json", "cloud.csv", "cloud.ply",
+                                             "report.json")} | {
+        f"items/{i}/tiles/{t}.npz" for t in tile_names}
+
+
+def _tile_names(spec: ScanSpec, image: np.ndarray) -> list[str]:
+    plan = plan_scan(spec, image)
+    return [f"{face}-{r0}-{r1}" for face, r0, r1 in tiles.plan_tiles(plan, TILES_PER_FACE)]
+
+
+# -- in process: what passes between the tasks is exact ---------------------------------------
+def test_plan_json_and_packed_tiles_reproduce_the_engine_exactly(scene):
+    image = load_image(_encode(scene.image))
+    spec = _spec("upload:0", scene)
+    plan, extra = plans.loads(plans.dumps(plan_scan(spec, image), tiles=[["front", 0, 1]]))
+    assert extra == {"tiles": [["front", 0, 1]]}
+    scans = []
+    for face in plan.faces:
+        bands = [tiles.unpack(tiles.pack(*scan_band(image, face, r0, r1)))
+                 for r0, r1 in row_tiles(face, TILES_PER_FACE)]
+        scans.append(merge_bands(face, bands))
+    tiled, local = finish_scan(plan, [image], scans), run_scan(spec, image)
+    np.testing.assert_array_equal(tiled.cloud.points, local.cloud.points)
+    np.testing.assert_array_equal(tiled.cloud.colors, local.cloud.colors)
+    assert {k: v for k, v in tiled.report.items() if k != "timings_ms"} == {
+        k: v for k, v in local.report.items() if k != "timings_ms"}
+
+
+# -- through the worker ------------------------------------------------------------------------
+def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
+    second = render_oblique_view(Box(90.0, 140.0, 45.0), seed=4)
+    photo = _encode(scene.image)
+    env.objects.client.put_object(Bucket=INPUTS_BUCKET, Key="photos/second.jpg",
+                                  Body=_encode(second.image, ".jpg"))
+    specs = [_spec(env.upload(photo), scene, csv={"header": True}),
+             _spec(f"s3://{INPUTS_BUCKET}/photos/second.jpg", second, formats=["ply"], ply_ascii=True)]
+    started = time.monotonic()
+    job_id = env.submit(specs, client_reference="batch-1")
+    job = env.wait(job_id)
+    elapsed = time.monotonic() - started
+    print(f"\ntwo-item job (1280x1024, 8 tiles each, 1 item in flight): {elapsed:.2f} s")
+    assert job.state == State.succeeded and job.progress == 100, job
+    assert [item.state for item in job.items] == [State.succeeded, State.succeeded]
+    total, done = env.units(job_id)
+    assert total == done == 2 * (2 * TILES_PER_FACE + 2)  # plan + tiles + complete, per item
+    for item, box in zip(job.items, (Box(120, 80, 60), Box(90, 140, 45)), strict=True):
+        assert abs(item.result.dimensions["width"] / box.width_mm - 1) < 0.02
+
+    first, other = job.items
+    assert first.outputs == {kind: f"jobs/{job_id}/items/0/{name}" for kind, name in
+                             (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("report", "report.json"))}
+    assert set(other.outputs) == {"ply", "report"}  # the formats the spec asked for
+    names = _tile_names(specs[0], load_image(photo))
+    assert len(names) == 2 * TILES_PER_FACE
+    assert _item_files(0, names) <= env.keys(job_id)
+    assert "items/1/cloud.csv" not in env.keys(job_id) and "job.json" in env.keys(job_id)
+    assert json.loads(env.objects.get_bytes(f"jobs/{job_id}/job.json"))["state"] == "succeeded"
+
+    # The tiled result is exactly the engine's own on the same bytes.
+    local = run_scan(_spec("x", scene, csv={"header": True}), load_image(photo))
+    report = json.loads(env.objects.get_bytes(first.outputs["report"]))
+    assert report["points"] == local.report["points"] == first.result.points
+    assert report["dimensions"] == local.report["dimensions"]
+    csv = env.objects.get_bytes(first.outputs["csv"])
+    expected = io.BytesIO()
+    write_csv(expected, local.cloud.points, header=True)
+    assert csv == expected.getvalue()
+    assert np.loadtxt(io.BytesIO(csv), delimiter=",", skiprows=1).shape == (report["points"], 3)
+    (tmp_path / "cloud.ply").write_bytes(env.objects.get_bytes(first.outputs["ply"]))
+    ply = PlyData.read(tmp_path / "cloud.ply")["vertex"]  # from a file: from BytesIO is slow
+    np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]), local.cloud.points)
+    head, body = env.objects.get_bytes(other.outputs["ply"]).split(b"end_header\n")
+    assert b"format ascii 1.0" in head and f"element vertex {other.result.points}".encode() in head
+    assert np.loadtxt(io.BytesIO(body)).shape == (other.result.points, 6)  # x y z r g b
+
+    durations = read_task_durations(env.redis)
+    assert durations["prism.scan_tile"]["count"] >= 16 and durations["prism.finish_item"]["count"] >= 2
+
+
+def test_bad_inputs_fail_only_their_items(env, scene):
+    specs = [
+        _spec(env.upload(np.random.default_rng(7).bytes(5000), name="bad.png"), scene),
+        _spec(f"s3://not-readable/{uuid.uuid4().hex}.png", scene),
+        _spec(env.upload(_encode(scene.image), tenant="globex"), scene),  # another tenant's
+        _spec(f"s3://{INPUTS_BUCKET}/missing.png", scene),
+        _spec(env.upload(_encode(scene.image)), scene),
+    ]
+    job = env.wait(env.submit(specs))
+    assert job.state == State.succeeded, job
+    states = [item.state for item in job.items]
+    assert states == [State.failed] * 4 + [State.succeeded]
+    errors = [item.error or "" for item in job.items]
+    assert "'bad.png' is not a BMP, PNG, JPEG, TIFF or WebP image" in errors[0]
+    assert "bucket 'not-readable' is not one the service may read" in errors[1]
+    assert errors[2].startswith("no upload")
+    assert "no object" in errors[3] and "missing.png" in errors[3]
+    assert job.items[4].error is None and job.items[4].result.points > 0
+    keys = env.keys(job.id)
+    assert not any(k.startswith(("items/1/", "items/2/", "items/3/")) for k in keys), keys
+    assert {k for k in keys if k.startswith("items/0/")} == {"items/0/front"}  # copied, then refused
+    total, done = env.units(job.id)
+    assert total == done == 4 * 2 + (2 * TILES_PER_FACE + 2)
+
+
+def test_all_items_failing_fails_the_job(env, scene):
+    job = env.wait(env.submit([_spec(env.upload(b"\x89PNG but not really" * 50, "x.png"), scene)]))
+    assert job.state == State.failed and job.error == "all items failed" and job.progress == 100
+    assert "'x.png'" in job.items[0].error
+
+
+def test_cancelled_before_it_runs_produces_nothing(env, scene):
+    job_id = env.create([_spec(env.upload(_encode(scene.image)), scene)])
+    assert env.store.transition(job_id, State.cancelled)
+    before = env.runs(TASK_RUN_JOB), env.runs(TASK_PLAN_ITEM)
+    env.celery.send_task(TASK_RUN_JOB, (job_id,))
+    env.celery.send_task(TASK_PLAN_ITEM, (job_id, 0))  # as if sent just before the cancel
+    deadline = time.monotonic() + 20
+    while (env.runs(TASK_RUN_JOB), env.runs(TASK_PLAN_ITEM)) < (before[0] + 1, before[1] + 1):
+        assert time.monotonic() < deadline, env.worker.log[-4000:]
+        time.sleep(0.1)
+    job = env.store.get(job_id)
+    assert job.state == State.cancelled and job.items[0].state == State.queued
+    assert env.keys(job_id) == set()
+
+
+class _Receiver(BaseHTTPRequestHandler):
+    received: ClassVar[list[tuple[dict[str, str], bytes]]] = []
+    fail_first = True  # answer 500 once: the delivery must be retried
+
+    def do_POST(self) -> None:
+        body = self.rfile.read(int(self.headers["Content-Length"]))
+        status = 500 if _Receiver.fail_first else 204
+        _Receiver.fail_first = False
+        self.received.append((dict(self.headers), body))
+        self.send_response(status)
+        self.send_header("Content-Length", "0")
+        self.end_headers()
+
+    def log_message(self, *args) -> None:
+        pass
+
+
+def test_webhook_is_delivered_signed_and_retried(env, scene):
+    server = HTTPServer(("127.0.0.1", free_port()), _Receiver)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/hook"
+        job = env.wait(env.submit([_spec(env.upload(_encode(scene.image)), scene)], webhook_url=url,
+                                  client_reference="order-7"))
+        deadline = time.monotonic() + 30
+        while len(_Receiver.received) < 2:
+            assert time.monotonic() < deadline, (_Receiver.received, env.worker.log[-4000:])
+            time.sleep(0.1)
+    finally:
+        server.shutdown()
+        server.server_close()
+    (_, first), (headers, body) = _Receiver.received[:2]
+
+    def without_links(doc: bytes) -> dict:  # presigned links carry their signing time
+        payload = json.loads(doc)
+        for item in payload["items"]:
+            item.pop("downloads")
+        return payload
+
+    assert without_links(first) == without_links(body)  # the retry sends the same job
+    expected = "sha256=" + hmac.new(WEBHOOK_SECRET.encode(), body, hashlib.sha256).hexdigest()
+    assert hmac.compare_digest(headers["X-Prism-Signature"], expected)
+    assert headers["X-Prism-Event"] == "job.finished"
+    assert headers["Content-Type"] == "application/json"
+    payload = json.loads(body)
+    assert payload["id"] == job.id and payload["state"] == "succeeded" and payload["progress"] == 100
+    assert payload["client_reference"] == "order-7" and payload["finished_at"]
+    item = payload["items"][0]
+    assert item["index"] == 0 and item["state"] == "succeeded" and item["error"] is None
+    assert item["result"]["points"] == job.items[0].result.points
+    csv = httpx.get(item["downloads"]["csv"], timeout=10)  # presigned: no credentials needed
+    assert csv.status_code == 200 and csv.content.count(b"\n") == item["result"]["points"]
+
+
+def test_tasks_run_twice_write_each_object_once(env, scene):
+    photo = _encode(scene.image)
+    spec = _spec(env.upload(photo), scene)
+    job_id = env.create([spec])
+    # Start the job by hand and deliver its item twice, as a redelivery after a lost worker
+    # would: two plans, two chords, every tile and the finish twice.
+    assert env.store.transition(job_id, State.running) and env.store.next_item(job_id) == 0
+    for _ in range(2):
+        env.celery.send_task(TASK_PLAN_ITEM, (job_id, 0))
+    job = env.wait(job_id)
+    assert job.state == State.succeeded and job.progress == 100
+    time.sleep(1.0)  # let the second copy's tiles and finish run out (they find the job final)
+    names = _tile_names(spec, load_image(photo))
+    assert env.keys(job_id) == _item_files(0, names) | {"job.json"}
+    total, done = env.units(job_id)
+    assert total == done == 2 * TILES_PER_FACE + 2
+    assert env.redis.scard(f"prism:job:{job_id}:tiles:0") == 2 * TILES_PER_FACE + 2
+    local = run_scan(_spec("x", scene), load_image(photo))
+    assert job.items[0].result.points == local.report["points"]
+
+
+def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
+    photo = _encode(scene.image)
+    spec = _spec(env.upload(photo), scene)
+    job_id = env.create([spec])
+    assert env.store.transition(job_id, State.running) and env.store.next_item(job_id) == 0
+    plan = plan_scan(spec, load_image(photo))
+    env.objects.put_bytes(f"jobs/{job_id}/items/0/front", photo)
+    env.objects.put_bytes(f"jobs/{job_id}/items/0/plan.json", plans.dumps(plan, tiles=[]))
+    # A tile of a face the plan does not have: an error no retry can help (a bug, say).
+    env.celery.send_task(TASK_SCAN_TILE, (job_id, 0, "top", 0, 1))
+    job = env.wait(job_id, timeout=20)
+    assert job.state == State.failed and job.error == "all items failed"
+    assert job.items[0].state == State.failed
+    assert job.items[0].error == "internal error: ValueError"
+
+
+def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
+    """Last in the module: it kills and restarts the worker."""
+    photo = _encode(scene.image)
+    specs = [_spec(env.upload(photo), scene) for _ in range(4)]
+    job_id = env.submit(specs)
+    deadline = time.monotonic() + 30
+    while env.store.get(job_id).progress <= 5:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    readies = env.worker.log.count(" ready.")
+    env.worker.kill()  # SIGKILL to the group: tasks in flight die unacknowledged
+    env.worker.start()
+    deadline = time.monotonic() + 60
+    while env.worker.log.count(" ready.") == readies:
+        assert time.monotonic() < deadline, env.worker.log[-4000:]
+        time.sleep(0.1)
+    job = env.wait(job_id, timeout=90)  # lost tasks come back after the visibility timeout
+    assert job.state == State.succeeded, job
+    assert all(item.state == State.succeeded for item in job.items), job
+    local = run_scan(specs[0], load_image(photo))
+    assert {item.result.points for item in job.items} == {local.report["points"]}
+    names = _tile_names(specs[0], load_image(photo))
+    assert env.keys(job_id) == set().union(*(_item_files(i, names) for i in range(4))) | {"job.json"}
+    total, done = env.units(job_id)
+    assert total == done == 4 * (2 * TILES_PER_FACE + 2)
