@@ -30,7 +30,10 @@ def make_celery(settings: Settings) -> Celery:
         worker_prefetch_multiplier=1,  # one task at a time per process: fair across jobs
         task_default_queue=QUEUE_SCANS,
         task_routes={TASK_DELIVER_WEBHOOK: {"queue": QUEUE_WEBHOOKS}},
-        broker_transport_options={"visibility_timeout": settings.visibility_timeout_s},
+        # Kombu looks for a lost worker's unacked messages only every 10th restore cycle by
+        # default (100 s); every cycle brings them back within visibility_timeout + 10 s.
+        broker_transport_options={"visibility_timeout": settings.visibility_timeout_s,
+                                  "unacked_restore_throttle": 1},
         result_backend_transport_options={"visibility_timeout": settings.visibility_timeout_s},
         result_expires=86400,
         task_serializer="json",

@@ -13,8 +13,3 @@ __all__ = ["app"]
 
 app = make_celery(get_settings())
 app.conf.include = ["prism_worker.tasks"]
-# Kombu scans for messages of lost workers (unacked past the visibility timeout) only every
-# 10th restore cycle by default, i.e. every 100 s; every cycle (10 s) brings a crashed worker's
-# tasks back within visibility_timeout + 10 s.
-app.conf.broker_transport_options = {**app.conf.broker_transport_options,
-                                     "unacked_restore_throttle": 1}
