@@ -101,15 +101,27 @@ def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, t
                 poll_ms.append((time.perf_counter() - t) * 1000)
                 if state in ("succeeded", "failed", "cancelled"):
                     pending.discard(job_id)
-            time.sleep(0.2)
+            time.sleep(1.0)  # a client polls each job about once a second
         elapsed = time.perf_counter() - start
+        tasks = _task_means(http.get("/metrics").text)
         failed = sum(item["state"] != "succeeded" for job_id in jobs
                      for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
         return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
-                "failed_items": failed}
+                "failed_items": failed, "tasks": tasks}
     finally:
         for proc in reversed(procs):
             proc.stop()
+
+
+def _task_means(metrics: str) -> dict[str, tuple[int, float]]:
+    """{task: (runs, mean ms)} from the API's Prometheus text."""
+    sums, counts = {}, {}
+    for line in metrics.splitlines():
+        if line.startswith("prism_task_duration_seconds_sum"):
+            sums[line.split('"')[1]] = float(line.split()[-1])
+        elif line.startswith("prism_task_duration_seconds_count"):
+            counts[line.split('"')[1]] = float(line.split()[-1])
+    return {t: (int(counts[t]), 1000 * sums[t] / counts[t]) for t in sums if counts.get(t)}
 
 
 def main() -> None:
@@ -136,6 +148,8 @@ def main() -> None:
         table.add_row(f"{name[:-3]} latency p50 / p99 ms ({len(values)} requests)",
                       f"{np.percentile(values, 50):.1f} / {np.percentile(values, 99):.1f}")
     table.add_row("failed items", str(service["failed_items"]))
+    for task, (runs, mean_ms) in sorted(service["tasks"].items()):
+        table.add_row(f"worker task {task}: runs, mean ms", f"{runs}, {mean_ms:.0f}")
     Console().print(table)
 
 

@@ -19,14 +19,25 @@ from pathlib import Path
 
 import httpx
 
-__all__ = ["ManagedProcess", "free_port", "start_api", "start_redis", "start_s3",
+__all__ = ["ManagedProcess", "free_port", "free_ports", "start_api", "start_redis", "start_s3",
            "start_worker", "wait_for_port"]
 
 
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    return free_ports(1)[0]
+
+
+def free_ports(count: int) -> list[int]:
+    """`count` distinct free ports: all sockets are held open until every port is chosen, so
+    the kernel cannot hand the same port out twice."""
+    sockets = [socket.socket() for _ in range(count)]
+    try:
+        for s in sockets:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in sockets]
+    finally:
+        for s in sockets:
+            s.close()
 
 
 def wait_for_port(port: int, timeout: float = 30.0, proc: subprocess.Popen | None = None) -> None:
@@ -113,10 +124,11 @@ def start_s3(workdir: Path, key_id: str, secret: str, port: int | None = None) -
     """SeaweedFS `weed mini` (S3 API); anonymous access is refused, only key_id/secret work."""
     # Every listener gets a free port: weed's defaults (e.g. 8182 for the Iceberg catalog)
     # would collide with a second instance on the machine.
-    ports = {"s3": port or free_port()}
-    ports |= {name: free_port() for name in (
-        "master", "volume", "filer", "admin", "webdav", "master.port.grpc", "volume.port.grpc",
-        "filer.port.grpc", "admin.port.grpc", "s3.port.grpc", "s3.port.iceberg", "s3.port.lance")}
+    names = ("master", "volume", "filer", "admin", "webdav", "master.port.grpc",
+             "volume.port.grpc", "filer.port.grpc", "admin.port.grpc", "s3.port.grpc",
+             "s3.port.iceberg", "s3.port.lance")
+    chosen = free_ports(len(names) + 1)
+    ports = {"s3": port or chosen[-1], **dict(zip(names, chosen, strict=False))}
     argv = [_binary("weed", "seaweedfs"), "mini", f"-dir={workdir}", "-ip=127.0.0.1",
             "-ip.bind=127.0.0.1",
             *[f"-{name}={p}" if "." in name else f"-{name}.port={p}" for name, p in ports.items()]]

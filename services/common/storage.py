@@ -17,6 +17,7 @@ from .settings import Settings
 
 __all__ = ["ObjectStore", "object_key"]
 
+SINGLE_PUT_BYTES = 64 * 2**20
 _SEGMENT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
 
 
@@ -67,7 +68,20 @@ class ObjectStore:
 
     def put_stream(self, key: str, stream: BinaryIO,
                    content_type: str = "application/octet-stream") -> None:
-        """Stream a file object up (multipart for large ones) without holding it in memory."""
+        """Stream a file object up without holding it in memory.
+
+        A seekable stream under SINGLE_PUT_BYTES goes up in one PUT (multipart's part
+        requests and thread pool cost more than they save there); larger or unseekable ones
+        go up as multipart uploads.
+        """
+        if getattr(stream, "seekable", lambda: False)():  # a request-body reader is not
+            start = stream.tell()
+            size = stream.seek(0, 2) - start
+            stream.seek(start)
+            if size <= SINGLE_PUT_BYTES:
+                self.client.put_object(Bucket=self.bucket, Key=key, Body=stream,
+                                       ContentLength=size, ContentType=content_type)
+                return
         self.client.upload_fileobj(stream, self.bucket, key, ExtraArgs={"ContentType": content_type})
 
     def get_bytes(self, key: str, *, bucket: str | None = None) -> bytes:

@@ -46,6 +46,15 @@ def plan_item(job: JobRecord, item: int) -> list[Tile]:
         side_key, side_label = copy_input(job, item, "side")
         side = cache.image(side_key, limit, side_label)
     plan = plan_scan(spec, front, side)
-    tiles = plan_tiles(plan, context.settings().tiles_per_face)
+    tiles = plan_tiles(plan, tiles_per_face(len(job.items)))
     objects.put_bytes(key, plans.dumps(plan, tiles=tiles), "application/json")
     return tiles
+
+
+def tiles_per_face(n_items: int) -> int:
+    """Tiles give a lone photo parallelism; a batch already has it from its items in flight,
+    and there each extra tile task costs more (store round trips) than its scan saves. So a job
+    keeps about `tiles_per_face` tile tasks per face in flight, whatever its size."""
+    settings = context.settings()
+    in_flight = max(1, min(n_items, settings.items_in_flight_per_job))
+    return max(1, -(-settings.tiles_per_face // in_flight))

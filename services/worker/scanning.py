@@ -6,6 +6,7 @@ Both read only the job's prefix: the photos copied in by the plan step, plan.jso
 from __future__ import annotations
 
 import numpy as np
+from botocore.exceptions import ClientError
 from prism_common.records import ItemResult
 
 from prismcore import ScanPlan, finish_scan
@@ -44,6 +45,16 @@ def scan_tile(job_id: str, item: int, face_name: str, r0: int, r1: int) -> str:
     return key
 
 
+def _tile_bytes(objects, key: str, item: int) -> bytes:
+    """A stored tile; TilesMissingError (retried) if it is not there yet."""
+    try:
+        return objects.get_bytes(key)
+    except ClientError as exc:
+        if exc.response.get("Error", {}).get("Code") in ("NoSuchKey", "404", "NotFound"):
+            raise TilesMissingError(f"tile {key.rsplit('/', 1)[-1]} of item {item} not stored yet") from None
+        raise
+
+
 def finish_item(job_id: str, item: int) -> tuple[ItemResult, dict[str, str]]:
     """Merge the tiles per face in row order, assemble the cloud, write the outputs.
 
@@ -56,10 +67,7 @@ def finish_item(job_id: str, item: int) -> tuple[ItemResult, dict[str, str]]:
     for face in plan.faces:
         bands = sorted((r0, r1) for name, r0, r1 in extra["tiles"] if name == face.name)
         keys = [tile_key(job_id, item, face.name, r0, r1) for r0, r1 in bands]
-        missing = [k for k in keys if not objects.exists(k)]
-        if missing:
-            raise TilesMissingError(f"{len(missing)} tiles of item {item} not stored yet")
-        scans.append(merge_bands(face, [tiles.unpack(objects.get_bytes(k)) for k in keys]))
+        scans.append(merge_bands(face, [tiles.unpack(_tile_bytes(objects, k, item)) for k in keys]))
     images = [_image(job_id, item, plan, i) for i in range(2 if plan.spec.two_photo else 1)]
     result = finish_scan(plan, images, scans)
     return write_outputs(job_id, item, plan.spec, result)
