@@ -7,11 +7,10 @@ besides the pixels is in this model, so a spec plus its images fully determines 
 
 from __future__ import annotations
 
-import math
 import re
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat, model_validator
 
 __all__ = [
     "KnownEdge",
@@ -24,7 +23,7 @@ __all__ = [
     "parse_points",
 ]
 
-Point = tuple[float, float]
+Point = tuple[FiniteFloat, FiniteFloat]
 """An image position (x, y) in pixels: x = column, y = row, origin at the image's top-left
 pixel centre."""
 
@@ -50,13 +49,6 @@ class ReferencePoints(_Strict):
     p5: Point
     p6: Point | None = None
     p7: Point | None = None
-
-    @field_validator("*")
-    @classmethod
-    def _finite(cls, value: Point | None) -> Point | None:
-        if value is not None and not all(math.isfinite(c) for c in value):
-            raise ValueError(f"point {value} is not finite")
-        return value
 
     @model_validator(mode="before")
     @classmethod
@@ -133,13 +125,6 @@ class ScanSpec(_Strict):
     ply_ascii: bool = False
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
     max_points: int = Field(default=20_000_000, gt=0, description="Refuse larger clouds.")
-
-    @field_validator("principal_point")
-    @classmethod
-    def _finite_point(cls, value: Point | None) -> Point | None:
-        if value is not None and not all(math.isfinite(c) for c in value):
-            raise ValueError(f"principal_point {value} is not finite")
-        return value
 
     @model_validator(mode="after")
     def _pinhole_needs_focal(self) -> ScanSpec:
