@@ -8,6 +8,8 @@ from pathlib import Path
 
 import httpx
 
+from prismcore.spec import FILE_NAMES
+
 __all__ = ["FINAL_STATES", "ApiClient", "ApiError"]
 
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled"})
@@ -76,7 +78,7 @@ class ApiClient:
         saved = []
         for item in job["items"]:
             for kind, url in (item.get("downloads") or {}).items():
-                name = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}[kind]
+                name = FILE_NAMES[kind]
                 target = out_dir / f"item-{item['index']}" / name
                 target.parent.mkdir(parents=True, exist_ok=True)
                 try:

@@ -1,36 +1,29 @@
-"""Write a scan's outputs (cloud files and report.json) into a folder."""
+"""Write a scan's cloud files into a folder."""
 
 from __future__ import annotations
 
-import json
-import time
 from pathlib import Path
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.writers import write_csv, write_ply
+from prismcore.writers import FILE_NAMES, write_format
 
-__all__ = ["write_outputs"]
+__all__ = ["report_path", "write_outputs"]
 
 
 def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str, Path]:
-    """Write the formats the spec asks for plus report.json; returns {kind: path}.
+    """Write the cloud in the formats the spec asks for; returns {kind: path}.
 
-    The writers' timings are added to the report's `timings_ms` before it is written.
+    The writers' timings go into the report's `timings_ms`; the caller writes the report
+    (with `report_path`) once everything it times is done.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    cloud, report = result.cloud, result.report
     paths: dict[str, Path] = {}
-    if "csv" in spec.formats:
-        start = time.perf_counter()
-        paths["csv"] = out_dir / "cloud.csv"
-        write_csv(paths["csv"], cloud.points, cloud.colors if spec.csv.colors else None,
-                  header=spec.csv.header)
-        report["timings_ms"]["write_csv"] = round((time.perf_counter() - start) * 1000, 3)
-    if "ply" in spec.formats:
-        start = time.perf_counter()
-        paths["ply"] = out_dir / "cloud.ply"
-        write_ply(paths["ply"], cloud.points, cloud.colors, ascii=spec.ply_ascii)
-        report["timings_ms"]["write_ply"] = round((time.perf_counter() - start) * 1000, 3)
-    paths["report"] = out_dir / "report.json"
-    paths["report"].write_text(json.dumps(report, indent=2) + "\n")
+    for kind in spec.formats:
+        paths[kind] = out_dir / FILE_NAMES[kind]
+        ms = write_format(kind, paths[kind], result.cloud, spec)
+        result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     return paths
+
+
+def report_path(out_dir: Path) -> Path:
+    return out_dir / FILE_NAMES["report"]

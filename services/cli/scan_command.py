@@ -14,7 +14,7 @@ from rich.console import Console
 from prismcore import InputError, ScanSpec, parse_points, run_scan
 from prismcore.images import load_image
 
-from .outputs import write_outputs
+from .outputs import report_path, write_outputs
 
 __all__ = ["scan", "spec_from_flags"]
 
@@ -128,6 +128,7 @@ def scan(
     result.report["timings_ms"]["load"] = round(load_ms, 3)
     paths = write_outputs(result, spec, out)
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
+    paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
     dims = result.report["dimensions"]
     console.print(f"[bold]{result.report['points']:,} points[/]  "

@@ -15,7 +15,7 @@ from botocore.exceptions import ClientError
 
 from .settings import Settings
 
-__all__ = ["ObjectStore", "object_key"]
+__all__ = ["ObjectStore", "is_missing", "object_key"]
 
 SINGLE_PUT_BYTES = 64 * 2**20
 _SEGMENT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
@@ -28,6 +28,11 @@ def object_key(*segments: str | int) -> str:
         if not _SEGMENT.match(part) or ".." in part:
             raise ValueError(f"unsafe object key segment {part!r}")
     return "/".join(parts)
+
+
+def is_missing(exc: ClientError) -> bool:
+    """Does the S3 error say the object is not there?"""
+    return exc.response.get("Error", {}).get("Code") in ("404", "NoSuchKey", "NotFound")
 
 
 class ObjectStore:
@@ -91,7 +96,7 @@ class ObjectStore:
         try:
             self.client.head_object(Bucket=self.bucket, Key=key)
         except ClientError as exc:
-            if exc.response.get("Error", {}).get("Code") in ("404", "NoSuchKey", "NotFound"):
+            if is_missing(exc):
                 return False
             raise
         return True

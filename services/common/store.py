@@ -118,7 +118,7 @@ class JobStore:
             pipe.zadd(f"{_P}tenant:{job.tenant}:state:queued", {job.id: score})
             pipe.zadd(f"{_P}state:queued", {job.id: score})
             pipe.execute()
-        return self.get(job.id), True  # type: ignore[return-value]
+        return job, True  # what get() would read back: queued, no progress, no timestamps
 
     def get(self, job_id: str) -> JobRecord | None:
         """The job as it stands now, or None."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 from botocore.exceptions import ClientError
 from prism_common.records import JobRecord
 from prism_common.references import ReferenceError, check_reference, parse_reference
+from prism_common.storage import is_missing
 
 from . import context
 from .fetch import fetch_url
@@ -16,14 +17,15 @@ from .keys import item_key
 
 __all__ = ["copy_input"]
 
-_MISSING = {"404", "NoSuchKey", "NotFound", "403", "AccessDenied", "NoSuchBucket"}
+# Besides a missing object: a bucket that is not there or not ours to read is "no object" too.
+_UNREADABLE = {"403", "AccessDenied", "NoSuchBucket"}
 
 
 def _read_s3(bucket: str, key: str, text: str, limit: int) -> bytes:
     try:
         obj = context.objects().client.get_object(Bucket=bucket, Key=key)
     except ClientError as exc:
-        if exc.response.get("Error", {}).get("Code") in _MISSING:
+        if is_missing(exc) or exc.response.get("Error", {}).get("Code") in _UNREADABLE:
             raise ReferenceError(f"no object {text!r}") from None
         raise  # anything else is the store's trouble, retried by the task
     with obj["Body"] as body:

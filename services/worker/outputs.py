@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import json
 import tempfile
-import time
 from collections.abc import Callable
 from typing import BinaryIO
 
 from prism_common.records import ItemResult
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.writers import write_csv, write_ply
+from prismcore.writers import FILE_NAMES, write_format
 
 from . import context
 from .keys import item_key
@@ -24,15 +23,12 @@ __all__ = ["write_outputs"]
 
 _SPOOL_BYTES = 64 * 2**20
 _CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "report": "application/json"}
-_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}
 
 
-def _put(key: str, kind: str, write: Callable[[BinaryIO], object]) -> float:
+def _put(key: str, kind: str, write: Callable[[BinaryIO], float]) -> float:
     """Write a file with `write` and upload it; returns the writing time in ms."""
-    start = time.perf_counter()
     with tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES) as spool:
-        write(spool)  # type: ignore[arg-type]
-        elapsed = (time.perf_counter() - start) * 1000
+        elapsed = write(spool)  # type: ignore[arg-type]
         spool.seek(0)
         context.objects().put_stream(key, spool, _CONTENT_TYPES[kind])  # type: ignore[arg-type]
     return elapsed
@@ -43,16 +39,10 @@ def write_outputs(job_id: str, item: int, spec: ScanSpec,
     """Write the formats the spec asks for, then report.json; returns the item's result and
     the object key of each file written ({"csv": key, "ply": key, "report": key})."""
     cloud, report = result.cloud, result.report
-    keys = {kind: item_key(job_id, item, _NAMES[kind]) for kind in (*spec.formats, "report")}
-    if "csv" in keys:
-        colors = cloud.colors if spec.csv.colors else None
-        ms = _put(keys["csv"], "csv",
-                  lambda f: write_csv(f, cloud.points, colors, header=spec.csv.header))
-        report["timings_ms"]["write_csv"] = round(ms, 3)
-    if "ply" in keys:
-        ms = _put(keys["ply"], "ply",
-                  lambda f: write_ply(f, cloud.points, cloud.colors, ascii=spec.ply_ascii))
-        report["timings_ms"]["write_ply"] = round(ms, 3)
+    keys = {kind: item_key(job_id, item, FILE_NAMES[kind]) for kind in (*spec.formats, "report")}
+    for kind in spec.formats:
+        ms = _put(keys[kind], kind, lambda f, kind=kind: write_format(kind, f, cloud, spec))
+        report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     text = (json.dumps(report, indent=2) + "\n").encode()
     context.objects().put_bytes(keys["report"], text, _CONTENT_TYPES["report"])
     summary = ItemResult(points=report["points"], dimensions=report["dimensions"],

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from botocore.exceptions import ClientError
 from prism_common.records import ItemResult
+from prism_common.storage import is_missing
 
 from prismcore import ScanPlan, finish_scan
 from prismcore.scan import merge_bands, scan_band
@@ -50,7 +51,7 @@ def _tile_bytes(objects, key: str, item: int) -> bytes:
     try:
         return objects.get_bytes(key)
     except ClientError as exc:
-        if exc.response.get("Error", {}).get("Code") in ("NoSuchKey", "404", "NotFound"):
+        if is_missing(exc):
             raise TilesMissingError(f"tile {key.rsplit('/', 1)[-1]} of item {item} not stored yet") from None
         raise
 

@@ -46,7 +46,7 @@ RETRYABLE = (BotoCoreError, ClientError, redis.ConnectionError, redis.TimeoutErr
 BACKOFF_MAX = max(1, min(600, context.settings().visibility_timeout_s // 2))
 # Waits of up to 5, 10, 20, 40, 80 s (random below each: retries of many tasks spread out), so
 # five retries ride out a store restarting, not only a dropped connection.
-_RETRY = {"bind": True, "acks_late": True, "retry_backoff": 5,
+_RETRY = {"bind": True, "retry_backoff": 5,  # late acks: app-wide (prism_common.queue)
           "retry_backoff_max": BACKOFF_MAX, "retry_jitter": True}
 
 

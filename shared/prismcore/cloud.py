@@ -79,7 +79,11 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
         Refuse (InputError) a cloud larger than this before allocating it.
     """
     (f_uv, f_rgb), (s_uv, s_rgb) = front, side
-    zs = _pitch_steps(f_uv, width, depth)
+    pitch = _pitch(f_uv)
+    if f_uv.shape[0] < 2:
+        zs = np.array([0.0, depth])
+    else:
+        zs = np.linspace(0.0, depth, max(2, round(depth / max(pitch or width, 1e-12)) + 1))
     if kind == "volume":
         n = f_uv.shape[0] * zs.size
         _check_size(n, max_points, kind)
@@ -87,7 +91,7 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
         pts[..., :2] = f_uv
         pts[..., 2] = zs[:, None]
         return Cloud(pts.reshape(-1, 3), np.tile(f_rgb, (zs.size, 1)))
-    top, bottom = _edge_rows(f_uv)
+    top, bottom = _edge_rows(f_uv, pitch or 1.0)
     layers = [(f_uv[top], f_rgb[top]), (f_uv[bottom], f_rgb[bottom])]
     n = 2 * len(f_uv) + 2 * len(s_uv) + sum(len(uv) for uv, _ in layers) * zs.size
     _check_size(int(n), max_points, kind)
@@ -117,22 +121,21 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
     return Cloud(points, colors)
 
 
-def _pitch_steps(front_uv: np.ndarray, width: float, depth: float) -> np.ndarray:
-    """Depth positions, spaced like the front pixels are across the face."""
+def _pitch(front_uv: np.ndarray) -> float:
+    """Spacing of the front pixels on the face (0 for fewer than 2 points or a single row or
+    column); the depth steps and the top and bottom rows both go by it."""
     if front_uv.shape[0] < 2:
-        return np.array([0.0, depth])
+        return 0.0
     extent = np.ptp(front_uv[:, 0]) * np.ptp(front_uv[:, 1])
-    pitch = np.sqrt(extent / front_uv.shape[0]) if extent > 0 else width
-    return np.linspace(0.0, depth, max(2, round(depth / max(pitch, 1e-12)) + 1))
+    return float(np.sqrt(extent / front_uv.shape[0]))
 
 
-def _edge_rows(front_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _edge_rows(front_uv: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
     """Masks of the front points on the face's top and bottom pixel rows (nearest v)."""
     if front_uv.shape[0] == 0:
         empty = np.zeros(0, dtype=bool)
         return empty, empty
     v = front_uv[:, 1]
-    pitch = np.sqrt(np.ptp(front_uv[:, 0]) * np.ptp(v) / front_uv.shape[0]) or 1.0
     return v <= v.min() + 0.5 * pitch, v >= v.max() - 0.5 * pitch
 
 

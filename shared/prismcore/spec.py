@@ -13,6 +13,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat, model_validator
 
 __all__ = [
+    "FILE_NAMES",
     "KnownEdge",
     "MmPerPx",
     "Pinhole",
@@ -26,6 +27,10 @@ __all__ = [
 Point = tuple[FiniteFloat, FiniteFloat]
 """An image position (x, y) in pixels: x = column, y = row, origin at the image's top-left
 pixel centre."""
+
+FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}
+"""The file name of each output kind, the same in the CLI's folders and the service's keys
+(here, not in writers, so the API can use it without loading numpy)."""
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 

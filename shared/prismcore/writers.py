@@ -23,15 +23,21 @@ from __future__ import annotations
 
 import io
 import os
+import time
 from collections.abc import Callable, Iterator
-from typing import Any, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 import polars as pl
 
 from .errors import InputError
+from .spec import FILE_NAMES
 
-__all__ = ["CHUNK_ROWS", "MAX_DECIMALS", "write_csv", "write_ply"]
+if TYPE_CHECKING:
+    from .cloud import Cloud
+    from .spec import ScanSpec
+
+__all__ = ["CHUNK_ROWS", "FILE_NAMES", "MAX_DECIMALS", "write_csv", "write_format", "write_ply"]
 
 CHUNK_ROWS = 1 << 17
 """Rows formatted per block: about 3.5 MB of CSV text at 3 decimals."""
@@ -181,6 +187,23 @@ def write_ply(
 
 # --------------------------------------------------------------------------------------------
 # validation
+
+
+def write_format(kind: str, dest: str | os.PathLike | BinaryIO, cloud: Cloud, spec: ScanSpec) -> float:
+    """Write `cloud` as `kind` ("csv" or "ply") with the spec's options; returns the ms taken.
+
+    The one place that maps a spec's output options (CSV header and colours, ASCII PLY) onto
+    the writers, for the CLI and the service alike.
+    """
+    start = time.perf_counter()
+    if kind == "csv":
+        write_csv(dest, cloud.points, cloud.colors if spec.csv.colors else None,
+                  header=spec.csv.header)
+    elif kind == "ply":
+        write_ply(dest, cloud.points, cloud.colors, ascii=spec.ply_ascii)
+    else:
+        raise InputError(f"unknown output format {kind!r}")
+    return (time.perf_counter() - start) * 1000
 
 
 def _check_cloud(points: Any, colors: Any) -> tuple[np.ndarray, np.ndarray | None]:

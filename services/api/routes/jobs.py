@@ -21,6 +21,8 @@ from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import ItemRecord, JobRecord, State
 from prism_common.store import IdempotencyConflictError, JobStore
 
+from prismcore.spec import FILE_NAMES
+
 from ..deps import CeleryDep, PresignerDep, SettingsDep, StoreDep, TenantDep
 from ..presign import Presigner
 from ..schemas import ItemPublic, JobCreate, JobList, JobPublic, ResultPublic
@@ -30,14 +32,13 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 log = logging.getLogger(__name__)
 
 _JOB_ID = re.compile(r"^[0-9a-f]{32}$")
-_FILENAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}
 
 
 def to_public(job: JobRecord, presigner: Presigner) -> JobPublic:
     items = []
     for item in job.items:
         downloads = {kind: presigner.url(
-            key, f"{job.id[:8]}-item-{item.index}-{_FILENAMES.get(kind, kind)}")
+            key, f"{job.id[:8]}-item-{item.index}-{FILE_NAMES.get(kind, kind)}")
             for kind, key in item.outputs.items()}
         result = ResultPublic.model_validate(item.result.model_dump()) if item.result else None
         items.append(ItemPublic(index=item.index, state=item.state, error=item.error, result=result,
