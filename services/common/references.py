@@ -62,8 +62,9 @@ def is_public_ip(address: str) -> bool:
     return ip.is_global and not ip.is_multicast
 
 
-def resolve_public(host: str, port: int, settings: Settings) -> list[str]:
-    """The addresses `host` resolves to, all of which must be public (unless tests allow it).
+def resolve_public(host: str, port: int, *, allow_private: bool) -> list[str]:
+    """The addresses `host` resolves to, all of which must be public (unless `allow_private`,
+    a switch for tests).
 
     Raises ReferenceError before any connection is made.
     """
@@ -72,7 +73,7 @@ def resolve_public(host: str, port: int, settings: Settings) -> list[str]:
     except socket.gaierror as exc:
         raise ReferenceError(f"cannot resolve {host!r}: {exc.strerror}") from None
     addresses = sorted({info[4][0] for info in infos})
-    if not settings.fetch_allow_private and not all(is_public_ip(a) for a in addresses):
+    if not allow_private and not all(is_public_ip(a) for a in addresses):
         raise ReferenceError(f"{host!r} resolves to a private or local address; not fetched")
     return addresses
 

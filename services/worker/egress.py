@@ -16,7 +16,6 @@ from urllib.parse import urlsplit
 
 import httpx
 from prism_common.references import ReferenceError, resolve_public
-from prism_common.settings import Settings
 
 __all__ = ["Target", "check_target", "send_pinned"]
 
@@ -31,7 +30,7 @@ class Target:
     addresses: list[str]
 
 
-def check_target(url: str, settings: Settings, *, schemes: Collection[str],
+def check_target(url: str, *, schemes: Collection[str],
                  allowed_hosts: Collection[str], allow_private: bool) -> Target:
     """Parse `url` and apply the rules; ReferenceError (saying which) if it may not be called."""
     try:
@@ -48,9 +47,7 @@ def check_target(url: str, settings: Settings, *, schemes: Collection[str],
         raise ReferenceError(f"credentials in URLs are not accepted: {host!r}")
     if host not in allowed_hosts:
         raise ReferenceError(f"host {host!r} is not on the allow-list")
-    # resolve_public reads its switch from the settings; webhooks have a switch of their own.
-    rules = settings.model_copy(update={"fetch_allow_private": allow_private})
-    addresses = resolve_public(host, port, rules)
+    addresses = resolve_public(host, port, allow_private=allow_private)
     netloc = host if port == _DEFAULT_PORTS[parts.scheme] else f"{host}:{port}"
     return Target(httpx.URL(url), host, netloc, addresses)
 

@@ -61,7 +61,7 @@ def fetch_url(url: str, settings: Settings) -> bytes:
     deadline = time.monotonic() + DEADLINE_S
     with _client(settings) as client:
         for _ in range(MAX_REDIRECTS + 1):
-            target = check_target(url, settings, schemes={"https"},
+            target = check_target(url, schemes={"https"},
                                   allowed_hosts=settings.fetch_allowed_hosts,
                                   allow_private=settings.fetch_allow_private)
             try:

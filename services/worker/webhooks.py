@@ -63,7 +63,7 @@ def deliver(job_id: str) -> None:
     if job is None or not job.webhook_url or job.state not in (State.succeeded, State.failed):
         return
     settings = context.settings()
-    target = check_target(job.webhook_url, settings, schemes={"http", "https"},
+    target = check_target(job.webhook_url, schemes={"http", "https"},
                           allowed_hosts=settings.webhook_allowed_hosts,
                           allow_private=settings.webhook_allow_private)
     body = json.dumps(job_resource(job), separators=(",", ":")).encode()

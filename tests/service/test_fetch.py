@@ -184,13 +184,12 @@ def test_nothing_listening_is_a_fetch_error(cert):
 
 
 def test_webhook_targets_have_their_own_rules():
-    settings = _settings(hosts=())
-    target = check_target("http://127.0.0.1:9/hook", settings, schemes={"http", "https"},
+    target = check_target("http://127.0.0.1:9/hook", schemes={"http", "https"},
                           allowed_hosts=["127.0.0.1"], allow_private=True)
     assert target.addresses == ["127.0.0.1"] and target.netloc == "127.0.0.1:9"
     with pytest.raises(ReferenceError, match="private or local"):
-        check_target("http://127.0.0.1:9/hook", settings, schemes={"http", "https"},
+        check_target("http://127.0.0.1:9/hook", schemes={"http", "https"},
                      allowed_hosts=["127.0.0.1"], allow_private=False)
     with pytest.raises(ReferenceError, match="allow-list"):
-        check_target("https://example.com/hook", settings, schemes={"http", "https"},
+        check_target("https://example.com/hook", schemes={"http", "https"},
                      allowed_hosts=["127.0.0.1"], allow_private=True)
