@@ -1,10 +1,20 @@
 # One image for the API and the workers; docker-compose.yml picks the command.
+
+# The web page (web/): built with node, only its static files go into the image.
+FROM node:20-slim AS web
+WORKDIR /src/web
+COPY web/package.json web/package-lock.json ./
+RUN npm ci --no-audit --no-fund
+COPY web ./
+RUN npm run build  # writes /src/services/api/static
+
 FROM python:3.11-slim
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1
 WORKDIR /app
 COPY pyproject.toml README.md ./
 COPY shared ./shared
 COPY services ./services
+COPY --from=web /src/services/api/static ./services/api/static
 RUN pip install . && useradd --create-home --uid 10001 prism
 USER prism
 EXPOSE 8000

@@ -4,7 +4,10 @@ Starts redis-server, SeaweedFS, a Celery worker (2 processes) and the API on loo
 N photos of 1280x1024, submits them as jobs at a steady rate, and prints:
 * images per second end to end (first submit to last job final) and for the engine alone on
   the same images with the same number of processes (decode, scan, CSV + PLY into memory);
-  their ratio shows the queue's overhead (target >= 0.7 with 2 processes on 2 cores);
+  their ratio shows the service's overhead (target >= 0.7 with 2 processes on 2 cores);
+* the engine again, storing the same outputs (CSV, PLY, preview, report) into the same
+  SeaweedFS with boto3, no queue: the share of the overhead that is object storage itself
+  (on this machine the store's server shares the 2 cores with the workers);
 * submit latency p50/p99 at the steady request rate, and status-poll latency p50/p99.
 
 Run: .venv/bin/python benchmarks/service.py [--images 200] [--per-job 10] [--rate 20]
@@ -21,20 +24,24 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import boto3
 import cv2
 import httpx
 import numpy as np
+from botocore.client import Config
 from rich.console import Console
 from rich.table import Table
 
 from prism_cli.stack import start_api, start_redis, start_s3, start_worker
 from prismcore import ScanSpec, run_scan
+from prismcore.cloud import decimate
 from prismcore.images import load_image
 from prismcore.synth import Box, render_oblique_view
 from prismcore.writers import write_csv, write_ply
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 PROCESSES = 2
+STORE_BUCKET = "bench-engine"
 
 
 def _scenes(count: int) -> list[tuple[bytes, dict]]:
@@ -59,12 +66,40 @@ def _engine_one(args: tuple[bytes, dict]) -> int:
     return result.report["points"]
 
 
-def engine_alone(work: list[tuple[bytes, dict]]) -> float:
-    """Images per second with PROCESSES engine processes, no queue."""
-    with ProcessPoolExecutor(PROCESSES) as pool:
-        list(pool.map(_engine_one, work[:PROCESSES]))  # warm the processes up
+_STORE: list = []  # the boto3 client of an engine-and-store process
+
+
+def _store_init(endpoint: str, key_id: str, secret: str) -> None:
+    _STORE.append(boto3.client("s3", endpoint_url=endpoint, region_name="us-east-1",
+                               aws_access_key_id=key_id, aws_secret_access_key=secret,
+                               config=Config(signature_version="s3v4",
+                                             s3={"addressing_style": "path"})))
+
+
+def _engine_and_store_one(args: tuple[int, bytes, dict]) -> int:
+    n, data, item = args
+    result = run_scan(ScanSpec.model_validate({"image": "x", **item}), load_image(data))
+    preview = decimate(result.cloud)
+    for name, write in (("cloud.csv", lambda f: write_csv(f, result.cloud.points)),
+                        ("cloud.ply", lambda f: write_ply(f, result.cloud.points, result.cloud.colors)),
+                        ("preview.ply", lambda f: write_ply(f, preview.points, preview.colors)),
+                        ("report.json", lambda f: f.write(json.dumps(result.report).encode()))):
+        body = io.BytesIO()
+        write(body)
+        body.seek(0)
+        _STORE[0].put_object(Bucket=STORE_BUCKET, Key=f"engine/{n}/{name}", Body=body)
+    return result.report["points"]
+
+
+def engine_alone(work: list[tuple[bytes, dict]], store: tuple[str, str, str] | None = None) -> float:
+    """Images per second with PROCESSES engine processes, no queue; with `store` (endpoint,
+    key id, secret) each process also puts its outputs into that S3 store."""
+    one, init = (_engine_one, None) if store is None else (_engine_and_store_one, _store_init)
+    jobs = list(work) if store is None else [(n, *w) for n, w in enumerate(work)]
+    with ProcessPoolExecutor(PROCESSES, initializer=init, initargs=store or ()) as pool:
+        list(pool.map(one, jobs[:PROCESSES]))  # warm the processes up
         start = time.perf_counter()
-        list(pool.map(_engine_one, work))
+        list(pool.map(one, jobs))
         return len(work) / (time.perf_counter() - start)
 
 
@@ -73,6 +108,15 @@ def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, t
     creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
     redis = start_redis(tmp / "redis")
     s3 = start_s3(tmp / "s3", *creds)
+    try:
+        endpoint = f"http://127.0.0.1:{s3.port}"
+        _store_init(endpoint, *creds)
+        _STORE.pop().create_bucket(Bucket=STORE_BUCKET)
+        engine_store_rate = engine_alone(work, (endpoint, *creds))
+    except BaseException:
+        s3.stop()
+        redis.stop()
+        raise
     env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
            "PRISM_REDIS_URL": f"redis://127.0.0.1:{redis.port}/0",
            "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{s3.port}",
@@ -107,7 +151,7 @@ def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, t
         failed = sum(item["state"] != "succeeded" for job_id in jobs
                      for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
         return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
-                "failed_items": failed, "tasks": tasks}
+                "failed_items": failed, "tasks": tasks, "engine_store_rate": engine_store_rate}
     finally:
         for proc in reversed(procs):
             proc.stop()
@@ -143,6 +187,11 @@ def main() -> None:
     table.add_row("engine alone, images/s", f"{engine_rate:.2f}")
     table.add_row("through the service, images/s", f"{service['images_per_s']:.2f}")
     table.add_row("service / engine (target >= 0.7)", f"{service['images_per_s'] / engine_rate:.2f}")
+    store_rate = service["engine_store_rate"]
+    table.add_row("engine + outputs into the same S3 store, no queue, images/s", f"{store_rate:.2f}")
+    table.add_row("  of which storage: (engine + store) / engine", f"{store_rate / engine_rate:.2f}")
+    table.add_row("  the queue's own: service / (engine + store)",
+                  f"{service['images_per_s'] / store_rate:.2f}")
     for name in ("submit_ms", "poll_ms"):
         values = np.array(service[name])
         table.add_row(f"{name[:-3]} latency p50 / p99 ms ({len(values)} requests)",

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import redis
 from prism_common.metrics import BUCKETS_S, read_task_durations
-from prism_common.queue import QUEUE_SCANS, QUEUE_WEBHOOKS
+from prism_common.queue import QUEUE_FRAMES, QUEUE_SCANS, QUEUE_WEBHOOKS, queue_depth
 from prism_common.store import JobStore
 from prometheus_client import CollectorRegistry, generate_latest
 from prometheus_client.core import GaugeMetricFamily, HistogramMetricFamily, Metric
@@ -19,21 +19,9 @@ from prometheus_client.utils import floatToGoString
 
 __all__ = ["ServiceCollector", "render_metrics"]
 
-# kombu's Redis transport keeps a queue as the list named after it, and messages sent with a
-# priority in sibling lists "<queue>\x06\x16<step>"; all of them are waiting work.
-_PRIORITY_STEPS = (3, 6, 9)
-
-
 class ServiceCollector(Collector):
     def __init__(self, store: JobStore, client: redis.Redis) -> None:
         self._store, self._client = store, client
-
-    def _queue_depth(self, queue: str) -> int:
-        with self._client.pipeline(transaction=False) as pipe:
-            pipe.llen(queue)
-            for step in _PRIORITY_STEPS:
-                pipe.llen(f"{queue}\x06\x16{step}")
-            return sum(pipe.execute())
 
     def collect(self) -> Iterator[Metric]:
         jobs = GaugeMetricFamily("prism_jobs", "Jobs by state.", labels=["state"])
@@ -43,8 +31,8 @@ class ServiceCollector(Collector):
 
         depth = GaugeMetricFamily("prism_queue_depth", "Tasks waiting in a Celery queue.",
                                   labels=["queue"])
-        for queue in (QUEUE_SCANS, QUEUE_WEBHOOKS):
-            depth.add_metric([queue], self._queue_depth(queue))
+        for queue in (QUEUE_SCANS, QUEUE_FRAMES, QUEUE_WEBHOOKS):
+            depth.add_metric([queue], queue_depth(self._client, queue))
         yield depth
 
         durations = HistogramMetricFamily("prism_task_duration_seconds",

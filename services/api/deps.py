@@ -22,10 +22,11 @@ from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
 
 from .presign import Presigner
+from .ratelimit import RateLimiter
 
 __all__ = ["CeleryDep", "ObjectsDep", "PresignerDep", "RedisDep", "SettingsDep", "StoreDep",
-           "TenantDep", "get_celery", "get_objects", "get_presigner", "get_redis", "get_store",
-           "get_tenant"]
+           "TenantDep", "get_celery", "get_objects", "get_presigner", "get_rate_limited_tenant",
+           "get_redis", "get_store", "get_tenant"]
 
 T = TypeVar("T")
 _lock = threading.Lock()
@@ -96,8 +97,24 @@ def get_tenant(settings: SettingsDep, api_key: Annotated[str | None, Security(_a
     return tenant
 
 
+def get_rate_limiter(settings: SettingsDep, client: RedisDep) -> RateLimiter:
+    return _once(("rate", settings.redis_url, settings.rate_limit_per_minute),
+                 lambda: RateLimiter(client, settings.rate_limit_per_minute))
+
+
+def get_rate_limited_tenant(tenant: Annotated[str, Depends(get_tenant)],
+                            limiter: Annotated[RateLimiter, Depends(get_rate_limiter)]) -> str:
+    """The caller's tenant, once its call fits the per-key rate limit; 429 + Retry-After if not."""
+    wait = limiter.wait_s(tenant)
+    if wait > 0:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
+                            f"rate limit of {limiter.per_minute} calls a minute exceeded for this key; "
+                            f"retry in {wait:.1f} s", headers={"Retry-After": limiter.retry_after(wait)})
+    return tenant
+
+
 StoreDep = Annotated[JobStore, Depends(get_store)]
 ObjectsDep = Annotated[ObjectStore, Depends(get_objects)]
 PresignerDep = Annotated[Presigner, Depends(get_presigner)]
 CeleryDep = Annotated[Celery, Depends(get_celery)]
-TenantDep = Annotated[str, Depends(get_tenant)]
+TenantDep = Annotated[str, Depends(get_rate_limited_tenant)]

@@ -16,7 +16,8 @@ from fastapi.responses import JSONResponse
 from prism_common.settings import get_settings
 
 from .deps import get_objects
-from .routes import health, jobs, uploads
+from .routes import health, jobs, previews, upload_video, uploads
+from .webapp import mount_web
 
 __all__ = ["app", "create_app"]
 
@@ -45,14 +46,27 @@ async def _backend_down(request: Request, exc: Exception) -> JSONResponse:
                         status_code=status.HTTP_503_SERVICE_UNAVAILABLE)
 
 
+_RETRY_AFTER = {"Retry-After": {"description": "Seconds to wait before trying again.",
+                                "schema": {"type": "integer"}}}
+_V1_RESPONSES: dict[int | str, dict] = {
+    400: {"description": "A body that cannot be parsed at all (not JSON, cut multipart)"},
+    401: {"description": "Missing or invalid X-API-Key"},
+    429: {"description": "Rate limit of this key exceeded", "headers": _RETRY_AFTER},
+    503: {"description": "At capacity (Retry-After) or a backend is unavailable"},
+}
+
+
 def create_app() -> FastAPI:
     app = FastAPI(title="PrismCloud", version="1", lifespan=lifespan,
                   description="Measured 3D point clouds of box-shaped parts from photos.")
-    v1 = APIRouter(prefix="/v1")
+    v1 = APIRouter(prefix="/v1", responses=_V1_RESPONSES)
     v1.include_router(uploads.router)
+    v1.include_router(upload_video.router)
     v1.include_router(jobs.router)
+    v1.include_router(previews.router)
     app.include_router(v1)
     app.include_router(health.router)
+    mount_web(app)
     app.add_exception_handler(RequestValidationError, _invalid)
     for error in (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError):
         app.add_exception_handler(error, _backend_down)

@@ -1,18 +1,20 @@
-"""What the API accepts and answers: the public shapes, separate from the stored records."""
+"""What the API accepts and answers: the public shapes, separate from the stored records.
+
+The job's own shape (`JobPublic` and its parts) lives in `prism_common.public`, because the
+worker's webhook sends the very same document."""
 
 from __future__ import annotations
 
 import math
-from datetime import datetime
 from typing import Any
 
-from prism_common.records import State
+from prism_common.public import DimensionsPublic, ItemPublic, JobPublic, ResultPublic
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from prismcore.spec import ScanSpec
 
 __all__ = ["DimensionsPublic", "ItemPublic", "JobCreate", "JobList", "JobPublic", "ResultPublic",
-           "UploadPublic"]
+           "UploadPublic", "VideoPublic"]
 
 
 def _first_non_finite(value: Any, path: str = "") -> str | None:
@@ -51,42 +53,6 @@ class JobCreate(BaseModel):
         return items
 
 
-class DimensionsPublic(BaseModel):
-    width: float
-    height: float
-    depth: float
-    unit: str
-
-
-class ResultPublic(BaseModel):
-    points: int
-    dimensions: DimensionsPublic
-    point_loss: float
-    warnings: list[str]
-
-
-class ItemPublic(BaseModel):
-    index: int
-    state: State
-    error: str | None
-    result: ResultPublic | None
-    downloads: dict[str, str] = Field(
-        default_factory=dict, description="Presigned GET URLs of the outputs: csv, ply, report.")
-
-
-class JobPublic(BaseModel):
-    id: str
-    state: State
-    progress: int = Field(ge=0, le=100)
-    created_at: datetime
-    started_at: datetime | None
-    finished_at: datetime | None
-    client_reference: str | None
-    webhook_url: str | None
-    error: str | None
-    items: list[ItemPublic]
-
-
 class JobList(BaseModel):
     jobs: list[JobPublic]
     next_cursor: str | None = Field(description="Pass as `cursor` for the next page; null at the end.")
@@ -97,3 +63,15 @@ class UploadPublic(BaseModel):
     reference: str = Field(description="Use as an item's image: `upload:ID`.")
     size: int
     name: str
+
+
+class VideoPublic(BaseModel):
+    """An uploaded video as the worker decodes it (`prismcore.video.probe_video`)."""
+
+    id: str = Field(description="The upload's id.")
+    frame_count: int = Field(description="Frames that decode; frame i is shown at i / fps s.")
+    fps: float = Field(description="Frames per second the file states (0: none stated).")
+    width: int = Field(description="Frame width, px.")
+    height: int = Field(description="Frame height, px.")
+    codec: str = Field(description='FourCC as OpenCV reports it, e.g. "MJPG", "FMP4", "h264".')
+    duration_s: float

@@ -34,7 +34,7 @@ def webhook_problem(url: str, settings: Settings) -> str | None:
         return "webhook_url has no host"
     if parts.username or parts.password:
         return "credentials in webhook_url are not accepted"
-    if parts.hostname.lower() not in {h.lower() for h in settings.webhook_allowed_hosts}:
+    if parts.hostname.lower() not in settings.webhook_allowed_hosts:
         return f"webhook host {parts.hostname!r} is not on the allow-list"
     return None
 
@@ -50,6 +50,11 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) 
         fail(("items",), f"at most {settings.max_items_per_job} items per job, got {len(job.items)}")
     if job.webhook_url is not None and (problem := webhook_problem(job.webhook_url, settings)):
         fail(("webhook_url",), problem)
+    # Explicit frame indices are known now; other selections are counted when the video is read.
+    named = sum(len(item.frames.indices) for item in job.items if item.frames and item.frames.indices)
+    if named > settings.max_frames_per_job:
+        fail(("items",), f"the job's videos name {named} frames, over the cap of "
+                         f"{settings.max_frames_per_job} frames per job")
     owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import httpx
 
-from prismcore.spec import FILE_NAMES
+from prismcore.spec import FILE_NAMES, frame_folder
 
 __all__ = ["FINAL_STATES", "ApiClient", "ApiError"]
 
@@ -74,20 +74,27 @@ class ApiClient:
             time.sleep(poll_s)
 
     def download(self, job: dict, out_dir: Path) -> list[Path]:
-        """Save every item's outputs through their presigned URLs, as out_dir/item-N/FILE."""
+        """Save every item's outputs through their presigned URLs, as out_dir/item-N/FILE (a
+        video's frames as out_dir/item-N/frame_000123/FILE, beside its summary.json)."""
         saved = []
         for item in job["items"]:
-            for kind, url in (item.get("downloads") or {}).items():
-                name = FILE_NAMES[kind]
-                target = out_dir / f"item-{item['index']}" / name
-                target.parent.mkdir(parents=True, exist_ok=True)
-                try:
-                    with httpx.stream("GET", url, timeout=120) as response:
-                        response.raise_for_status()
-                        with target.open("wb") as fh:
-                            for chunk in response.iter_bytes(1 << 20):
-                                fh.write(chunk)
-                except httpx.HTTPError as exc:
-                    raise ApiError(f"download of {name} failed: {exc}") from None
-                saved.append(target)
+            folder = out_dir / f"item-{item['index']}"
+            places = [(folder, item.get("downloads") or {})] + [
+                (folder / frame_folder(f["index"]), f.get("downloads") or {})
+                for f in item.get("frames") or []]
+            for where, downloads in places:
+                for kind, url in downloads.items():
+                    saved.append(self._save(url, where / FILE_NAMES[kind]))
         return saved
+
+    def _save(self, url: str, target: Path) -> Path:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            with httpx.stream("GET", url, timeout=120) as response:
+                response.raise_for_status()
+                with target.open("wb") as fh:
+                    for chunk in response.iter_bytes(1 << 20):
+                        fh.write(chunk)
+        except httpx.HTTPError as exc:
+            raise ApiError(f"download of {target.name} failed: {exc}") from None
+        return target

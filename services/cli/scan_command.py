@@ -1,4 +1,4 @@
-"""`prism scan`: run one scan locally, from flags or a spec file."""
+"""`prism scan`: run one scan locally, from flags or a spec file (a photo, or a video's frames)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,10 @@ from rich.console import Console
 
 from prismcore import InputError, ScanSpec, parse_points, run_scan
 from prismcore.images import load_image
+from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
 from .outputs import report_path, write_outputs
+from .video_scan import scan_video, selection_from_flags
 
 __all__ = ["scan", "spec_from_flags"]
 
@@ -81,8 +83,9 @@ def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
 
 
 def scan(
-    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply and report.json.")],
-    image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo).")] = None,
+    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply and report.json "
+                                           "(a video: one folder per frame and summary.json).")],
+    image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo), or a video.")] = None,
     points: Annotated[str | None, typer.Option(
         help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels.')] = None,
     side: Annotated[Path | None, typer.Option(help="Side photo (two-photo mode).")] = None,
@@ -102,21 +105,33 @@ def scan(
     ply_ascii: Annotated[bool, typer.Option(help="ASCII PLY instead of binary.")] = False,
     max_pixels: Annotated[int, typer.Option(help="Refuse larger images.")] = 50_000_000,
     tiles: Annotated[int, typer.Option(help="Row bands per face (same result).", min=1)] = 1,
+    every: Annotated[int | None, typer.Option(help="Video: every Nth frame.")] = None,
+    start: Annotated[float | None, typer.Option(help="Video: from this time, s.")] = None,
+    end: Annotated[float | None, typer.Option(help="Video: up to this time, s.")] = None,
+    frame_list: Annotated[str | None, typer.Option("--frames", help="Video: frame indices 0,5,9.")] = None,
+    sharpest: Annotated[int | None, typer.Option(help="Video: the K sharpest frames.")] = None,
+    max_frames: Annotated[int, typer.Option(help="Video: most frames measured.", min=1)] = DEFAULT_MAX_FRAMES,
 ) -> None:
-    """Turn a photo (or a front and a side photo) of a box into a measured point cloud."""
+    """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds."""
     started = time.perf_counter()
     try:
+        selection = selection_from_flags(every, start, end, frame_list, sharpest)
         if spec_file is not None:
-            if image is not None or points is not None:
-                raise InputError("give either --spec or IMAGE with --points, not both")
+            if image is not None or points is not None or selection is not None:
+                raise InputError("give either --spec or IMAGE with --points (and frame flags), not both")
             spec, base = _spec_from_file(spec_file)
         else:
+            if selection is None and image is not None and is_video(image):
+                selection = {}  # a video without frame flags: every frame, under --max-frames
             spec, base = spec_from_flags(
                 image, points, side=side, tolerance=tolerance, method=method,
                 mm_per_px=mm_per_px, distance_mm=distance_mm, focal_px=focal_px,
                 width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
-                ply_ascii=ply_ascii, max_pixels=max_pixels), Path(".")
+                ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection), Path(".")
+        if spec.is_video or is_video(base / spec.image):
+            scan_video(spec, base, out, tiles=tiles, max_frames=max_frames)
+            return
         load_start = time.perf_counter()
         front = load_image(base / spec.image, max_pixels=spec.max_pixels)
         side_img = (load_image(base / spec.side_image, max_pixels=spec.max_pixels)

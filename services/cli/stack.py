@@ -129,8 +129,11 @@ def start_s3(workdir: Path, key_id: str, secret: str, port: int | None = None) -
              "s3.port.iceberg", "s3.port.lance")
     chosen = free_ports(len(names) + 1)
     ports = {"s3": port or chosen[-1], **dict(zip(names, chosen, strict=False))}
+    # Each bucket is a collection with volumes of its own, and by default weed mini has slots
+    # for about 66 buckets' volumes; past that, writes to a new bucket fail. Volume files grow
+    # as written (nothing is preallocated), so more slots cost nothing until used.
     argv = [_binary("weed", "seaweedfs"), "mini", f"-dir={workdir}", "-ip=127.0.0.1",
-            "-ip.bind=127.0.0.1",
+            "-ip.bind=127.0.0.1", "-volume.max=1000",
             *[f"-{name}={p}" if "." in name else f"-{name}.port={p}" for name, p in ports.items()]]
     proc = ManagedProcess(argv, ports["s3"], workdir, ready_timeout=60,
                           env={"AWS_ACCESS_KEY_ID": key_id, "AWS_SECRET_ACCESS_KEY": secret})
@@ -141,8 +144,10 @@ def start_s3(workdir: Path, key_id: str, secret: str, port: int | None = None) -
 
 def start_worker(workdir: Path, env: dict[str, str], concurrency: int = 2,
                  name: str = "worker") -> ManagedProcess:
+    from prism_common.queue import WORKER_QUEUES  # here: Celery is slow to import for every `prism`
+
     argv = [sys.executable, "-m", "celery", "-A", "prism_worker.app", "worker", "-Q",
-            "scans,webhooks", "--concurrency", str(concurrency), "--loglevel", "info",
+            WORKER_QUEUES, "--concurrency", str(concurrency), "--loglevel", "info",
             "--hostname", f"{name}@%h", "--without-gossip", "--without-mingle"]
     return ManagedProcess(argv, None, workdir, env=env).start()
 

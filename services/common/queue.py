@@ -6,19 +6,46 @@ or OpenCV).
 
 from __future__ import annotations
 
+import redis
 from celery import Celery
 
 from .settings import Settings
 
-__all__ = ["QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_RUN_JOB", "make_celery"]
+__all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
+           "WORKER_QUEUES", "make_celery", "queue_depth", "queue_lists"]
 
 TASK_RUN_JOB = "prism.run_job"
 TASK_PLAN_ITEM = "prism.plan_item"
 TASK_SCAN_TILE = "prism.scan_tile"
 TASK_FINISH_ITEM = "prism.finish_item"
+TASK_SCAN_FRAME = "prism.scan_frame"
 TASK_DELIVER_WEBHOOK = "prism.deliver_webhook"
+TASK_EXTRACT_FRAME = "prism.extract_frame"
 QUEUE_SCANS = "scans"
 QUEUE_WEBHOOKS = "webhooks"
+# A person waits on a frame to mark: its own queue, so it is not stuck behind a long scan queue
+# (a worker takes from its queues in turn).
+QUEUE_FRAMES = "frames"
+WORKER_QUEUES = ",".join((QUEUE_SCANS, QUEUE_FRAMES, QUEUE_WEBHOOKS))
+"""What a worker consumes: ``celery -A prism_worker.app worker -Q`` this."""
+
+
+# kombu's Redis transport keeps a queue as the list named after it, and messages sent with a
+# priority in sibling lists "<queue>\x06\x16<step>"; all of them are waiting work.
+_PRIORITY_STEPS = (3, 6, 9)
+
+
+def queue_lists(queue: str) -> list[str]:
+    """The Redis lists holding `queue`'s waiting messages."""
+    return [queue, *(f"{queue}\x06\x16{step}" for step in _PRIORITY_STEPS)]
+
+
+def queue_depth(client: redis.Redis, queue: str) -> int:
+    """How many tasks wait in `queue` (not counting those a worker has taken)."""
+    with client.pipeline(transaction=False) as pipe:
+        for name in queue_lists(queue):
+            pipe.llen(name)
+        return sum(pipe.execute())
 
 
 def make_celery(settings: Settings) -> Celery:
@@ -29,7 +56,8 @@ def make_celery(settings: Settings) -> Celery:
         task_reject_on_worker_lost=True,
         worker_prefetch_multiplier=1,  # one task at a time per process: fair across jobs
         task_default_queue=QUEUE_SCANS,
-        task_routes={TASK_DELIVER_WEBHOOK: {"queue": QUEUE_WEBHOOKS}},
+        task_routes={TASK_DELIVER_WEBHOOK: {"queue": QUEUE_WEBHOOKS},
+                     TASK_EXTRACT_FRAME: {"queue": QUEUE_FRAMES}},
         # Kombu looks for a lost worker's unacked messages only every 10th restore cycle by
         # default (100 s); every cycle brings them back within visibility_timeout + 10 s.
         broker_transport_options={"visibility_timeout": settings.visibility_timeout_s,

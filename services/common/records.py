@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from datetime import datetime
 from enum import StrEnum
+from typing import Any
 
 from pydantic import BaseModel, Field
 
 from prismcore.spec import ScanSpec
 
-__all__ = ["FINAL_STATES", "ItemRecord", "ItemResult", "JobRecord", "State"]
+__all__ = ["FINAL_STATES", "FrameRecord", "ItemRecord", "ItemResult", "ItemView", "JobRecord", "State"]
 
 
 class State(StrEnum):
@@ -24,12 +25,27 @@ FINAL_STATES = frozenset({State.succeeded, State.failed, State.cancelled})
 
 
 class ItemResult(BaseModel):
-    """The measurements of one item (the rest is in its report.json)."""
+    """The measurements of one item (the rest is in its report.json).
+
+    For a video: `dimensions` and `point_loss` are the medians over the measured frames,
+    `points` their sum, and `summary` the spread of each dimension (summary.json's content).
+    """
 
     points: int
     dimensions: dict[str, float | str]
     point_loss: float
     warnings: list[str] = Field(default_factory=list)
+    summary: dict[str, Any] | None = None
+
+
+class FrameRecord(BaseModel):
+    """One measured frame of a video item."""
+
+    index: int  # the frame's index in the video
+    state: State
+    error: str | None = None
+    result: ItemResult | None = None
+    outputs: dict[str, str] = Field(default_factory=dict)  # "csv"/"ply"/... -> object key
 
 
 class ItemRecord(BaseModel):
@@ -41,6 +57,17 @@ class ItemRecord(BaseModel):
     error: str | None = None
     result: ItemResult | None = None
     outputs: dict[str, str] = Field(default_factory=dict)  # "csv"/"ply"/"report" -> object key
+    frames: list[FrameRecord] = Field(default_factory=list)  # a video's, in frame order
+
+
+class ItemView(BaseModel):
+    """One item with the facts about its job that the item's tasks need."""
+
+    job_id: str
+    tenant: str
+    state: State  # the job's
+    n_items: int
+    item: ItemRecord
 
 
 class JobRecord(BaseModel):

@@ -54,11 +54,29 @@ def parse_reference(text: str) -> Reference:
         f"{text[:200]!r} is not a reference: use upload:ID, s3://bucket/key or an https URL")
 
 
+# IPv6 ranges that carry an IPv4 address a gateway may deliver to: NAT64's well-known prefix
+# (RFC 6052) and the deprecated IPv4-compatible form; 6to4 and mapped ones have ipaddress helpers.
+_NAT64 = ipaddress.ip_network("64:ff9b::/96")
+_COMPATIBLE = ipaddress.ip_network("::/96")
+_LOCAL_NAT64 = ipaddress.ip_network("64:ff9b:1::/48")  # RFC 8215: local use, yet "global" to ipaddress
+
+
+def _embedded_ipv4(ip: ipaddress.IPv6Address) -> ipaddress.IPv4Address | None:
+    if ip.ipv4_mapped or ip.sixtofour:
+        return ip.ipv4_mapped or ip.sixtofour
+    if ip in _NAT64 or (ip in _COMPATIBLE and int(ip) > 1):
+        return ipaddress.IPv4Address(int(ip) & 0xFFFFFFFF)
+    return None
+
+
 def is_public_ip(address: str) -> bool:
-    """False for loopback, private, link-local (169.254.x.x), multicast, reserved addresses."""
+    """False for loopback, private, link-local (169.254.x.x), multicast, reserved addresses, and
+    for IPv6 addresses that embed one of those (mapped, 6to4, NAT64, IPv4-compatible)."""
     ip = ipaddress.ip_address(address)
-    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
-        ip = ip.ipv4_mapped
+    if isinstance(ip, ipaddress.IPv6Address):
+        if ip in _LOCAL_NAT64:
+            return False
+        ip = _embedded_ipv4(ip) or ip
     return ip.is_global and not ip.is_multicast
 
 

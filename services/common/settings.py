@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["Settings", "get_settings"]
@@ -42,10 +42,33 @@ class Settings(BaseSettings):
     presign_ttl_s: int = 3600
     max_items_per_job: int = 5000
     max_pixels: int = 50_000_000
+    max_frames_per_job: int = 1000  # video frames measured, over all the job's videos
     tiles_per_face: int = 4
     items_in_flight_per_job: int = 4  # a big batch cannot starve the jobs queued after it
     visibility_timeout_s: int = 300  # a task not acked by then is redelivered (worker lost)
     public_base_url: str | None = None  # for Location headers behind a proxy
+
+    @field_validator("fetch_allowed_hosts", "webhook_allowed_hosts")
+    @classmethod
+    def _hostnames(cls, hosts: list[str]) -> list[str]:
+        # URLs' host names are compared lowercased, without the root's trailing dot; the lists
+        # are kept the same way, so "Example.COM." allows https://example.com/ as meant.
+        return [h.strip().lower().rstrip(".") for h in hosts]
+
+    # Admission: more waiting tasks than this and submit answers 503 + Retry-After (0: no limit).
+    queue_max_depth: int = 20_000
+    queue_retry_after_s: int = 30
+    # Per API key, over every /v1 call, shared by all API processes through Redis (0: no limit).
+    # Bursts of up to this many calls pass; past it, calls are let through at this rate.
+    rate_limit_per_minute: int = 3000
+
+    # The watchdog (in every worker; one sweep at a time across hosts, through a Redis lock).
+    watchdog_interval_s: int = 30
+    # A job with no progress and no task of its own waiting or running for this long is
+    # restarted where it stopped, `job_stall_restarts` times, then failed with the reason.
+    job_stall_timeout_s: int = 600
+    job_stall_restarts: int = 2
+    job_max_age_s: int = 86_400  # any job not final this long after submission fails
 
 
 @lru_cache

@@ -6,12 +6,14 @@ outside the prefix it belongs in.
 
 from __future__ import annotations
 
+import json
 import re
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import boto3
 from botocore.client import Config
 from botocore.exceptions import ClientError
+from botocore.response import StreamingBody
 
 from .settings import Settings
 
@@ -64,10 +66,6 @@ class ObjectStore:
         except ClientError:
             self.client.create_bucket(Bucket=self.bucket)
 
-    def ping(self) -> bool:
-        self.client.head_bucket(Bucket=self.bucket)
-        return True
-
     def put_bytes(self, key: str, data: bytes, content_type: str = "application/octet-stream") -> None:
         self.client.put_object(Bucket=self.bucket, Key=key, Body=data, ContentType=content_type)
 
@@ -89,8 +87,25 @@ class ObjectStore:
                 return
         self.client.upload_fileobj(stream, self.bucket, key, ExtraArgs={"ContentType": content_type})
 
+    def put_json(self, key: str, value: object) -> None:
+        self.put_bytes(key, (json.dumps(value, indent=2) + "\n").encode(), "application/json")
+
+    def get_json(self, key: str) -> Any:
+        """The JSON document at `key`, or None when there is no such object."""
+        try:
+            return json.loads(self.get_bytes(key))
+        except ClientError as exc:
+            if is_missing(exc):
+                return None
+            raise
+
     def get_bytes(self, key: str, *, bucket: str | None = None) -> bytes:
         return self.client.get_object(Bucket=bucket or self.bucket, Key=key)["Body"].read()
+
+    def open(self, key: str) -> tuple[StreamingBody, int]:
+        """The object's body, to be read in chunks and closed by the caller, and its size."""
+        got = self.client.get_object(Bucket=self.bucket, Key=key)
+        return got["Body"], int(got["ContentLength"])
 
     def exists(self, key: str) -> bool:
         try:

@@ -2,15 +2,20 @@
 
 Layout (all keys under ``prism:``):
 
-* ``job:{id}`` hash: ``doc`` (the record as submitted), ``state``, timestamps, ``error``,
-  ``item:{i}`` (each item's state, error, result and outputs), ``units_total``/``units_done``
-  (progress), ``tenant``.
+* ``job:{id}`` hash: ``doc`` (the record as submitted, without its items), ``n_items``,
+  ``item:{i}`` (each item: its spec, state, error, result and outputs), ``state``, timestamps,
+  ``error``, ``units_total``/``units_done`` (progress), ``tenant``. Items are fields of their
+  own so that a task about one item of a 5000-item job reads that item, not the whole job.
+* ``frame:{i}:{n}`` fields of the same hash: frame n of video item i (written by its own task,
+  so frames finishing at once never overwrite each other); ``job:{id}:frames`` hash: item ->
+  frames selected (for the cap per job); ``job:{id}:frames:{i}`` set of finished frames.
 * ``job:{id}:tiles:{i}`` set of finished tiles, ``job:{id}:done`` set of finished items,
   ``job:{id}:next`` the next item to start: counting by set membership makes a re-run task
   count once.
 * ``tenant:{t}:jobs`` and ``tenant:{t}:state:{s}`` sorted sets (score: creation time, us), and
   ``state:{s}`` across tenants (for metrics).
-* ``idem:{t}:{key}`` the job an idempotency key made; ``upload:{id}`` an uploaded file.
+* ``idem:{t}:{key}`` the job an idempotency key made; ``upload:{id}`` an uploaded file;
+  ``upload:{id}:extract:{n}`` (expiring) frame n of that video was asked of a worker.
 
 A state never goes backwards: transitions run in one Lua script that compares ranks.
 """
@@ -18,11 +23,12 @@ A state never goes backwards: transitions run in one Lua script that compares ra
 from __future__ import annotations
 
 import hashlib
+import json
 from datetime import UTC, datetime
 
 import redis
 
-from .records import FINAL_STATES, ItemRecord, JobRecord, State
+from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord, State
 
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
 
@@ -78,9 +84,6 @@ class JobStore:
     def from_url(cls, url: str) -> JobStore:
         return cls(redis.Redis.from_url(url, decode_responses=True, health_check_interval=30))
 
-    def ping(self) -> bool:
-        return bool(self._r.ping())
-
     # -- jobs -------------------------------------------------------------------------------
     def create(self, job: JobRecord, *, idempotency_key: str | None = None,
                body: bytes = b"") -> tuple[JobRecord, bool]:
@@ -112,7 +115,9 @@ class JobStore:
         units = UNITS_PER_ITEM_ESTIMATE * len(job.items)
         with self._r.pipeline() as pipe:
             pipe.hset(f"{_P}job:{job.id}", mapping={
-                "doc": job.model_dump_json(), "state": State.queued.value,
+                "doc": job.model_dump_json(exclude={"items"}), "n_items": len(job.items),
+                **{f"item:{item.index}": item.model_dump_json() for item in job.items},
+                "state": State.queued.value,
                 "tenant": job.tenant, "score": score, "units_total": units, "units_done": 0})
             pipe.zadd(f"{_P}tenant:{job.tenant}:jobs", {job.id: score})
             pipe.zadd(f"{_P}tenant:{job.tenant}:state:queued", {job.id: score})
@@ -123,20 +128,16 @@ class JobStore:
     def get(self, job_id: str) -> JobRecord | None:
         """The job as it stands now, or None."""
         fields = self._r.hgetall(f"{_P}job:{job_id}")
-        if not fields:
+        return _job(fields) if fields else None
+
+    def get_item(self, job_id: str, index: int) -> ItemView | None:
+        """One item and the job facts its tasks need, without reading the rest of the job."""
+        state, tenant, n_items, item = self._r.hmget(
+            f"{_P}job:{job_id}", ["state", "tenant", "n_items", f"item:{index}"])
+        if state is None or item is None:
             return None
-        job = JobRecord.model_validate_json(fields["doc"])
-        job.state = State(fields["state"])
-        for name in ("started_at", "finished_at"):
-            if fields.get(name):
-                setattr(job, name, datetime.fromisoformat(fields[name]))
-        job.error = fields.get("error") or None
-        for item in job.items:
-            if f"item:{item.index}" in fields:
-                job.items[item.index] = ItemRecord.model_validate_json(fields[f"item:{item.index}"])
-        total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
-        job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
-        return job
+        return ItemView(job_id=job_id, tenant=tenant, state=State(state), n_items=int(n_items),
+                        item=ItemRecord.model_validate_json(item))
 
     def list(self, tenant: str, *, state: State | None = None, limit: int = 50,
              cursor: float | None = None) -> tuple[list[JobRecord], float | None]:
@@ -144,7 +145,10 @@ class JobStore:
         key = f"{_P}tenant:{tenant}:state:{state.value}" if state else f"{_P}tenant:{tenant}:jobs"
         top = f"({cursor!r}" if cursor is not None else "+inf"
         rows = self._r.zrevrangebyscore(key, top, "-inf", start=0, num=limit + 1, withscores=True)
-        jobs = [job for job_id, _ in rows[:limit] if (job := self.get(job_id)) is not None]
+        with self._r.pipeline(transaction=False) as pipe:
+            for job_id, _ in rows[:limit]:
+                pipe.hgetall(f"{_P}job:{job_id}")
+            jobs = [_job(fields) for fields in pipe.execute() if fields]
         return jobs, (rows[limit - 1][1] if len(rows) > limit else None)
 
     def transition(self, job_id: str, state: State, *, error: str | None = None) -> bool:
@@ -184,6 +188,35 @@ class JobStore:
             pipe.scard(f"{_P}job:{job_id}:done")
             return int(pipe.execute()[1])
 
+    # -- video frames -----------------------------------------------------------------------
+    def claim_frames(self, job_id: str, item: int, count: int) -> int:
+        """Record that the item measures `count` frames; the job's total over its items."""
+        key = f"{_P}job:{job_id}:frames"
+        with self._r.pipeline() as pipe:
+            pipe.hset(key, str(item), count)  # a re-run sets the same count again
+            pipe.hvals(key)
+            return sum(int(v) for v in pipe.execute()[1])
+
+    def release_frames(self, job_id: str, item: int) -> None:
+        """The item will not measure its frames after all (it failed): free its share."""
+        self._r.hdel(f"{_P}job:{job_id}:frames", str(item))
+
+    def put_frame(self, job_id: str, item: int, frame: FrameRecord) -> None:
+        self._r.hset(f"{_P}job:{job_id}", f"frame:{item}:{frame.index}", frame.model_dump_json())
+
+    def get_frames(self, job_id: str, item: int, indices: list[int]) -> dict[int, FrameRecord]:
+        """The recorded frames among `indices` (a frame not recorded yet is left out)."""
+        values = self._r.hmget(f"{_P}job:{job_id}", [f"frame:{item}:{n}" for n in indices])
+        return {n: FrameRecord.model_validate_json(v) for n, v in zip(indices, values, strict=True) if v}
+
+    def frame_done(self, job_id: str, item: int, frame: int) -> int:
+        """Count a finished frame once (a progress unit); how many of the item's are finished."""
+        self.tile_done(job_id, item, f"frame-{frame}")
+        with self._r.pipeline() as pipe:
+            pipe.sadd(f"{_P}job:{job_id}:frames:{item}", frame)
+            pipe.scard(f"{_P}job:{job_id}:frames:{item}")
+            return int(pipe.execute()[1])
+
     def count_by_state(self) -> dict[str, int]:
         with self._r.pipeline() as pipe:
             for s in State:
@@ -198,3 +231,27 @@ class JobStore:
 
     def get_upload(self, upload_id: str) -> dict[str, str] | None:
         return self._r.hgetall(f"{_P}upload:{upload_id}") or None
+
+    def claim_extraction(self, upload_id: str, frame: int, ttl_s: int) -> bool:
+        """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
+        extraction once, not at every poll (and again if that task got lost)."""
+        return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
+
+
+def _job(fields: dict[str, str]) -> JobRecord:
+    """A job record from its hash's fields."""
+    n = int(fields["n_items"])
+    items = [ItemRecord.model_validate_json(fields[f"item:{i}"]) for i in range(n)]
+    frames = sorted((int(k.split(":")[1]), int(k.split(":")[2]), v) for k, v in fields.items()
+                    if k.startswith("frame:"))
+    for i, _, value in frames:
+        items[i].frames.append(FrameRecord.model_validate_json(value))
+    job = JobRecord.model_validate({**json.loads(fields["doc"]), "items": items})
+    job.state = State(fields["state"])
+    for name in ("started_at", "finished_at"):
+        if fields.get(name):
+            setattr(job, name, datetime.fromisoformat(fields[name]))
+    job.error = fields.get("error") or None
+    total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
+    job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
+    return job

@@ -66,10 +66,10 @@ def fail_item(job_id: str, item: int, message: str, *, tile: str | None = None) 
     count_plan(job_id, item, 0)  # failed before its plan: no tiles will ever run
     if tile is not None:
         store.tile_done(job_id, item, tile)  # the failed tile is done with; the others count
-    job = store.get(job_id)
-    if job is None or job.items[item].state in (State.succeeded, State.failed):
+    view = store.get_item(job_id, item)
+    if view is None or view.item.state in (State.succeeded, State.failed):
         return
-    store.put_item(job_id, job.items[item].model_copy(update={"state": State.failed, "error": message}))
+    store.put_item(job_id, view.item.model_copy(update={"state": State.failed, "error": message}))
 
 
 def complete_item(job_id: str, item: int, *, maybe_repeat: bool) -> None:
@@ -79,12 +79,12 @@ def complete_item(job_id: str, item: int, *, maybe_repeat: bool) -> None:
         return
     first = store.tile_done(job_id, item, "complete")
     done = store.item_done(job_id, item)
-    job = store.get(job_id)
-    if job is None or job.state == State.cancelled:
+    view = store.get_item(job_id, item)
+    if view is None or view.state == State.cancelled:
         return
-    if job.state == State.running and (first or maybe_repeat):
-        start_items(job_id, len(job.items), 1)
-    if done >= len(job.items):
+    if view.state == State.running and (first or maybe_repeat):
+        start_items(job_id, view.n_items, 1)
+    if done >= view.n_items and (job := store.get(job_id)) is not None:
         _finish_job(job, maybe_repeat=maybe_repeat)
 
 

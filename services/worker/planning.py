@@ -6,7 +6,7 @@ exactly the tiles that were scanned, even if PRISM_TILES_PER_FACE changed in bet
 
 from __future__ import annotations
 
-from prism_common.records import JobRecord
+from prism_common.records import ItemView
 
 from prismcore import plan_scan
 
@@ -23,7 +23,7 @@ def max_pixels(spec_limit: int) -> int:
     return min(spec_limit, context.settings().max_pixels)
 
 
-def plan_item(job: JobRecord, item: int) -> list[Tile]:
+def plan_item(view: ItemView) -> list[Tile]:
     """Plan the item (unless plan.json exists already) and return its tiles.
 
     Raises
@@ -34,19 +34,19 @@ def plan_item(job: JobRecord, item: int) -> list[Tile]:
         An input that may not or could not be read.
     """
     objects = context.objects()
-    key = item_key(job.id, item, "plan.json")
+    key = item_key(view.job_id, view.item.index, "plan.json")
     if objects.exists(key):  # a re-run: the plan is deterministic, keep the one stored
         return [tuple(t) for t in cache.plan(key)[1]["tiles"]]  # type: ignore[misc]
-    spec = job.items[item].spec
+    spec = view.item.spec
     limit = max_pixels(spec.max_pixels)
-    front_key, front_label = copy_input(job, item, "front")
+    front_key, front_label = copy_input(view, "front")
     front = cache.image(front_key, limit, front_label)
     side = None
     if spec.two_photo:
-        side_key, side_label = copy_input(job, item, "side")
+        side_key, side_label = copy_input(view, "side")
         side = cache.image(side_key, limit, side_label)
     plan = plan_scan(spec, front, side)
-    tiles = plan_tiles(plan, tiles_per_face(len(job.items)))
+    tiles = plan_tiles(plan, tiles_per_face(view.n_items))
     objects.put_bytes(key, plans.dumps(plan, tiles=tiles), "application/json")
     return tiles
 

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import json
-from typing import Any
 
 import httpx
+from prism_common.public import JobPublic, to_public
 from prism_common.records import JobRecord, State
 
 from . import context
@@ -27,21 +26,10 @@ class WebhookError(Exception):
     """The receiver did not take the delivery (no answer, or not 2xx); it is tried again."""
 
 
-def job_resource(job: JobRecord) -> dict[str, Any]:
+def job_resource(job: JobRecord) -> JobPublic:
     """The job as the API answers it, with presigned download links for finished items."""
-    settings, objects = context.settings(), context.objects()
-    items = []
-    for item in job.items:
-        downloads = {kind: objects.presign_get(key, settings.presign_ttl_s,
-                                               f"{job.id}-{item.index}-{key.rsplit('/', 1)[-1]}")
-                     for kind, key in item.outputs.items()}
-        items.append({"index": item.index, "state": item.state.value, "error": item.error,
-                      "result": item.result.model_dump(mode="json") if item.result else None,
-                      "downloads": downloads})
-    times = {name: (t.isoformat() if (t := getattr(job, name)) else None)
-             for name in ("created_at", "started_at", "finished_at")}
-    return {"id": job.id, "state": job.state.value, "progress": job.progress, **times,
-            "client_reference": job.client_reference, "error": job.error, "items": items}
+    ttl, objects = context.settings().presign_ttl_s, context.objects()
+    return to_public(job, lambda key, name: objects.presign_get(key, ttl, filename=name))
 
 
 def signature(body: bytes) -> str:
@@ -66,7 +54,7 @@ def deliver(job_id: str) -> None:
     target = check_target(job.webhook_url, schemes={"http", "https"},
                           allowed_hosts=settings.webhook_allowed_hosts,
                           allow_private=settings.webhook_allow_private)
-    body = json.dumps(job_resource(job), separators=(",", ":")).encode()
+    body = job_resource(job).model_dump_json().encode()
     headers = {"Content-Type": "application/json", "X-Prism-Signature": signature(body),
                "X-Prism-Event": EVENT, "User-Agent": "PrismCloud-Webhook/1"}
     with httpx.Client(timeout=TIMEOUT, trust_env=False) as client, \

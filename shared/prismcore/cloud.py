@@ -15,7 +15,10 @@ import numpy as np
 from .errors import InputError
 from .scan import FaceScan
 
-__all__ = ["Cloud", "assemble", "face_points"]
+__all__ = ["PREVIEW_POINTS", "Cloud", "assemble", "decimate", "face_points"]
+
+PREVIEW_POINTS = 100_000
+"""Points in a display preview: enough for a box's faces to read as surfaces in a 3D view."""
 
 
 @dataclass(frozen=True)
@@ -51,7 +54,8 @@ def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
     xy = np.empty((1, rows.size, 2), dtype=np.float64)
     xy[0, :, 0] = cols + col0
     xy[0, :, 1] = rows + row0
-    uv = cv2.perspectiveTransform(xy, H)[0]
+    # OpenCV answers None rather than an empty array for no points (a scan that kept no pixel).
+    uv = cv2.perspectiveTransform(xy, H)[0] if rows.size else np.empty((0, 2))
     # A flat-index gather is several times faster than boolean-indexing a 3-channel window.
     flat = (rows + row0) * image.shape[1] + (cols + col0)
     rgb = np.take(image.reshape(-1, image.shape[2]), flat, axis=0)
@@ -145,3 +149,19 @@ def _check_size(n: int, max_points: int, kind: str) -> None:
             f"the {kind} cloud would have {n:,} points, over the limit of {max_points:,}; "
             "use cloud=surface or raise max_points"
         )
+
+
+def decimate(cloud: Cloud, max_points: int = PREVIEW_POINTS) -> Cloud:
+    """At most `max_points` points of `cloud`, evenly spread over its point order, for display.
+
+    Deterministic (the same cloud gives the same preview: the worker may write it twice), and
+    scan order is row order per face, so an even stride keeps every face's coverage uniform.
+    Returns `cloud` itself when it is small enough; never modifies it.
+    """
+    if max_points < 1:
+        raise InputError(f"max_points must be at least 1, got {max_points}")
+    n = len(cloud.points)
+    if n <= max_points:
+        return cloud
+    keep = (np.arange(max_points, dtype=np.int64) * n) // max_points
+    return Cloud(cloud.points[keep], cloud.colors[keep])

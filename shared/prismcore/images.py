@@ -68,6 +68,7 @@ from PIL import (
     WebPImagePlugin,
 )
 
+from .containers import video_container
 from .errors import InputError
 
 __all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "ImageInfo", "load_image", "probe_image"]
@@ -381,6 +382,10 @@ def _sniff(buf: bytes | mmap.mmap, label: str) -> str:
         return "WEBP"
     if head.startswith(b"BM"):
         return "BMP"
+    container = video_container(head)
+    if container:
+        raise InputError(f"{label} is a video ({container.upper()}), not a photo: select its frames "
+                         "to measure them (frames in the spec)")
     kind = next((k for magic, k in _OTHER_FORMATS if head.startswith(magic)), None)
     if head[4:8] == b"ftyp":
         kind = "HEIF/AVIF (" + head[8:12].decode("latin-1").strip() + ")"

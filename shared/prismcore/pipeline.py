@@ -6,6 +6,7 @@ Images are RGB arrays (H, W, 3): uint8, or float32 in 0-255 units for 16-bit inp
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -138,8 +139,12 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
     Raises
     ------
     InputError
-        For a missing side photo, points outside the image, out of order or collinear.
+        For a missing side photo, points outside the image, out of order or collinear, or a
+        video spec (one with `frames`: each frame has its own spec, see `video.frame_spec`).
     """
+    if spec.is_video or spec.points is None:
+        raise InputError(f"{spec.image!r} is a video spec: measure each frame with the spec "
+                         "prismcore.video.frame_spec gives for it")
     if spec.two_photo and side is None:
         raise InputError("two-photo mode: the side image is missing")
     images = [front] + ([side] if spec.two_photo and side is not None else [])
@@ -163,6 +168,11 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
             quads, fits = _refine(spec, images, marked, warnings)
     with _timed(timings, "measure"):
         dims, quads = _measure(spec, quads, marked, fits, images, warnings)
+    for name in ("width", "height", "depth"):
+        value = getattr(dims, name)
+        if not (math.isfinite(value) and value > 0):  # e.g. a pose fitted behind the camera
+            raise InputError(f"the points do not describe a box in front of the camera: {name} "
+                             f"came out as {value:.4g} {dims.unit}; check the points and their order")
     faces = []
     for name, index, region, mark in (("front", 0, quads.front, marked.front),
                                       ("side", side_index, quads.side, marked.side)):

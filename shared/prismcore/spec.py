@@ -3,17 +3,29 @@
 Image references are plain strings here: the CLI reads them as file paths (relative to the spec
 file), the service as object-store, upload or URL references. Everything the engine needs
 besides the pixels is in this model, so a spec plus its images fully determines the output.
+A spec with `frames` names a video: each selected frame is measured as a photo of its own.
 """
 
 from __future__ import annotations
 
 import re
+from collections import Counter
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    FiniteFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    model_validator,
+)
 
 __all__ = [
     "FILE_NAMES",
+    "SUMMARY_NAME",
+    "FrameSelection",
     "KnownEdge",
     "MmPerPx",
     "Pinhole",
@@ -21,6 +33,7 @@ __all__ = [
     "ReferencePoints",
     "Scale",
     "ScanSpec",
+    "frame_folder",
     "parse_points",
 ]
 
@@ -28,9 +41,19 @@ Point = tuple[FiniteFloat, FiniteFloat]
 """An image position (x, y) in pixels: x = column, y = row, origin at the image's top-left
 pixel centre."""
 
-FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json"}
+FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
+              "summary": "summary.json"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
+
+SUMMARY_NAME = "summary.json"
+"""The file name of a video job's summary across its frames (beside the frames' folders)."""
+
+
+def frame_folder(index: int) -> str:
+    """The folder (CLI) or key prefix (service) of one frame's outputs: ``frame_000123``."""
+    return f"frame_{index:06d}"
+
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 
@@ -107,14 +130,69 @@ class CsvOptions(_Strict):
     colors: bool = False
 
 
+Seconds = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+
+
+class FrameSelection(_Strict):
+    """Which frames of a video to measure.
+
+    Either `indices` alone, or any of `start_s`/`end_s`, `every` and `sharpest` together: the
+    candidates are the frames whose time (index / fps) lies in [start_s, end_s), every
+    `every`-th of them counted from the first; `sharpest` then keeps the K candidates with the
+    highest variance of the Laplacian (the least blurred). An empty selection means every frame.
+    The number of frames measured is capped by the caller (the service's setting, the CLI's
+    ``--max-frames``).
+    """
+
+    every: int | None = Field(default=None, ge=1, description="Every Nth candidate frame (1: all).")
+    start_s: Seconds | None = Field(default=None, description="First time measured, seconds.")
+    end_s: Seconds | None = Field(default=None, description="Frames before this time, seconds.")
+    indices: list[NonNegativeInt] | None = Field(
+        default=None, min_length=1, description="Explicit frame indices (0 = the first frame)."
+    )
+    sharpest: int | None = Field(
+        default=None, ge=1, description="Keep the K sharpest candidates (variance of the Laplacian)."
+    )
+
+    @model_validator(mode="after")
+    def _consistent(self) -> FrameSelection:
+        if self.indices is not None:
+            others = {k: getattr(self, k) for k in ("every", "start_s", "end_s", "sharpest")
+                      if getattr(self, k) is not None}
+            if others:
+                given = ", ".join(f"{k}={v!r}" for k, v in others.items())
+                raise ValueError(f"indices name the frames themselves: drop {given}")
+            repeated = sorted(i for i, n in Counter(self.indices).items() if n > 1)
+            if repeated:
+                raise ValueError(f"frame indices repeated: {repeated}")
+        if self.start_s is not None and self.end_s is not None and self.end_s <= self.start_s:
+            raise ValueError(f"end_s {self.end_s!r} must be after start_s {self.start_s!r}")
+        return self
+
+
 class ScanSpec(_Strict):
     """Everything needed to turn one photo (or a front and a side photo) into a point cloud."""
 
-    image: str = Field(min_length=1, description="Front photo (single-photo mode: the only one).")
+    # `points` or `frame_points` is required: the schema says so too, not only the validator.
+    model_config = ConfigDict(json_schema_extra={"anyOf": [{"required": ["points"]},
+                                                           {"required": ["frame_points"]}]})
+
+    image: str = Field(min_length=1, description="Front photo (single-photo mode: the only one), "
+                       "or a video when `frames` is set.")
     side_image: str | None = Field(
         default=None, description="Side photo; when given, p4, p5 and p7 refer to it."
     )
-    points: ReferencePoints
+    points: ReferencePoints | None = Field(
+        default=None, description="Reference points (every frame of a video); required unless "
+        "frame_points is given."
+    )
+    frames: FrameSelection | None = Field(
+        default=None, description="Set when `image` is a video: the frames to measure."
+    )
+    frame_points: dict[NonNegativeInt, ReferencePoints] | None = Field(
+        default=None, min_length=1, description="Video with a moving camera: reference points "
+        "per frame index; exactly these frames are measured."
+    )
     tolerance: float = Field(default=12.0, ge=0.0, le=128.0, description="RGB tolerance per channel.")
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None
@@ -131,15 +209,54 @@ class ScanSpec(_Strict):
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
     max_points: int = Field(default=20_000_000, gt=0, description="Refuse larger clouds.")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _frames_from_frame_points(cls, data: object) -> object:
+        # Per-frame points decide which frames are measured; `frames` then says so explicitly,
+        # so code that asks "is this a video?" needs to look at one field only.
+        if isinstance(data, dict) and data.get("frame_points") and data.get("frames") is None:
+            keys = data["frame_points"]
+            if isinstance(keys, dict):
+                try:
+                    indices = sorted({int(k) for k in keys})
+                except (TypeError, ValueError):
+                    return data  # the field's own validation names the bad key
+                if indices[0] < 0:
+                    return data
+                return {**data, "frames": {"indices": indices}}
+        return data
+
     @model_validator(mode="after")
-    def _pinhole_needs_focal(self) -> ScanSpec:
+    def _consistent(self) -> ScanSpec:
         if isinstance(self.scale, Pinhole) and self.focal_px is None:
             raise ValueError("a shooting distance needs focal_px (the focal length in pixels)")
+        if self.frame_points is not None:
+            if self.points is not None:
+                raise ValueError("give points (the same for every frame) or frame_points "
+                                 "(per frame), not both")
+            listed = sorted(self.frame_points)
+            if self.frames is None or self.frames.indices is None or sorted(self.frames.indices) != listed:
+                raise ValueError(f"frame_points measures exactly frames {listed}: drop frames or "
+                                 f"give frames.indices equal to them, got frames={self._frames_text()}")
+        elif self.points is None:
+            raise ValueError("points: the reference points are missing (give points, or "
+                             "frame_points for a video)")
+        if self.frames is not None and self.side_image is not None:
+            raise ValueError(f"a video is measured in single-photo mode: side_image "
+                             f"{self.side_image!r} cannot be used with frames")
         return self
+
+    def _frames_text(self) -> str:
+        return "null" if self.frames is None else self.frames.model_dump_json(exclude_none=True)
 
     @property
     def two_photo(self) -> bool:
         return self.side_image is not None
+
+    @property
+    def is_video(self) -> bool:
+        """True when `image` names a video (the spec has a frame selection)."""
+        return self.frames is not None
 
 
 _PAIR = re.compile(r"^\s*(-?\d+(?:\.\d+)?)\s*,\s*(-?\d+(?:\.\d+)?)\s*$")

@@ -60,4 +60,6 @@ def test_pinhole_needs_focal():
 
 def test_schema_is_json_schema():
     schema = ScanSpec.model_json_schema()
-    assert schema["type"] == "object" and "points" in schema["required"]
+    assert schema["type"] == "object" and "image" in schema["required"]
+    # the reference points: the same for every photo or frame, or per frame of a video
+    assert schema["anyOf"] == [{"required": ["points"]}, {"required": ["frame_points"]}]

@@ -1,8 +1,10 @@
-"""Real Redis and S3 servers for the service tests (started once per session)."""
+"""Settings, stores and tenants for the service tests, on the session's real Redis and S3
+servers (`redis_server`, `s3_server` in tests/conftest.py, shared with the web tests)."""
 
 from __future__ import annotations
 
 import hashlib
+import socket
 from collections.abc import Iterator
 
 import pytest
@@ -11,24 +13,10 @@ from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
 
-from .servers import S3_KEY_ID, S3_SECRET, ManagedProcess, start_redis, start_s3
+from .servers import API_KEYS, S3_KEY_ID, S3_SECRET, WEBHOOK_SECRET
 
-API_KEYS = {"acme": "key-acme-0123456789abcdef", "globex": "key-globex-0123456789abcdef"}
-WEBHOOK_SECRET = "webhook-secret-for-tests"
+__all__ = ["API_KEYS", "WEBHOOK_SECRET"]  # imported from here by the test modules
 
-
-@pytest.fixture(scope="session")
-def redis_server(tmp_path_factory) -> Iterator[ManagedProcess]:
-    server = start_redis(tmp_path_factory.mktemp("redis"))
-    yield server
-    server.stop()
-
-
-@pytest.fixture(scope="session")
-def s3_server(tmp_path_factory) -> Iterator[ManagedProcess]:
-    server = start_s3(tmp_path_factory.mktemp("s3"))
-    yield server
-    server.stop()
 
 
 @pytest.fixture
@@ -42,6 +30,9 @@ def settings(redis_server, s3_server, request) -> Settings:
         s3_endpoint_url=f"http://127.0.0.1:{s3_server.port}", s3_bucket=bucket,
         s3_access_key_id=S3_KEY_ID, s3_secret_access_key=S3_SECRET,
         webhook_allowed_hosts=["127.0.0.1"], webhook_allow_private=True,
+        # Every test shares these tenants on one Redis: the limit is on (its code runs on every
+        # call) but out of reach; the rate-limit tests set their own.
+        rate_limit_per_minute=1_000_000,
     )
 
 
@@ -55,3 +46,15 @@ def objects(settings) -> ObjectStore:
     objects = ObjectStore.from_settings(settings)
     objects.ensure_bucket()
     return objects
+
+
+@pytest.fixture
+def listener() -> Iterator[socket.socket]:
+    """A port on 127.0.0.1 that must never see a connection (the SSRF tests point at it)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen(8)
+        sock.setblocking(False)
+        yield sock
+        with pytest.raises(BlockingIOError):  # nothing is waiting to be accepted
+            sock.accept()

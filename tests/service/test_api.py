@@ -290,7 +290,7 @@ def test_submit_queues_the_job_and_get_returns_it(make_client, store, broker):
     assert job["webhook_url"] == "https://127.0.0.1/hook" and job["error"] is None
     assert [i["index"] for i in job["items"]] == [0, 1]
     assert job["items"][0] == {"index": 0, "state": "queued", "error": None, "result": None,
-                               "downloads": {}}
+                               "downloads": {}, "frames": []}
     # The service's pixel limit caps what an item asks for; a lower limit of its own stays.
     record = store.get(job["id"])
     assert record.tenant == "acme" and record.items[1].spec.side_image == ref
@@ -515,14 +515,14 @@ def test_results_and_presigned_downloads(client, store, objects):
     first, second = job["items"]
     assert first["result"] == {"points": 1234, "dimensions": {"width": 120.0, "height": 80.0,
                                                               "depth": 60.0, "unit": "mm"},
-                               "point_loss": 0.01, "warnings": ["low contrast"]}
+                               "point_loss": 0.01, "warnings": ["low contrast"], "summary": None}
     assert set(first["downloads"]) == {"csv", "report"}  # only what the item has
     csv = httpx.get(first["downloads"]["csv"])
     assert csv.status_code == 200 and csv.content == b"1,2,3\n"
     assert "cloud.csv" in csv.headers["Content-Disposition"]
     assert httpx.get(first["downloads"]["report"]).json() == {"points": 1234}
     assert second == {"index": 1, "state": "failed", "error": "no edges found", "result": None,
-                      "downloads": {}}
+                      "downloads": {}, "frames": []}
     # Polling again reuses the URLs (presigning is slow) while they are fresh.
     assert client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0] == first
     # Nobody else can fetch the job to get at the URLs.
@@ -594,3 +594,18 @@ def test_the_api_does_not_load_the_engine():
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'cv2', 'prism_worker'}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(("indices", "ok"), [([[0, 1, 2], [3, 4]], True), ([[0, 1, 2], [3, 4, 5]], False),
+                                             ([list(range(6))], False)])
+def test_frames_named_over_the_job_cap_are_refused_at_submit(make_client, indices, ok):
+    client = make_client(max_frames_per_job=5)
+    ref = upload(client, b"RIFF....AVI ", name="clip.avi")
+    r = submit(client, [item(ref, frames={"indices": i}) for i in indices])
+    assert r.status_code == (202 if ok else 422), r.text
+    if not ok:
+        named = sum(map(len, indices))
+        assert r.json()["detail"][0]["msg"].endswith(
+            f"the job's videos name {named} frames, over the cap of 5 frames per job")
+    else:
+        assert [it["frames"] for it in r.json()["items"]] == [[], []]  # none measured yet

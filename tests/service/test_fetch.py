@@ -90,18 +90,6 @@ def https_port(cert) -> Iterator[int]:
     server.server_close()
 
 
-@pytest.fixture
-def listener() -> Iterator[socket.socket]:
-    """A port on 127.0.0.1 that must never see a connection."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        sock.listen(8)
-        sock.setblocking(False)
-        yield sock
-        with pytest.raises(BlockingIOError):  # nothing is waiting to be accepted
-            sock.accept()
-
-
 def _settings(cert: Path | None = None, hosts: tuple[str, ...] = ("localhost",),
               private: bool = True) -> Settings:
     return Settings(api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET, fetch_allowed_hosts=list(hosts),
@@ -193,3 +181,15 @@ def test_webhook_targets_have_their_own_rules():
     with pytest.raises(ReferenceError, match="allow-list"):
         check_target("https://example.com/hook", schemes={"http", "https"},
                      allowed_hosts=["127.0.0.1"], allow_private=True)
+
+
+@pytest.mark.parametrize("entry", ["LocalHost", "localhost.", " localhost "])
+def test_allow_list_entries_are_matched_as_host_names(entry):
+    # The API checks a webhook URL at submit, the worker again at delivery: both must read the
+    # operator's list the same way, whatever its case.
+    settings = Settings(api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
+                        webhook_allowed_hosts=[entry], fetch_allowed_hosts=[entry])
+    assert settings.webhook_allowed_hosts == settings.fetch_allowed_hosts == ["localhost"]
+    target = check_target("http://LOCALHOST:8080/hook", schemes={"http"},
+                          allowed_hosts=settings.webhook_allowed_hosts, allow_private=True)
+    assert target.host == "localhost"

@@ -21,13 +21,16 @@ import numpy as np
 import pytest
 from plyfile import PlyData
 
+from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, free_port, start_api, start_worker
 from prismcore import ScanSpec, run_scan
 from prismcore.images import load_image
+from prismcore.spec import frame_folder
 from prismcore.synth import Box, render_oblique_view
+from prismcore.synth_video import render_clip, write_video
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
-from .servers import S3_KEY_ID, S3_SECRET
+from .servers import service_env
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -62,15 +65,9 @@ class Stack:
 @pytest.fixture(scope="module")
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("stack")
-    env = {
-        "PRISM_API_KEYS": json.dumps(API_KEYS), "PRISM_WEBHOOK_SECRET": WEBHOOK_SECRET,
-        "PRISM_REDIS_URL": f"redis://127.0.0.1:{redis_server.port}/1",
-        "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{s3_server.port}",
-        "PRISM_S3_BUCKET": "stack-e2e", "PRISM_S3_ACCESS_KEY_ID": S3_KEY_ID,
-        "PRISM_S3_SECRET_ACCESS_KEY": S3_SECRET,
-        "PRISM_WEBHOOK_ALLOWED_HOSTS": '["127.0.0.1"]', "PRISM_WEBHOOK_ALLOW_PRIVATE": "true",
-        "PRISM_TILES_PER_FACE": "4", "PRISM_VISIBILITY_TIMEOUT_S": "10",
-    }
+    env = service_env(redis_server.port, s3_server.port, db=1, bucket="stack-e2e",
+                      WEBHOOK_ALLOWED_HOSTS='["127.0.0.1"]', WEBHOOK_ALLOW_PRIVATE="true",
+                      TILES_PER_FACE="4", VISIBILITY_TIMEOUT_S="10")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
     stack = Stack(api, worker, env, tmp)
@@ -181,6 +178,12 @@ class _Receiver(BaseHTTPRequestHandler):
         pass
 
 
+def _unsigned(job: dict) -> dict:
+    items = [{**item, "downloads": {k: url.split("?")[0] for k, url in item["downloads"].items()}}
+             for item in job["items"]]
+    return {**job, "items": items}
+
+
 def test_webhook_is_delivered_signed(stack, scene):
     port = free_port()
     server = HTTPServer(("127.0.0.1", port), _Receiver)
@@ -197,9 +200,39 @@ def test_webhook_is_delivered_signed(stack, scene):
         assert hmac.compare_digest(headers["X-Prism-Signature"], f"sha256={expected}")
         payload = json.loads(body)
         assert payload["id"] == job["id"] and payload["state"] == "succeeded"
+        # The very document GET answers; only the presigned URLs' signatures and expiry differ.
+        assert _unsigned(payload) == _unsigned(job)
+        assert set(payload["items"][0]["downloads"]) == {"csv", "ply", "preview", "report"}
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
+    scenes = render_clip(Box(120.0, 80.0, 60.0), 4, seed=5)
+    write_video((s.image for s in scenes), tmp_path / "clip.mp4", codec="mp4v")
+    ref = stack.upload((tmp_path / "clip.mp4").read_bytes(), name="clip.mp4")
+    r = stack.submit([_item(ref, scenes[0], frames={"every": 2})])
+    assert r.status_code == 202, r.text
+    job = stack.wait(r.json()["id"])
+    assert job["state"] == "succeeded", job
+    item = job["items"][0]
+    assert [f["index"] for f in item["frames"]] == [0, 2]
+    assert set(item["downloads"]) == {"summary"}
+    summary = httpx.get(item["downloads"]["summary"]).json()
+    assert summary == item["result"]["summary"] and summary["frames"]["measured"] == 2
+    assert abs(item["result"]["dimensions"]["depth"] / 60.0 - 1) < 0.02
+
+    client = ApiClient(str(stack.http.base_url), API_KEYS["acme"])
+    try:
+        saved = client.download(job, tmp_path / "out")
+    finally:
+        client.close()
+    names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
+    assert names == {"item-0/summary.json"} | {f"item-0/{frame_folder(n)}/{f}" for n in (0, 2) for f in
+                                               ("cloud.csv", "cloud.ply", "preview.ply", "report.json")}
+    report = json.loads((tmp_path / "out/item-0/frame_000002/report.json").read_text())
+    assert report["dimensions"] == item["frames"][1]["result"]["dimensions"]
 
 
 def test_worker_killed_mid_job_still_finishes_without_duplicates(stack, scene):

@@ -73,3 +73,19 @@ def test_records_survive_a_redis_restart(store, redis_server):
     store.transition(job.id, State.running)
     redis_server.restart()
     assert store.get(job.id).state == State.running
+
+
+def test_get_item_reads_one_item_with_its_jobs_facts(store):
+    job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
+                    items=[ItemRecord(index=i, spec=SPEC.model_copy(update={"image": f"upload:{i}"}))
+                           for i in range(3)])
+    store.create(job)
+    store.transition(job.id, State.running)
+    done = job.items[1].model_copy(update={"state": State.failed, "error": "bad photo"})
+    store.put_item(job.id, done)
+    view = store.get_item(job.id, 1)
+    assert (view.job_id, view.tenant, view.state, view.n_items) == (job.id, "acme", State.running, 3)
+    assert view.item == done
+    assert store.get_item(job.id, 2).item == job.items[2]
+    assert store.get(job.id).items == [job.items[0], done, job.items[2]]  # the same truth
+    assert store.get_item(job.id, 3) is None and store.get_item(uuid.uuid4().hex, 0) is None

@@ -8,28 +8,20 @@ import hashlib
 import hmac
 import io
 import json
-import sys
 import threading
 import time
 import uuid
 from collections.abc import Iterator
-from datetime import UTC, datetime
 from http.server import BaseHTTPRequestHandler, HTTPServer
 from typing import ClassVar
 
-import cv2
 import httpx
 import numpy as np
 import pytest
-import redis
-from celery import Celery
 from plyfile import PlyData
 from prism_common.metrics import read_task_durations
-from prism_common.queue import TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE, make_celery
-from prism_common.records import ItemRecord, JobRecord, State
-from prism_common.settings import Settings
-from prism_common.storage import ObjectStore, object_key
-from prism_common.store import JobStore
+from prism_common.queue import TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE
+from prism_common.records import State
 
 from prism_worker import plans, tiles
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
@@ -38,103 +30,19 @@ from prismcore.scan import merge_bands, row_tiles, scan_band
 from prismcore.synth import Box, render_oblique_view
 from prismcore.writers import write_csv
 
-from .conftest import API_KEYS, WEBHOOK_SECRET
-from .servers import S3_KEY_ID, S3_SECRET, ManagedProcess, free_port
+from .conftest import WEBHOOK_SECRET
+from .servers import free_port
+from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env
 
-NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
-INPUTS_BUCKET = "t-worker-inputs"
 TILES_PER_FACE = 4
-
-
-class Env:
-    """What the tests drive the worker with: the store, the bucket, a client Celery app."""
-
-    def __init__(self, settings: Settings, worker: ManagedProcess) -> None:
-        self.settings, self.worker = settings, worker
-        self.redis = redis.Redis.from_url(settings.redis_url, decode_responses=True)
-        self.store = JobStore(self.redis)
-        self.objects = ObjectStore.from_settings(settings)
-        self.celery: Celery = make_celery(settings)
-
-    def upload(self, data: bytes, name: str = "box.png", tenant: str = "acme") -> str:
-        upload_id = uuid.uuid4().hex
-        key = object_key("uploads", tenant, upload_id)
-        self.objects.put_bytes(key, data)
-        self.store.put_upload(upload_id, tenant=tenant, key=key, size=len(data), name=name)
-        return f"upload:{upload_id}"
-
-    def create(self, specs: list[ScanSpec], **extra) -> str:
-        job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
-                        items=[ItemRecord(index=i, spec=s) for i, s in enumerate(specs)], **extra)
-        self.store.create(job)
-        return job.id
-
-    def submit(self, specs: list[ScanSpec], **extra) -> str:
-        job_id = self.create(specs, **extra)
-        self.celery.send_task(TASK_RUN_JOB, (job_id,))
-        return job_id
-
-    def wait(self, job_id: str, timeout: float = 60) -> JobRecord:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            job = self.store.get(job_id)
-            if job is not None and job.state in (State.succeeded, State.failed, State.cancelled):
-                return job
-            time.sleep(0.1)
-        raise AssertionError(f"job {job_id} not final after {timeout} s: {job}\n{self.worker.log[-4000:]}")
-
-    def keys(self, job_id: str) -> set[str]:
-        prefix = f"jobs/{job_id}/"
-        return {k.removeprefix(prefix) for k in self.objects.list_keys(prefix)}
-
-    def units(self, job_id: str) -> tuple[int, int]:
-        fields = self.redis.hmget(f"prism:job:{job_id}", "units_total", "units_done")
-        return int(fields[0]), int(fields[1])
-
-    def runs(self, task: str) -> int:
-        return int(read_task_durations(self.redis).get(task, {}).get("count", 0))
 
 
 @pytest.fixture(scope="module")
 def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
-    # One bucket and one Redis database for the module: the worker process is started once.
-    settings = Settings(
-        api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
-        redis_url=f"redis://127.0.0.1:{redis_server.port}/2",
-        s3_endpoint_url=f"http://127.0.0.1:{s3_server.port}", s3_bucket="t-worker",
-        s3_access_key_id=S3_KEY_ID, s3_secret_access_key=S3_SECRET,
-        readable_buckets=[INPUTS_BUCKET], webhook_allowed_hosts=["127.0.0.1"],
-        webhook_allow_private=True, tiles_per_face=TILES_PER_FACE, items_in_flight_per_job=1,
-        visibility_timeout_s=10)
-    variables = {
-        "PRISM_API_KEYS": json.dumps(API_KEYS), "PRISM_WEBHOOK_SECRET": WEBHOOK_SECRET,
-        "PRISM_REDIS_URL": settings.redis_url, "PRISM_S3_ENDPOINT_URL": settings.s3_endpoint_url,
-        "PRISM_S3_BUCKET": settings.s3_bucket, "PRISM_S3_ACCESS_KEY_ID": S3_KEY_ID,
-        "PRISM_S3_SECRET_ACCESS_KEY": S3_SECRET, "PRISM_READABLE_BUCKETS": json.dumps([INPUTS_BUCKET]),
-        "PRISM_WEBHOOK_ALLOWED_HOSTS": '["127.0.0.1"]', "PRISM_WEBHOOK_ALLOW_PRIVATE": "true",
-        "PRISM_TILES_PER_FACE": str(TILES_PER_FACE), "PRISM_VISIBILITY_TIMEOUT_S": "10",
-        # One item at a time per job: the second item only starts if the first one refills.
-        "PRISM_ITEMS_IN_FLIGHT_PER_JOB": "1",
-    }
-    objects = ObjectStore.from_settings(settings)
-    objects.ensure_bucket()
-    ObjectStore(objects.client, INPUTS_BUCKET).ensure_bucket()
-    argv = [sys.executable, "-m", "celery", "-A", "prism_worker.app", "worker", "-Q",
-            "scans,webhooks", "--concurrency", "2", "--pool", "prefork", "-l", "info",
-            "--hostname", "test-worker@%h", "--without-gossip", "--without-mingle"]
-    worker = ManagedProcess(argv, None, tmp_path_factory.mktemp("worker"), env=variables).start()
-    env = Env(settings, worker)
-    try:
-        deadline = time.monotonic() + 60
-        while " ready." not in worker.log:
-            assert worker.proc is not None and worker.proc.poll() is None, worker.log[-4000:]
-            assert time.monotonic() < deadline, f"worker not ready:\n{worker.log[-4000:]}"
-            time.sleep(0.1)
-        yield env
-    finally:
-        worker.stop()
-        env.celery.close()
-    assert "could not record" not in worker.log, worker.log[-4000:]
+    # One item at a time per job: the second item only starts if the first one refills.
+    with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=2,
+                    bucket="t-worker", tiles_per_face=TILES_PER_FACE, items_in_flight=1) as made:
+        yield made
 
 
 @pytest.fixture(scope="module")
@@ -142,22 +50,9 @@ def scene():
     return render_oblique_view(Box(120.0, 80.0, 60.0), seed=1)
 
 
-def _encode(image: np.ndarray, ext: str = ".png") -> bytes:
-    ok, data = cv2.imencode(ext, cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-    assert ok
-    return data.tobytes()
-
-
-def _spec(reference: str, scene, **extra) -> ScanSpec:
-    return ScanSpec.model_validate({
-        "image": reference, "points": [list(map(round, scene.points[n])) for n in NAMES],
-        "focal_px": scene.focal_px, "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm},
-        **extra})
-
-
 def _item_files(i: int, tile_names: list[str]) -> set[str]:
     return {f"items/{i}/{name}" for name in ("front", "plan.json", "cloud.csv", "cloud.ply",
-                                             "report.json")} | {
+                                             "preview.ply", "report.json")} | {
         f"items/{i}/tiles/{t}.npz" for t in tile_names}
 
 
@@ -168,8 +63,8 @@ def _tile_names(spec: ScanSpec, image: np.ndarray) -> list[str]:
 
 # -- in process: what passes between the tasks is exact ---------------------------------------
 def test_plan_json_and_packed_tiles_reproduce_the_engine_exactly(scene):
-    image = load_image(_encode(scene.image))
-    spec = _spec("upload:0", scene)
+    image = load_image(encode(scene.image))
+    spec = spec_for("upload:0", scene)
     plan, extra = plans.loads(plans.dumps(plan_scan(spec, image), tiles=[["front", 0, 1]]))
     assert extra == {"tiles": [["front", 0, 1]]}
     scans = []
@@ -187,11 +82,11 @@ def test_plan_json_and_packed_tiles_reproduce_the_engine_exactly(scene):
 # -- through the worker ------------------------------------------------------------------------
 def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     second = render_oblique_view(Box(90.0, 140.0, 45.0), seed=4)
-    photo = _encode(scene.image)
+    photo = encode(scene.image)
     env.objects.client.put_object(Bucket=INPUTS_BUCKET, Key="photos/second.jpg",
-                                  Body=_encode(second.image, ".jpg"))
-    specs = [_spec(env.upload(photo), scene, csv={"header": True}),
-             _spec(f"s3://{INPUTS_BUCKET}/photos/second.jpg", second, formats=["ply"], ply_ascii=True)]
+                                  Body=encode(second.image, ".jpg"))
+    specs = [spec_for(env.upload(photo), scene, csv={"header": True}),
+             spec_for(f"s3://{INPUTS_BUCKET}/photos/second.jpg", second, formats=["ply"], ply_ascii=True)]
     started = time.monotonic()
     job_id = env.submit(specs, client_reference="batch-1")
     job = env.wait(job_id)
@@ -206,8 +101,9 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
 
     first, other = job.items
     assert first.outputs == {kind: f"jobs/{job_id}/items/0/{name}" for kind, name in
-                             (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("report", "report.json"))}
-    assert set(other.outputs) == {"ply", "report"}  # the formats the spec asked for
+                             (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("preview", "preview.ply"),
+                              ("report", "report.json"))}
+    assert set(other.outputs) == {"ply", "preview", "report"}  # the formats the spec asked for
     names = _tile_names(specs[0], load_image(photo))
     assert len(names) == 2 * TILES_PER_FACE
     assert _item_files(0, names) <= env.keys(job_id)
@@ -215,7 +111,7 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     assert json.loads(env.objects.get_bytes(f"jobs/{job_id}/job.json"))["state"] == "succeeded"
 
     # The tiled result is exactly the engine's own on the same bytes.
-    local = run_scan(_spec("x", scene, csv={"header": True}), load_image(photo))
+    local = run_scan(spec_for("x", scene, csv={"header": True}), load_image(photo))
     report = json.loads(env.objects.get_bytes(first.outputs["report"]))
     assert report["points"] == local.report["points"] == first.result.points
     assert report["dimensions"] == local.report["dimensions"]
@@ -237,11 +133,11 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
 
 def test_bad_inputs_fail_only_their_items(env, scene):
     specs = [
-        _spec(env.upload(np.random.default_rng(7).bytes(5000), name="bad.png"), scene),
-        _spec(f"s3://not-readable/{uuid.uuid4().hex}.png", scene),
-        _spec(env.upload(_encode(scene.image), tenant="globex"), scene),  # another tenant's
-        _spec(f"s3://{INPUTS_BUCKET}/missing.png", scene),
-        _spec(env.upload(_encode(scene.image)), scene),
+        spec_for(env.upload(np.random.default_rng(7).bytes(5000), name="bad.png"), scene),
+        spec_for(f"s3://not-readable/{uuid.uuid4().hex}.png", scene),
+        spec_for(env.upload(encode(scene.image), tenant="globex"), scene),  # another tenant's
+        spec_for(f"s3://{INPUTS_BUCKET}/missing.png", scene),
+        spec_for(env.upload(encode(scene.image)), scene),
     ]
     job = env.wait(env.submit(specs))
     assert job.state == State.succeeded, job
@@ -261,13 +157,13 @@ def test_bad_inputs_fail_only_their_items(env, scene):
 
 
 def test_all_items_failing_fails_the_job(env, scene):
-    job = env.wait(env.submit([_spec(env.upload(b"\x89PNG but not really" * 50, "x.png"), scene)]))
+    job = env.wait(env.submit([spec_for(env.upload(b"\x89PNG but not really" * 50, "x.png"), scene)]))
     assert job.state == State.failed and job.error == "all items failed" and job.progress == 100
     assert "'x.png'" in job.items[0].error
 
 
 def test_cancelled_before_it_runs_produces_nothing(env, scene):
-    job_id = env.create([_spec(env.upload(_encode(scene.image)), scene)])
+    job_id = env.create([spec_for(env.upload(encode(scene.image)), scene)])
     assert env.store.transition(job_id, State.cancelled)
     before = env.runs(TASK_RUN_JOB), env.runs(TASK_PLAN_ITEM)
     env.celery.send_task(TASK_RUN_JOB, (job_id,))
@@ -303,7 +199,7 @@ def test_webhook_is_delivered_signed_and_retried(env, scene):
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         url = f"http://127.0.0.1:{server.server_address[1]}/hook"
-        job = env.wait(env.submit([_spec(env.upload(_encode(scene.image)), scene)], webhook_url=url,
+        job = env.wait(env.submit([spec_for(env.upload(encode(scene.image)), scene)], webhook_url=url,
                                   client_reference="order-7"))
         deadline = time.monotonic() + 30
         while len(_Receiver.received) < 2:
@@ -336,8 +232,8 @@ def test_webhook_is_delivered_signed_and_retried(env, scene):
 
 
 def test_tasks_run_twice_write_each_object_once(env, scene):
-    photo = _encode(scene.image)
-    spec = _spec(env.upload(photo), scene)
+    photo = encode(scene.image)
+    spec = spec_for(env.upload(photo), scene)
     job_id = env.create([spec])
     # Start the job by hand and deliver its item twice, as a redelivery after a lost worker
     # would: two plans, two chords, every tile and the finish twice.
@@ -352,13 +248,13 @@ def test_tasks_run_twice_write_each_object_once(env, scene):
     total, done = env.units(job_id)
     assert total == done == 2 * TILES_PER_FACE + 2
     assert env.redis.scard(f"prism:job:{job_id}:tiles:0") == 2 * TILES_PER_FACE + 2
-    local = run_scan(_spec("x", scene), load_image(photo))
+    local = run_scan(spec_for("x", scene), load_image(photo))
     assert job.items[0].result.points == local.report["points"]
 
 
 def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
-    photo = _encode(scene.image)
-    spec = _spec(env.upload(photo), scene)
+    photo = encode(scene.image)
+    spec = spec_for(env.upload(photo), scene)
     job_id = env.create([spec])
     assert env.store.transition(job_id, State.running) and env.store.next_item(job_id) == 0
     plan = plan_scan(spec, load_image(photo))
@@ -374,8 +270,8 @@ def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
 
 def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
     """Last in the module: it kills and restarts the worker."""
-    photo = _encode(scene.image)
-    specs = [_spec(env.upload(photo), scene) for _ in range(4)]
+    photo = encode(scene.image)
+    specs = [spec_for(env.upload(photo), scene) for _ in range(4)]
     job_id = env.submit(specs)
     deadline = time.monotonic() + 30
     while env.store.get(job_id).progress <= 5:

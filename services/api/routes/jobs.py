@@ -17,15 +17,15 @@ from uuid import uuid4
 from fastapi import APIRouter, Depends, Header, HTTPException, Query, Request, Response, status
 from fastapi.exceptions import RequestValidationError
 from kombu.exceptions import OperationalError
+from prism_common import public
 from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import ItemRecord, JobRecord, State
 from prism_common.store import IdempotencyConflictError, JobStore
 
-from prismcore.spec import FILE_NAMES
-
-from ..deps import CeleryDep, PresignerDep, SettingsDep, StoreDep, TenantDep
+from ..backpressure import check_queue_depth
+from ..deps import CeleryDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
 from ..presign import Presigner
-from ..schemas import ItemPublic, JobCreate, JobList, JobPublic, ResultPublic
+from ..schemas import JobCreate, JobList, JobPublic
 from ..validation import check_job
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -35,18 +35,10 @@ _JOB_ID = re.compile(r"^[0-9a-f]{32}$")
 
 
 def to_public(job: JobRecord, presigner: Presigner) -> JobPublic:
-    items = []
-    for item in job.items:
-        downloads = {kind: presigner.url(
-            key, f"{job.id[:8]}-item-{item.index}-{FILE_NAMES.get(kind, kind)}")
-            for kind, key in item.outputs.items()}
-        result = ResultPublic.model_validate(item.result.model_dump()) if item.result else None
-        items.append(ItemPublic(index=item.index, state=item.state, error=item.error, result=result,
-                                downloads=downloads))
-    return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items)
+    return public.to_public(job, presigner.url)
 
 
-def _own_job(store: JobStore, job_id: str, tenant: str) -> JobRecord:
+def own_job(store: JobStore, job_id: str, tenant: str) -> JobRecord:
     job = store.get(job_id) if _JOB_ID.match(job_id) else None
     if job is None or job.tenant != tenant:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id[:64]!r}")
@@ -60,11 +52,12 @@ async def _raw_body(request: Request) -> bytes:
 @router.post("", status_code=status.HTTP_202_ACCEPTED, response_model=JobPublic,
              responses={409: {"description": "Idempotency-Key reused with another body"}})
 def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, settings: SettingsDep,
-               store: StoreDep, presigner: PresignerDep, celery: CeleryDep,
+               store: StoreDep, presigner: PresignerDep, celery: CeleryDep, client: RedisDep,
                body: Annotated[bytes, Depends(_raw_body)],
                idempotency_key: Annotated[str | None, Header(max_length=200)] = None) -> JobPublic:
     """Queue a batch of scans. Repeating a request with the same Idempotency-Key returns its job."""
     check_job(job_in, settings, store, tenant)
+    check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
         update={"max_pixels": min(spec.max_pixels, settings.max_pixels)}))
         for i, spec in enumerate(job_in.items)]
@@ -118,16 +111,16 @@ def list_jobs(tenant: TenantDep, store: StoreDep, presigner: PresignerDep,
 
 @router.get("/{job_id}", response_model=JobPublic, responses={404: {"description": "No such job"}})
 def get_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep) -> JobPublic:
-    return to_public(_own_job(store, job_id, tenant), presigner)
+    return to_public(own_job(store, job_id, tenant), presigner)
 
 
 @router.post("/{job_id}/cancel", response_model=JobPublic,
              responses={404: {"description": "No such job"}, 409: {"description": "Already over"}})
 def cancel_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep) -> JobPublic:
     """Stop a queued or running job; cancelling a cancelled job again changes nothing."""
-    _own_job(store, job_id, tenant)
+    own_job(store, job_id, tenant)
     if not store.transition(job_id, State.cancelled):
         state = store.state(job_id)
         if state in (State.succeeded, State.failed):
             raise HTTPException(status.HTTP_409_CONFLICT, f"job is already {state.value}")
-    return to_public(_own_job(store, job_id, tenant), presigner)
+    return to_public(own_job(store, job_id, tenant), presigner)

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import hashlib
 from typing import Any
 from uuid import uuid4
 
 import anyio
 from fastapi import APIRouter, HTTPException, Request, status
 from fastapi.concurrency import run_in_threadpool
-from prism_common.storage import object_key
+from prism_common.upload_keys import upload_key
 
 from ..deps import ObjectsDep, SettingsDep, StoreDep, TenantDep
 from ..schemas import UploadPublic
@@ -23,13 +22,9 @@ _BODY: dict[str, Any] = {"requestBody": {"required": True, "content": {"multipar
                "properties": {"file": {"type": "string", "format": "binary"}}}}}}}
 
 
-def tenant_hash(tenant: str) -> str:
-    # Tenant names are free text; a hash is always a safe key segment and does not expose them.
-    return hashlib.sha256(tenant.encode()).hexdigest()[:32]
-
-
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadPublic,
-             openapi_extra=_BODY, responses={413: {"description": "Larger than the upload limit"}})
+             openapi_extra=_BODY, responses={413: {"description": "Larger than the upload limit"},
+                                                422: {"description": "No non-empty multipart `file`"}})
 async def create_upload(request: Request, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
     """Stream the multipart field `file` into object storage; refused (413) past the size limit."""
@@ -40,7 +35,7 @@ async def create_upload(request: Request, tenant: TenantDep, settings: SettingsD
                             f"the upload is larger than {limit} bytes", headers={"Connection": "close"})
     upload = MultipartFile(request, "file", limit)
     upload_id = uuid4().hex
-    key = object_key("uploads", tenant_hash(tenant), upload_id)
+    key = upload_key(tenant, upload_id)
     try:
         await anyio.to_thread.run_sync(objects.put_stream, key, upload)
     except Exception:

@@ -1,0 +1,116 @@
+"""`prism scan VIDEO`: measure the selected frames of a video, one output folder per frame.
+
+Each frame is measured as a photo (`frame_spec` + `run_scan`) and written to `frame_NNNNNN/`
+like a photo's outputs; `summary.json` beside them says how repeatable each dimension is.
+A frame that cannot be measured is reported and the others go on.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from prismcore import InputError, ScanSpec, run_scan
+from prismcore.spec import SUMMARY_NAME, frame_folder
+from prismcore.summary import DIMENSIONS, summarize
+from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
+
+from .outputs import report_path, write_outputs
+
+__all__ = ["scan_video", "selection_from_flags"]
+
+console = Console()
+
+
+def selection_from_flags(every: int | None, start: float | None, end: float | None,
+                         frames: str | None, sharpest: int | None) -> dict | None:
+    """The spec's `frames` from the CLI flags; None when no flag was given."""
+    selection: dict = {"every": every, "start_s": start, "end_s": end, "sharpest": sharpest}
+    if frames is not None:
+        try:
+            selection["indices"] = [int(v) for v in frames.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--frames {frames!r}: expected frame indices like 0,5,9") from None
+    given = {k: v for k, v in selection.items() if v is not None}
+    return given or None
+
+
+def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tiles: int,
+             decode_ms: float) -> dict:
+    one = frame_spec(spec, index)
+    result = run_scan(one, frame, tiles=tiles)
+    result.report["frame"] = {"index": index, "time_s": round(index / info.fps, 6) if info.fps else None}
+    result.report["timings_ms"]["load"] = round(decode_ms, 3)
+    folder = out / frame_folder(index)
+    write_outputs(result, one, folder)
+    report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
+    return result.report
+
+
+def _table(summary: dict) -> Table:
+    unit = summary["unit"]
+    table = Table(title=f"{summary['frames']['measured']} frames measured, {unit}")
+    for column in ("", "median", "min", "max", "spread", "std", "spread/median"):
+        table.add_column(column, justify="right")
+    for name in DIMENSIONS:
+        s = summary["dimensions"][name]
+        std = "-" if s["std"] is None else f"{s['std']:.3f}"
+        rel = "-" if s["relative_spread"] is None else f"{s['relative_spread']:.2%}"
+        table.add_row(name, *(f"{s[k]:.3f}" for k in ("median", "min", "max", "spread")), std, rel)
+    return table
+
+
+def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int) -> dict:
+    """Measure the frames `spec.frames` selects in the video `base / spec.image`; returns the summary.
+
+    Raises
+    ------
+    InputError
+        Not a video, nothing decodes, a bad or over-cap selection, or no frame measured.
+    """
+    path = base / spec.image
+    if spec.frames is None:
+        raise InputError(f"{str(path)!r} is a video: say which frames to measure "
+                         '(e.g. "frames": {"every": 10} in the spec, or --every 10)')
+    info = probe_video(path, max_pixels=spec.max_pixels)
+    indices = select_frames(path, spec.frames, info, max_frames=max_frames)
+    console.print(f"{path}: {info.width}x{info.height} {info.codec}, {info.frame_count} frames at "
+                  f"{info.fps:g} fps; measuring {len(indices)}")
+    per_frame: dict[int, dict] = {}
+    frames = iter_frames(path, indices)
+    tick = time.perf_counter()
+    try:
+        for index, frame in frames:
+            decode_ms = (time.perf_counter() - tick) * 1000
+            try:
+                report = _measure(spec, index, frame, info, out, tiles, decode_ms)
+            except InputError as exc:
+                per_frame[index] = {"error": str(exc)}
+                console.print(f"[red]{frame_folder(index)} failed:[/] {exc}")
+            else:
+                per_frame[index] = {"dimensions": report["dimensions"]}
+                d = report["dimensions"]
+                console.print(f"{frame_folder(index)}  {d['width']:.2f} x {d['height']:.2f} x "
+                              f"{d['depth']:.2f} {d['unit']}  point loss {report['point_loss']:.1%}")
+            tick = time.perf_counter()
+    except InputError as exc:  # the stream broke: the frames not reached fail with its reason
+        for index in indices:
+            per_frame.setdefault(index, {"error": str(exc)})
+        console.print(f"[red]decoding stopped:[/] {exc}")
+    summary = summarize(per_frame, fps=info.fps or None)
+    summary["video"] = {"path": str(path), **asdict(info)}
+    summary["selection"] = spec.frames.model_dump(mode="json", exclude_none=True)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
+    if not summary["frames"]["measured"]:
+        first = summary["failed"][0]
+        raise InputError(f"no frame of {str(path)!r} could be measured; frame {first['frame']}: "
+                         f"{first['error']}")
+    console.print(_table(summary))
+    console.print(f"summary: {out / SUMMARY_NAME}")
+    return summary

@@ -1,0 +1,97 @@
+"""The job as clients see it: one shape for `GET /v1/jobs/{id}` and for the webhook's body.
+
+Separate from the stored records (`records.py`): the tenant stays private, and output object
+keys become presigned download URLs, made by whoever answers (the API, or the worker for a
+webhook) through the `url_for(key, filename)` it passes in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from prismcore.spec import FILE_NAMES, frame_folder
+
+from .records import ItemResult, JobRecord, State
+
+__all__ = ["DimensionsPublic", "FramePublic", "ItemPublic", "JobPublic", "ResultPublic", "download_name",
+           "to_public"]
+
+
+class DimensionsPublic(BaseModel):
+    width: float
+    height: float
+    depth: float
+    unit: str
+
+
+class ResultPublic(BaseModel):
+    points: int
+    dimensions: DimensionsPublic
+    point_loss: float
+    warnings: list[str]
+    summary: dict[str, Any] | None = Field(
+        default=None, description="Videos: median, min, max, spread and std of each dimension "
+                                  "over the measured frames, and each frame's values.")
+
+
+class FramePublic(BaseModel):
+    index: int = Field(description="The frame's index in the video (0 = the first frame).")
+    state: State
+    error: str | None
+    result: ResultPublic | None
+    downloads: dict[str, str] = Field(default_factory=dict)
+
+
+class ItemPublic(BaseModel):
+    index: int
+    state: State
+    error: str | None
+    result: ResultPublic | None
+    downloads: dict[str, str] = Field(
+        default_factory=dict,
+        description="Presigned GET URLs of the outputs: csv, ply, report, and preview (the cloud "
+                    "decimated to at most 100,000 points, binary PLY, for display); for a "
+                    "video, summary (summary.json) here and each frame's files under frames.")
+    frames: list[FramePublic] = Field(default_factory=list, description="A video's frames.")
+
+
+class JobPublic(BaseModel):
+    id: str
+    state: State
+    progress: int = Field(ge=0, le=100)
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    client_reference: str | None
+    webhook_url: str | None
+    error: str | None
+    items: list[ItemPublic]
+
+
+def download_name(job_id: str, index: int, kind: str, frame: int | None = None) -> str:
+    """The file name a download is saved under: short job id, item (frame), the output's name."""
+    where = f"item-{index}" + (f"-{frame_folder(frame)}" if frame is not None else "")
+    return f"{job_id[:8]}-{where}-{FILE_NAMES.get(kind, kind)}"
+
+
+def _result(result: ItemResult | None) -> ResultPublic | None:
+    return ResultPublic.model_validate(result.model_dump()) if result else None
+
+
+def to_public(job: JobRecord, url_for: Callable[[str, str], str]) -> JobPublic:
+    """The client's view of `job`; `url_for(object_key, filename)` makes each download URL."""
+    items = []
+    for item in job.items:
+        downloads = {kind: url_for(key, download_name(job.id, item.index, kind))
+                     for kind, key in item.outputs.items()}
+        frames = [FramePublic(index=f.index, state=f.state, error=f.error, result=_result(f.result),
+                              downloads={kind: url_for(key, download_name(job.id, item.index, kind, f.index))
+                                         for kind, key in f.outputs.items()})
+                  for f in item.frames]
+        items.append(ItemPublic(index=item.index, state=item.state, error=item.error,
+                                result=_result(item.result), downloads=downloads, frames=frames))
+    return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items)

@@ -1,0 +1,144 @@
+"""Access, in process against the real Redis and SeaweedFS: every /v1 route (read from the
+OpenAPI document, so a new one cannot slip past) with no key, a wrong key and another tenant's
+key; presigned URLs that expire; keys compared in constant time and never logged nor stored.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import uuid
+import warnings
+
+import httpx
+import pytest
+import redis
+from prism_common.records import State
+from prism_common.settings import get_settings
+from pydantic import SecretStr
+
+from prism_api import deps
+from prism_api.main import create_app
+
+from .conftest import API_KEYS
+
+with warnings.catch_warnings():
+    warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
+    from fastapi.testclient import TestClient
+
+ACME, GLOBEX = {"X-API-Key": API_KEYS["acme"]}, {"X-API-Key": API_KEYS["globex"]}
+POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
+WRONG_KEYS = [{}, {"X-API-Key": ""}, {"X-API-Key": "wrong"}, {"X-API-Key": API_KEYS["acme"] + " "},
+              {"X-API-Key": API_KEYS["acme"].upper()}, {"x-api-key": API_KEYS["acme"][:-1]}]
+# What another tenant's key gets on each route when aimed at acme's job (or acme's upload).
+ROUTES = {("POST", "/v1/uploads"): 201, ("POST", "/v1/jobs"): 422, ("GET", "/v1/jobs"): 200,
+          ("GET", "/v1/jobs/{job_id}"): 404, ("POST", "/v1/jobs/{job_id}/cancel"): 404,
+          ("GET", "/v1/jobs/{job_id}/items/{index}/preview.ply"): 404,
+          ("GET", "/v1/jobs/{job_id}/items/{index}/frames/{frame}/preview.ply"): 404,
+          ("GET", "/v1/uploads/{upload_id}/video"): 404,
+          ("GET", "/v1/uploads/{upload_id}/frames/{frame}.png"): 404}
+
+
+@pytest.fixture
+def make(settings, objects):
+    clients = []
+
+    def make(**changes) -> TestClient:
+        app = create_app()
+        app_settings = settings.model_copy(update=changes)
+        app.dependency_overrides[get_settings] = lambda: app_settings
+        clients.append(client := TestClient(app).__enter__())
+        return client
+
+    yield make
+    for client in clients:
+        client.__exit__(None, None, None)
+
+
+def _acme_job(client: TestClient) -> tuple[str, str]:
+    r = client.post("/v1/uploads", files={"file": ("a.jpg", b"\xff\xd8 jpeg")}, headers=ACME)
+    ref = r.json()["reference"]
+    job = client.post("/v1/jobs", json={"items": [{"image": ref, "points": POINTS}]}, headers=ACME)
+    return job.json()["id"], ref
+
+
+def test_every_route_that_reads_or_changes_a_job_is_guarded(make, figures):
+    client = make()
+    # The published paths: FastAPI includes routers lazily, so app.routes no longer lists them.
+    routes = {(method.upper(), path) for path, ops in create_app().openapi()["paths"].items()
+              if path.startswith("/v1") for method in ops}
+    assert routes == set(ROUTES), "a /v1 route was added: give it its row in ROUTES"
+    job_id, ref = _acme_job(client)
+    for (method, path), theirs in ROUTES.items():
+        upload_id = ref.removeprefix("upload:")
+        url = path.format(job_id=job_id, index=0, frame=0, upload_id=upload_id)
+        kwargs = ({"json": {"items": [{"image": ref, "points": POINTS}]}} if path == "/v1/jobs" and
+                  method == "POST" else {"files": {"file": ("b.jpg", b"x")}} if path == "/v1/uploads" else {})
+        for headers in WRONG_KEYS:
+            r = client.request(method, url, headers=headers, **kwargs)
+            assert r.status_code == 401, (method, url, headers, r.text)
+            figures["inputs tried"] += 1
+        r = client.request(method, url, headers=GLOBEX, **kwargs)
+        assert r.status_code == theirs, (method, url, r.text)
+        if theirs == 404:  # the answer an unknown id gets: nothing of the job or upload
+            unknown = f"no upload {upload_id!r}" if "{upload_id}" in path else f"no job {job_id!r}"
+            assert r.json() == {"detail": unknown}, r.text
+        else:
+            assert job_id not in r.text, r.text
+        if method == "GET" and path == "/v1/jobs":
+            assert job_id not in [j["id"] for j in r.json()["jobs"]]
+    assert client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["state"] == "queued"  # untouched
+
+
+def test_presigned_urls_expire(make, store, objects):
+    client = make(presign_ttl_s=2)
+    job_id, _ = _acme_job(client)
+    key = f"jobs/{job_id}/items/0/cloud.csv"
+    objects.put_bytes(key, b"1,2,3\n")
+    record = store.get(job_id)
+    store.put_item(job_id, record.items[0].model_copy(update={"state": State.succeeded,
+                                                              "outputs": {"csv": key}}))
+    url = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0]["downloads"]["csv"]
+    assert httpx.get(url).content == b"1,2,3\n"
+    time.sleep(3.2)
+    assert httpx.get(url).status_code == 403  # the store refuses it once its time is up
+    fresh = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0]["downloads"]["csv"]
+    assert fresh != url and httpx.get(fresh).status_code == 200  # a poll hands out a new one
+
+
+def test_keys_are_compared_in_constant_time(make, settings, monkeypatch):
+    # Every configured key is compared with hmac.compare_digest on every call, whichever (if
+    # any) matches: no early exit that would time how many keys, or which, came first.
+    many = {**settings.api_keys, **{f"t{i}": SecretStr(f"key-{uuid.uuid4().hex}") for i in range(5)}}
+    client = make(api_keys=many)
+    calls: list[bytes] = []
+    real = deps.hmac.compare_digest
+
+    def counting(a, b):
+        calls.append(b)
+        return real(a, b)
+
+    monkeypatch.setattr(deps.hmac, "compare_digest", counting)
+    for headers in (ACME, GLOBEX, {"X-API-Key": many["t4"].get_secret_value()}, {"X-API-Key": "wrong"}, {}):
+        calls.clear()
+        client.get("/v1/jobs", headers=headers)
+        assert len(calls) == len(many), headers
+
+
+def test_keys_are_never_logged_nor_stored(make, caplog, settings, figures):
+    caplog.set_level(logging.DEBUG)
+    tenant_key = f"key-{uuid.uuid4().hex}"
+    client = make(api_keys={**settings.api_keys, "logtest": SecretStr(tenant_key)}, rate_limit_per_minute=3)
+    answers = [client.get("/v1/jobs", headers={"X-API-Key": tenant_key}).status_code for _ in range(5)]
+    assert 429 in answers  # the limit's refusal path ran too
+    for headers in ({"X-API-Key": tenant_key + "x"}, ACME):
+        client.get("/v1/jobs/" + "0" * 32, headers=headers)
+        client.post("/v1/jobs", content=b"{bad", headers={**headers, "Content-Type": "application/json"})
+    secrets = [tenant_key, *API_KEYS.values()]
+    logged = "\n".join(f"{r.getMessage()} {r.args}" for r in caplog.records)
+    assert not any(s in logged for s in secrets)
+    r = redis.Redis.from_url(settings.redis_url, decode_responses=True)
+    for name in r.scan_iter("prism:*", count=1000):  # neither in a key's name nor in its value
+        assert not any(s in name for s in secrets), name
+        if r.type(name) == "string":
+            assert not any(s in (r.get(name) or "") for s in secrets), name

@@ -1,0 +1,127 @@
+"""Admission control, in process against the real Redis: back-pressure on a deep queue, and the
+per-key rate limit shared through Redis by several API processes (two apps here).
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+import warnings
+from collections.abc import Iterator
+
+import pytest
+import redis
+from prism_common.settings import get_settings
+from pydantic import SecretStr
+
+from prism_api.main import create_app
+
+from .conftest import API_KEYS
+
+with warnings.catch_warnings():
+    warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
+    from fastapi.testclient import TestClient
+
+ACME = {"X-API-Key": API_KEYS["acme"]}
+POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
+
+
+@pytest.fixture
+def apps(settings, objects) -> Iterator:
+    """Make TestClients (each its own app, like separate API processes) with setting changes."""
+    clients: list[TestClient] = []
+
+    def make(**changes) -> TestClient:
+        app = create_app()
+        app_settings = settings.model_copy(update=changes)
+        app.dependency_overrides[get_settings] = lambda: app_settings
+        client = TestClient(app).__enter__()
+        clients.append(client)
+        return client
+
+    yield make
+    for client in clients:
+        client.__exit__(None, None, None)
+
+
+def _upload(client: TestClient, headers: dict) -> str:
+    r = client.post("/v1/uploads", files={"file": ("a.jpg", b"\xff\xd8 jpeg")}, headers=headers)
+    assert r.status_code == 201, r.text
+    return r.json()["reference"]
+
+
+def _tenant() -> tuple[str, dict[str, str]]:
+    key = f"key-{uuid.uuid4().hex}"
+    return f"t-{uuid.uuid4().hex[:8]}", {"X-API-Key": key}
+
+
+# -- back-pressure ------------------------------------------------------------------------------
+def test_submit_is_refused_with_retry_after_while_the_queue_is_full(apps, settings, redis_server):
+    # A database of its own, so the queue holds only this test's messages.
+    url = f"redis://127.0.0.1:{redis_server.port}/5"
+    broker = redis.Redis.from_url(url, decode_responses=True)
+    broker.flushdb()
+    client = apps(redis_url=url, queue_max_depth=2, queue_retry_after_s=17)
+    body = {"items": [{"image": _upload(client, ACME), "points": POINTS}]}
+    accepted = [client.post("/v1/jobs", json=body, headers=ACME) for _ in range(2)]
+    assert [r.status_code for r in accepted] == [202, 202]
+    assert broker.llen("scans") == 2
+    jobs_before = client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"]
+
+    refused = client.post("/v1/jobs", json=body, headers=ACME)
+    assert refused.status_code == 503, refused.text
+    assert refused.headers["Retry-After"] == "17"
+    assert "2 tasks waiting, limit 2" in refused.json()["detail"]
+    assert broker.llen("scans") == 2  # nothing was queued ...
+    assert client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"] == jobs_before  # or stored
+
+    broker.rpop("scans")  # a worker takes a task: there is room again
+    assert client.post("/v1/jobs", json=body, headers=ACME).status_code == 202
+    # Reads are never refused for depth: clients can still follow what they submitted.
+    assert client.get("/v1/jobs", headers=ACME).status_code == 200
+    broker.flushdb()
+
+
+def test_no_depth_limit_when_zero(apps, settings, redis_server):
+    url = f"redis://127.0.0.1:{redis_server.port}/5"
+    broker = redis.Redis.from_url(url, decode_responses=True)
+    broker.flushdb()
+    client = apps(redis_url=url, queue_max_depth=0)
+    body = {"items": [{"image": _upload(client, ACME), "points": POINTS}]}
+    assert all(client.post("/v1/jobs", json=body, headers=ACME).status_code == 202 for _ in range(3))
+    broker.flushdb()
+
+
+# -- rate limit ---------------------------------------------------------------------------------
+def test_rate_limit_is_per_key_and_shared_by_api_processes(apps, settings):
+    (name_a, a), (name_b, b) = _tenant(), _tenant()
+    keys = {**settings.api_keys, name_a: SecretStr(a["X-API-Key"]), name_b: SecretStr(b["X-API-Key"])}
+    one, two = apps(api_keys=keys, rate_limit_per_minute=3), apps(api_keys=keys, rate_limit_per_minute=3)
+    # Three calls of tenant a, spread over the two "processes", use up its burst.
+    answers = [c.get("/v1/jobs", headers=a).status_code for c in (one, two, one)]
+    assert answers == [200, 200, 200]
+    for client in (one, two):
+        r = client.get("/v1/jobs", headers=a)
+        assert r.status_code == 429, r.text
+        assert 1 <= int(r.headers["Retry-After"]) <= 20  # one call every 20 s refills
+        assert "rate limit of 3 calls a minute" in r.json()["detail"]
+        assert a["X-API-Key"] not in r.text
+    assert one.post("/v1/jobs", json={"items": []}, headers=a).status_code == 429  # writes too
+    assert two.get("/v1/jobs", headers=b).status_code == 200  # another key has its own budget
+    # A wrong key is refused as such (401), not counted against anyone.
+    assert one.get("/v1/jobs", headers={"X-API-Key": "wrong"}).status_code == 401
+
+
+def test_rate_limit_refills_at_its_rate(apps, settings):
+    name, headers = _tenant()
+    keys = {**settings.api_keys, name: SecretStr(headers["X-API-Key"])}
+    client = apps(api_keys=keys, rate_limit_per_minute=120)  # one call every 0.5 s, bursts of 120
+    started = time.monotonic()
+    codes = [client.get("/v1/jobs", headers=headers).status_code for _ in range(140)]
+    elapsed = time.monotonic() - started
+    allowed = codes.count(200)
+    assert set(codes) == {200, 429}
+    assert 120 <= allowed <= 120 + int(elapsed / 0.5) + 1, (allowed, elapsed)
+    assert codes[:120] == [200] * 120  # the burst is whole
+    time.sleep(0.6)
+    assert client.get("/v1/jobs", headers=headers).status_code == 200

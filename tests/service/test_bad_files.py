@@ -1,0 +1,155 @@
+"""Bad photos through the whole service (API, worker, object store): truncated, corrupt and
+mislabelled files, a decompression bomb, an image over the pixel limit, a region of zero pixels.
+Each one fails its own item with a message naming the file or the reason; the good item beside it
+succeeds; no call answers 5xx and no worker dies.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+
+import cv2
+import pytest
+
+from prismcore.synth import Box
+from prismcore.synth_video import render_clip, write_video
+
+from .faultstack import FaultStack, item, png, tiny_scene
+
+MAX_PIXELS = 100_000  # the service's limit in this module: a 400x300 photo is over it
+
+
+def _bomb(width: int = 100_000, height: int = 100_000) -> bytes:
+    """A valid-looking PNG of a few hundred bytes that declares width x height RGB pixels."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    rows = zlib.compress(b"\x00" * (1 + 3 * 64) * 64, 9)  # the first rows' worth of zeros
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", rows) + chunk(b"IEND", b""))
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory):
+    stack = FaultStack(tmp_path_factory.mktemp("badfiles"), PRISM_MAX_PIXELS=str(MAX_PIXELS),
+                       PRISM_TILES_PER_FACE="1")
+    yield stack
+    stack.stop()
+
+
+SCENE = tiny_scene(1)
+GOOD = png(SCENE.image)
+ok, JPEG = cv2.imencode(".jpg", cv2.cvtColor(SCENE.image, cv2.COLOR_RGB2BGR))
+JPEG = JPEG.tobytes()
+BIG = png(cv2.resize(SCENE.image, (400, 300)))
+
+# name -> (file name, bytes, a piece the item's error must hold)
+CASES = {
+    "truncated-png": ("cut.png", GOOD[: len(GOOD) // 2], "'cut.png'"),
+    "truncated-jpeg": ("cut.jpg", JPEG[: len(JPEG) * 2 // 3], "'cut.jpg'"),
+    "png-header-only": ("head.png", GOOD[:40], "'head.png'"),
+    "corrupt-middle": ("bits.png", GOOD[:200] + bytes(b ^ 0x5A for b in GOOD[200:400]) + GOOD[400:],
+                       "'bits.png'"),
+    "random-bytes": ("noise.jpg", bytes(range(256)) * 20, "'noise.jpg'"),
+    "text-as-png": ("notes.png", b"these are not pixels\n" * 40, "'notes.png'"),
+    "gif": ("anim.png", b"GIF89a\x01\x00\x01\x00\x00\x00\x00;" * 3, "'anim.png'"),
+    "svg": ("vector.png", b'<svg xmlns="http://www.w3.org/2000/svg" width="9" height="9"/>', "'vector.png'"),
+    "decompression-bomb": ("bomb.png", _bomb(), "'bomb.png'"),
+    "over-pixel-limit": ("big.png", BIG, "'big.png'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_file_fails_its_item_only(stack, case, figures):
+    name, data, expected = CASES[case]
+    bad, good = stack.upload(data, name=name), stack.upload(GOOD)
+    job_id = stack.submit([item(bad, SCENE), item(good, SCENE)])
+    job = stack.wait([job_id], timeout=60)[job_id]
+    figures["inputs tried"] += 1
+    assert job["state"] == "succeeded", job
+    failed, fine = job["items"]
+    assert failed["state"] == "failed" and expected in failed["error"], failed
+    assert "\n" not in failed["error"] and "Traceback" not in failed["error"]
+    assert fine["state"] == "succeeded" and fine["result"]["points"] > 0
+    if case == "over-pixel-limit":
+        assert f"{MAX_PIXELS}" in failed["error"].replace(",", "").replace("_", "")
+
+
+def test_mislabelled_but_readable_files_are_read_by_content(stack, figures):
+    refs = [stack.upload(JPEG, name="photo.png"), stack.upload(GOOD, name="photo.jpg")]
+    job_id = stack.submit([item(r, SCENE) for r in refs])
+    job = stack.wait([job_id], timeout=60)[job_id]
+    figures["inputs tried"] += 2
+    assert [i["state"] for i in job["items"]] == ["succeeded", "succeeded"], job
+
+
+def test_zero_pixel_region_fails_with_the_reason(stack, figures):
+    spec = {**item(stack.upload(GOOD), SCENE), "points": [[60, 60]] * 5}
+    job_id = stack.submit([spec])
+    job = stack.wait([job_id], timeout=60)[job_id]
+    figures["inputs tried"] += 1
+    assert job["state"] == "failed" and job["error"] == "all items failed"
+    error = job["items"][0]["error"]
+    assert error and "\n" not in error, error
+    print(f"\nzero-pixel region: {error}")
+
+
+def test_empty_file_is_refused_at_upload(stack, figures):
+    r = stack.call("POST", "/v1/uploads", files={"file": ("empty.png", b"")})
+    figures["inputs tried"] += 1
+    assert r.status_code == 422 and "empty" in r.text.lower(), r.text
+
+
+# -- video files ----------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory) -> tuple[list, bytes]:
+    scenes = render_clip(Box(120.0, 80.0, 60.0), 4, image_size=(160, 128), focal_px=175.0, seed=3)
+    path = tmp_path_factory.mktemp("clip") / "clip.avi"
+    write_video((s.image for s in scenes), path, codec="MJPG")
+    return scenes, path.read_bytes()
+
+
+def _video_item(reference: str, scene) -> dict:
+    return {**item(reference, scene), "frames": {"every": 1}}
+
+
+VIDEO_CASES = {  # name -> (file name, how to spoil the clip)
+    "truncated": ("cut.avi", lambda v: v[: len(v) // 2]),
+    "header-only": ("head.avi", lambda v: v[:300]),
+    "corrupt-middle": ("bits.avi", lambda v: v[:2000] + bytes(b ^ 0x5A for b in v[2000:6000]) + v[6000:]),
+    "riff-junk": ("junk.avi", lambda v: b"RIFF\x10\x00\x00\x00AVI junk" * 50),
+    "mp4-junk": ("junk.mp4", lambda v: b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8),
+    "photo-named-avi": ("photo.avi", lambda v: GOOD),
+    "clip-named-png": ("clip.png", lambda v: v),
+}
+
+
+@pytest.mark.parametrize("case", sorted(VIDEO_CASES))
+def test_bad_video_fails_its_item_only_or_reads_what_is_there(stack, clip, case, figures):
+    # A cut or damaged clip may still hold whole frames: the item then measures those. Either
+    # way nothing crashes, the error names the file, and the good photo beside it succeeds.
+    scenes, video = clip
+    name, spoil = VIDEO_CASES[case]
+    bad, good = stack.upload(spoil(video), name=name), stack.upload(GOOD)
+    job_id = stack.submit([_video_item(bad, scenes[0]), item(good, SCENE)])
+    job = stack.wait([job_id], timeout=90)[job_id]
+    figures["inputs tried"] += 1
+    assert job["state"] == "succeeded", job
+    spoilt, fine = job["items"]
+    assert fine["state"] == "succeeded"
+    if spoilt["state"] == "failed":
+        assert f"'{name}'" in spoilt["error"] or name in spoilt["error"], spoilt["error"]
+        assert "\n" not in spoilt["error"] and "/tmp" not in spoilt["error"]
+    else:
+        assert spoilt["state"] == "succeeded" and spoilt["result"]["points"] > 0, spoilt
+    if case in ("riff-junk", "mp4-junk", "header-only", "photo-named-avi"):  # a photo is no video
+        assert spoilt["state"] == "failed", spoilt
+    if case == "clip-named-png":  # read by content, not by name
+        assert spoilt["state"] == "succeeded", spoilt
+
+
+def test_no_worker_died(stack):
+    for worker in stack.workers:  # the bad files were refused, not crashed on: never restarted
+        assert worker.proc is not None and worker.proc.poll() is None
+        assert worker.log.count(" ready.") == 1
+        assert "WorkerLostError" not in worker.log and "exited with" not in worker.log

@@ -1,0 +1,120 @@
+"""Video items through a real worker: split once, one task per frame, per-frame outputs and
+records, the item's summary over its frames; bad videos and the frame cap fail only their item.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from prism_common.records import State
+
+from prismcore.spec import ScanSpec, frame_folder
+from prismcore.synth import Box
+from prismcore.synth_video import render_clip, write_video
+
+from .worker_env import NAMES, Env, encode, spec_for, worker_env
+
+BOX = Box(120.0, 80.0, 60.0)
+FRAMES = 6
+CAP = 5  # frames per job
+FRAME_FILES = {"frame.png", "cloud.csv", "cloud.ply", "preview.ply", "report.json"}
+
+
+@pytest.fixture(scope="module")
+def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
+    with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=5,
+                    bucket="t-video", tiles_per_face=4, items_in_flight=2, max_frames=CAP) as made:
+        yield made
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory) -> tuple[list, bytes]:
+    scenes = render_clip(BOX, FRAMES, seed=3)
+    path = Path(tmp_path_factory.mktemp("clip")) / "clip.avi"
+    write_video((s.image for s in scenes), path, codec="MJPG")
+    return scenes, path.read_bytes()
+
+
+def _clicks(scene) -> list[list[float]]:
+    return [[float(v) for v in np.rint(scene.points[n])] for n in NAMES]
+
+
+def _video_spec(reference: str, scenes, **extra) -> ScanSpec:
+    common = {"image": reference, "focal_px": scenes[0].focal_px,
+              "scale": {"kind": "pinhole", "distance_mm": scenes[0].distance_mm}}
+    if "frame_points" not in extra:
+        common["points"] = _clicks(scenes[0])  # a fixed camera: frame 0's clicks for every frame
+    return ScanSpec.model_validate({**common, **extra})
+
+
+def test_a_video_is_measured_frame_by_frame_beside_photos_and_bad_videos(env, clip):
+    scenes, video = clip
+    specs = [_video_spec(env.upload(video, name="clip.avi"), scenes, frames={"every": 2}),
+             spec_for(env.upload(encode(scenes[0].image)), scenes[0]),
+             _video_spec(env.upload(b"RIFF\x10\x00\x00\x00AVI junk" * 50, name="junk.avi"), scenes,
+                         frames={"every": 2})]
+    job = env.wait(env.submit(specs), timeout=120)
+    assert job.state == State.succeeded and job.progress == 100, job
+    video, photo, junk = job.items
+    assert (video.state, photo.state, junk.state) == (State.succeeded, State.succeeded, State.failed)
+    assert "junk.avi" in junk.error and "/tmp" not in junk.error, junk.error
+
+    assert [f.index for f in video.frames] == [0, 2, 4]
+    widths = []
+    for frame in video.frames:
+        assert frame.state == State.succeeded, frame
+        dims = frame.result.dimensions
+        for name, true in (("width", BOX.width_mm), ("height", BOX.height_mm), ("depth", BOX.depth_mm)):
+            assert abs(dims[name] / true - 1) < 0.02, (frame.index, name, dims)
+        widths.append(dims["width"])
+        report = json.loads(env.objects.get_bytes(frame.outputs["report"]))
+        assert report["dimensions"] == frame.result.dimensions
+    summary = json.loads(env.objects.get_bytes(video.outputs["summary"]))
+    assert summary == video.result.summary
+    assert summary["frames"] == {"selected": 3, "measured": 3, "failed": 0}
+    assert summary["dimensions"]["width"]["median"] == pytest.approx(statistics.median(widths), abs=1e-6)
+    assert summary["dimensions"]["width"]["spread"] == pytest.approx(max(widths) - min(widths), abs=1e-6)
+    assert video.result.dimensions["width"] == summary["dimensions"]["width"]["median"]
+    assert video.result.points == sum(f.result.points for f in video.frames)
+
+    keys = env.keys(job.id)
+    per_frame = {f"items/0/{frame_folder(n)}/{name}" for n in (0, 2, 4) for name in FRAME_FILES}
+    assert {k for k in keys if k.startswith("items/0/")} == {
+        "items/0/frames.json", "items/0/summary.json"} | per_frame
+    assert not any(k.startswith("items/2/") for k in keys)
+    total, done = env.units(job.id)
+    # video: plan, 3 frames, complete; photo: plan, 2 faces x 2 tiles, complete; junk: plan, complete
+    assert total == done == (1 + 3 + 1) + (1 + 2 * 2 + 1) + 2
+
+
+def test_per_frame_points_and_a_frame_that_fails_alone(env, clip):
+    scenes, video = clip
+    points = {i: _clicks(scenes[i]) for i in (1, 3)}
+    points[5] = [[5000.0, 5000.0]] * 7  # off the frame: this frame cannot be measured
+    job = env.wait(env.submit([_video_spec(env.upload(video), scenes, frame_points=points)]), timeout=120)
+    assert job.state == State.succeeded, job
+    item = job.items[0]
+    assert [(f.index, f.state) for f in item.frames] == [(1, State.succeeded), (3, State.succeeded),
+                                                        (5, State.failed)]
+    assert item.frames[2].error and not item.frames[2].outputs
+    assert item.result.warnings == ["1 of 3 frames could not be measured"]
+    assert item.result.summary["failed"][0]["frame"] == 5
+
+
+def test_the_frame_cap_fails_the_item_that_goes_over_it(env, clip):
+    scenes, video = clip
+    ref = env.upload(video)
+    over = env.wait(env.submit([_video_spec(ref, scenes, frames={})]), timeout=120)  # all 6 > CAP
+    assert over.state == State.failed and "over the cap of 5" in over.items[0].error
+    # 3 + 3 frames: whichever item claims its frames second goes over the job's cap alone.
+    both = env.wait(env.submit([_video_spec(ref, scenes, frames={"every": 2}) for _ in range(2)]),
+                    timeout=120)
+    states = sorted(item.state for item in both.items)
+    assert states == [State.failed, State.succeeded], both
+    failed = next(item for item in both.items if item.state == State.failed)
+    assert "the job's videos select 6 frames, over the cap of 5 frames per job" in failed.error

@@ -1,0 +1,153 @@
+"""The watchdog's policy, run in this process on the real Redis and SeaweedFS with a clock the test
+moves (no worker consumes here: the messages it re-sends stay in the queue for the test to read).
+The end-to-end recovery by a worker's own watchdog thread is in test_faults.py.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import uuid
+from datetime import UTC, datetime, timedelta
+
+import pytest
+import redis
+from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.settings import get_settings
+from prism_common.storage import ObjectStore
+from prism_common.store import JobStore
+
+from prismcore import ScanSpec
+
+from .servers import service_env
+
+STALL, MAX_AGE = 100, 10_000
+SPEC = ScanSpec.model_validate({"image": "upload:" + "0" * 32,
+                                "points": [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]})
+
+
+@pytest.fixture(scope="module")
+def wd(redis_server, s3_server):
+    """prism_worker's watchdog, configured (through the environment, as a worker is) for a
+    Redis database and a bucket of its own."""
+    env = service_env(redis_server.port, s3_server.port, db=7, bucket="t-watchdog",
+                      JOB_STALL_TIMEOUT_S=str(STALL), JOB_STALL_RESTARTS="1", JOB_MAX_AGE_S=str(MAX_AGE))
+    with pytest.MonkeyPatch.context() as mp:
+        for name, value in env.items():
+            mp.setenv(name, value)
+        get_settings.cache_clear()
+        watchdog = importlib.import_module("prism_worker.watchdog")
+        context = importlib.import_module("prism_worker.context")
+        for made in (context.redis_client, context.store, context.objects):
+            made.cache_clear()
+        settings = get_settings()
+        client = redis.Redis.from_url(settings.redis_url, decode_responses=True)
+        client.flushdb()
+        ObjectStore.from_settings(settings).ensure_bucket()
+        yield watchdog, settings, client
+        client.flushdb()
+        for made in (context.redis_client, context.store, context.objects):
+            made.cache_clear()
+    get_settings.cache_clear()
+
+
+def _job(client: redis.Redis, *, state: State, items: int = 1, age_s: float = 0, claimed: int = 0) -> str:
+    store = JobStore(client)
+    job = JobRecord(id=uuid.uuid4().hex, tenant="acme",
+                    created_at=datetime.now(UTC) - timedelta(seconds=age_s),
+                    items=[ItemRecord(index=i, spec=SPEC) for i in range(items)])
+    store.create(job)
+    if state != State.queued:
+        store.transition(job.id, state)
+    for _ in range(claimed):
+        store.next_item(job.id)
+    return job.id
+
+
+def _queued_for(client: redis.Redis, job_id: str) -> list[str]:
+    return [json.loads(m)["headers"]["task"] for m in client.lrange("scans", 0, -1) if job_id in m]
+
+
+def test_a_job_waiting_its_turn_is_left_alone(wd):
+    watchdog, settings, client = wd
+    job_id = _job(client, state=State.queued)
+    client.lpush("scans", json.dumps({"headers": {"task": "prism.run_job", "argsrepr": f"['{job_id}']"}}))
+    now = datetime.now(UTC).timestamp()
+    for t in (now, now + STALL + 1, now + 3 * STALL):
+        watchdog.sweep(settings, t)
+    assert JobStore(client).state(job_id) == State.queued
+    assert _queued_for(client, job_id) == ["prism.run_job"]  # nothing re-sent
+    client.delete("scans")
+
+
+def test_a_stalled_job_is_restarted_then_failed_with_the_reason(wd):
+    watchdog, settings, client = wd
+    store = JobStore(client)
+    job_id = _job(client, state=State.running, items=3, claimed=2)  # items 0, 1 started
+    store.put_item(job_id, store.get(job_id).items[1].model_copy(update={"state": State.succeeded}))
+    now = datetime.now(UTC).timestamp()
+    watchdog.sweep(settings, now)
+    watchdog.sweep(settings, now + STALL - 1)
+    assert _queued_for(client, job_id) == []  # not stalled yet
+    counts = watchdog.sweep(settings, now + STALL + 1)
+    assert counts["restarted"] == 1
+    # Item 0 is started again from its plan; item 1 has an outcome: only its completion is re-sent.
+    sent = [(json.loads(m)["headers"]["task"], json.loads(m)["headers"]["argsrepr"])
+            for m in client.lrange("scans", 0, -1)]
+    assert sorted(sent) == sorted([("prism.plan_item", f"('{job_id}', 0)"),
+                                   ("prism.finish_item", f"([], '{job_id}', 1)")])
+    # While those wait in the queue the job is not stalled, however long.
+    assert watchdog.sweep(settings, now + 5 * STALL)["failed"] == 0
+    client.delete("scans")  # the re-sent work is lost too
+    watchdog.sweep(settings, now + 7 * STALL)
+    job = store.get(job_id)
+    assert job.state == State.failed
+    assert job.error == f"stalled: no progress for {STALL} s, 1 restarts did not help"
+    assert [i.state for i in job.items] == [State.failed, State.succeeded, State.failed]
+    assert job.items[0].error == job.error
+    saved = json.loads(ObjectStore.from_settings(settings).get_bytes(f"jobs/{job_id}/job.json"))
+    assert saved["state"] == "failed" and saved["error"] == job.error
+
+
+def test_progress_resets_the_clock(wd):
+    watchdog, settings, client = wd
+    job_id = _job(client, state=State.running, claimed=1)
+    now = datetime.now(UTC).timestamp()
+    watchdog.sweep(settings, now)
+    for step in range(1, 4):  # a unit of progress before each stall would be declared
+        client.hincrby(f"prism:job:{job_id}", "units_done", 1)
+        assert watchdog.sweep(settings, now + step * (STALL - 1))["restarted"] == 0
+    assert _queued_for(client, job_id) == []
+    assert JobStore(client).state(job_id) == State.running
+
+
+def test_a_queued_job_whose_message_was_lost_is_sent_again(wd):
+    watchdog, settings, client = wd
+    job_id = _job(client, state=State.queued)
+    now = datetime.now(UTC).timestamp()
+    watchdog.sweep(settings, now)
+    watchdog.sweep(settings, now + STALL + 1)
+    assert _queued_for(client, job_id) == ["prism.run_job"]
+    client.delete("scans")
+
+
+def test_jobs_past_the_maximum_age_fail(wd):
+    watchdog, settings, client = wd
+    old = _job(client, state=State.running, age_s=MAX_AGE + 5)
+    young = _job(client, state=State.queued, age_s=MAX_AGE - 60)
+    client.lpush("scans", json.dumps({"headers": {"argsrepr": f"['{old}', 0]"}}))  # busy, still
+    watchdog.sweep(settings, datetime.now(UTC).timestamp())
+    store = JobStore(client)
+    assert store.state(old) == State.failed
+    assert store.get(old).error == f"not finished {MAX_AGE} s after it was submitted"
+    assert store.state(young) == State.queued
+    client.delete("scans")
+
+
+def test_one_sweep_per_interval_across_workers(wd):
+    watchdog, settings, client = wd
+    client.delete(watchdog.LOCK_KEY)
+    assert watchdog.try_sweep(settings, "worker-a") is not None
+    assert watchdog.try_sweep(settings, "worker-b") is None  # a's lock holds for the interval
+    assert client.get(watchdog.LOCK_KEY) == "worker-a"
+    assert 0 < client.ttl(watchdog.LOCK_KEY) <= settings.watchdog_interval_s

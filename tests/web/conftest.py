@@ -1,0 +1,66 @@
+"""The page in a real headless Chromium, against the real stack: the API under uvicorn (serving
+the built page), a Celery worker process, redis-server and SeaweedFS, all on loopback."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Browser, Page, sync_playwright
+from service.servers import service_env
+
+from prism_api.webapp import STATIC_DIR
+from prism_cli.stack import ManagedProcess, start_api, start_worker
+
+CHROMIUM = Path("/usr/bin/chromium")  # Debian's; scripts/setup installs it
+# No GPU here: WebGL runs on SwiftShader. Nothing may reach outside the machine.
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+VIEWPORT = {"width": 1280, "height": 1000}
+
+
+class Stack:
+    def __init__(self, api: ManagedProcess, worker: ManagedProcess) -> None:
+        self.api, self.worker = api, worker
+        self.url = f"http://127.0.0.1:{api.port}"
+
+
+@pytest.fixture(scope="module")
+def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
+    if not (STATIC_DIR / "index.html").is_file():
+        pytest.fail(f"the page is not built in {STATIC_DIR}: run scripts/setup (needs node and npm)")
+    tmp = tmp_path_factory.mktemp("web-stack")
+    env = service_env(redis_server.port, s3_server.port, db=2, bucket="web-e2e")
+    api = start_api(tmp / "api", env)
+    worker = start_worker(tmp / "worker", env, concurrency=1)
+    yield Stack(api, worker)
+    worker.stop()
+    api.stop()
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    if not CHROMIUM.exists():
+        pytest.fail(f"{CHROMIUM} is missing: run scripts/setup as root, or apt-get install chromium")
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture
+def page(browser, stack) -> Iterator[Page]:
+    """A fresh tab on the page; fails the test on any script error or refused resource (CSP)."""
+    context = browser.new_context(viewport=VIEWPORT, base_url=stack.url)
+    page = context.new_page()
+    problems: list[str] = []
+    page.on("pageerror", lambda exc: problems.append(f"uncaught: {exc}"))
+    # HTTP error answers are logged as "Failed to load resource": those are the tests' own doing.
+    page.on("console", lambda m: problems.append(m.text) if m.type == "error"
+            and not m.text.startswith("Failed to load resource") else None)
+    page.goto("/")
+    yield page
+    context.close()
+    assert not problems, problems

@@ -1,0 +1,100 @@
+"""Driving the page as a person does: through labels, buttons and mouse positions on the photo."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import cv2
+import numpy as np
+from playwright.sync_api import Page, expect
+from service.conftest import API_KEYS
+
+from prismcore.synth import Scene
+
+KEY = API_KEYS["acme"]
+
+
+def save_photo(scene: Scene, path: Path) -> Path:
+    ok = cv2.imwrite(str(path), cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR))
+    assert ok
+    return path
+
+
+class PageDriver:
+    def __init__(self, page: Page) -> None:
+        self.page = page
+
+    def log_in(self, key: str = KEY) -> None:
+        self.page.get_by_label("API key").fill(key)
+        self.page.get_by_role("button", name="Log in").click()
+        expect(self.page.locator("#main")).to_be_visible()
+
+    def add_photos(self, *paths: Path) -> None:
+        self.page.get_by_label("Add photos").set_input_files([str(p) for p in paths])
+        for path in paths:
+            expect(self.page.locator("#photo-list")).to_contain_text(f"{path.name} (")
+        expect(self.page.locator("#photo-list li", has_text="uploaded")).to_have_count(len(paths))
+
+    def view(self) -> tuple[float, float, float]:
+        """(scale, ox, oy) of the photo canvas: screen = (image + 0.5) * scale + offset."""
+        scale, ox, oy = self.page.locator("#marker").get_attribute("data-view").split(",")
+        return float(scale), float(ox), float(oy)
+
+    def screen(self, xy: tuple[float, float]) -> tuple[float, float]:
+        """Where image point `xy` is in the window, with the photo canvas scrolled to the top."""
+        canvas = self.page.locator("#marker")
+        box = canvas.bounding_box()
+        if abs(box["y"]) > 0.5:  # other controls used since may have scrolled the page
+            canvas.evaluate("c => c.scrollIntoView({block: 'start'})")
+            box = canvas.bounding_box()
+        scale, ox, oy = self.view()
+        return box["x"] + (xy[0] + 0.5) * scale + ox, box["y"] + (xy[1] + 0.5) * scale + oy
+
+    def click_photo(self, xy: tuple[float, float]) -> None:
+        self.page.mouse.click(*self.screen(xy))
+
+    def hover_readout(self, xy: tuple[float, float]) -> tuple[float, float]:
+        self.page.mouse.move(*self.screen(xy))
+        text = self.page.locator("#pointer-xy").text_content()
+        x, y = re.fullmatch(r"x (-?[\d.]+), y (-?[\d.]+)", text).groups()
+        return float(x), float(y)
+
+    def zoom_at(self, xy: tuple[float, float], clicks: int) -> None:
+        for _ in range(clicks):
+            before = self.view()[0]
+            self.page.mouse.move(*self.screen(xy))
+            self.page.mouse.wheel(0, -400)
+            self.page.wait_for_function(
+                f"document.getElementById('marker').dataset.view.split(',')[0] > {before}")
+
+    def drag(self, start: tuple[float, float], end: tuple[float, float]) -> None:
+        self.page.mouse.move(*self.screen(start))
+        self.page.mouse.down()
+        self.page.mouse.move(*self.screen(end), steps=10)
+        self.page.mouse.up()
+
+    def mark(self, name: str) -> tuple[float, float] | None:
+        """The point as the page holds it (its row in the table of points), or None."""
+        x = self.page.get_by_label(f"{name.upper()} x (pixels)").input_value()
+        y = self.page.get_by_label(f"{name.upper()} y (pixels)").input_value()
+        return (float(x), float(y)) if x and y else None
+
+    def submit_and_wait(self, timeout_ms: float = 120_000) -> str:
+        self.page.get_by_role("button", name="Submit job").click()
+        state = self.page.locator("#job-state")
+        expect(state).to_contain_text(re.compile(r"Done|Failed|Cancelled"), timeout=timeout_ms)
+        return state.text_content()
+
+    def dimensions(self) -> dict[str, float]:
+        out = {}
+        for field in ("width", "height", "depth"):
+            text = self.page.locator(f"#dimensions dd[data-field={field}]").text_content()
+            out[field] = float(text.split()[0])
+        return out
+
+    def viewer_pixels(self) -> np.ndarray:
+        """The 3D view as the screen shows it: (H, W, 3) uint8 RGB."""
+        expect(self.page.locator("#viewer-status")).to_contain_text("Showing", timeout=30_000)
+        png = self.page.locator("#viewer canvas").screenshot()
+        return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)

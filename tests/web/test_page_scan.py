@@ -1,0 +1,120 @@
+"""A scan from start to end through the page: photos in, points clicked on them, the job run by the
+real worker, its dimensions checked against the synthetic box's true size, the cloud drawn in 3D."""
+
+from __future__ import annotations
+
+import json
+
+import httpx
+import numpy as np
+import pytest
+from page_driver import KEY, PageDriver, save_photo
+from playwright.sync_api import expect
+
+from prismcore.spec import ScanSpec
+from prismcore.synth import Box, render_front_view, render_oblique_view, render_side_view
+
+BOX = Box(120.0, 80.0, 60.0)
+TOLERANCE = 0.02  # clicks land within about a screen pixel: ~1 image pixel at the fitted zoom
+
+
+def _close(got: dict[str, float], box: Box) -> None:
+    want = {"width": box.width_mm, "height": box.height_mm, "depth": box.depth_mm}
+    for k, v in want.items():
+        assert abs(got[k] / v - 1) < TOLERANCE, (k, got, want)
+
+
+def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
+    scene = render_oblique_view(BOX, seed=3)
+    truth = {n: scene.points[n] for n in ("p1", "p2", "p3", "p4", "p5", "p6", "p7")}
+    d = PageDriver(page)
+    d.log_in()
+    d.add_photos(save_photo(scene, tmp_path / "oblique.png"))
+    page.get_by_label("Also mark P6 and P7").check()
+    expect(page.locator("#next-point")).to_contain_text("Click P1")
+
+    d.click_photo((truth["p1"][0] + 25, truth["p1"][1] + 18))  # off the corner, dragged there below
+    d.click_photo(truth["p2"])
+    scale = d.view()[0]
+    hover = d.hover_readout(truth["p3"])  # the live readout under the pointer
+    assert np.allclose(hover, truth["p3"], atol=1 / scale + 0.05), (hover, truth["p3"])
+    d.click_photo((truth["p3"][0] + 60, truth["p3"][1] + 40))  # a slip...
+    page.get_by_role("button", name="Undo").click()  # ...taken back
+    assert d.mark("p3") is None
+    d.click_photo(truth["p3"])
+    expect(page.locator("#next-point")).to_contain_text("the same corner as P2")
+    d.click_photo(truth["p2"])  # P4: a click on P2 puts it on the very same spot
+    assert d.mark("p4") == d.mark("p2")
+    for name in ("p5", "p6", "p7"):
+        d.click_photo(truth[name])
+    expect(page.locator("#next-point")).to_contain_text("Every point is placed")
+
+    d.zoom_at(truth["p1"], clicks=3)  # precise corners: zoom in, then drag P1 onto its corner
+    assert d.view()[0] > 3 * scale
+    d.drag(d.mark("p1"), truth["p1"])
+    assert np.allclose(d.mark("p1"), truth["p1"], atol=1 / d.view()[0] + 0.05)
+    for name in ("p2", "p3", "p5", "p6", "p7"):
+        assert np.allclose(d.mark(name), truth[name], atol=1 / scale + 0.05), name
+
+    page.get_by_label("Scale", exact=True).select_option(label="Shooting distance and focal length")
+    page.get_by_label("Shooting distance to the front face (mm)").fill(str(scene.distance_mm))
+    page.get_by_label("Focal length", exact=False).fill(str(scene.focal_px))
+    with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
+        state = d.submit_and_wait()
+    assert "Done" in state, state
+    body = json.loads(sent.value.post_data)
+    spec = ScanSpec.model_validate(body["items"][0])  # what the page sent is a valid job item
+    assert spec.focal_px == scene.focal_px and spec.scale.distance_mm == scene.distance_mm
+    assert spec.image.startswith("upload:") and spec.side_image is None
+
+    shown = d.dimensions()
+    _close(shown, BOX)
+    job_id = page.locator("#job-state").text_content().split()[1].rstrip(":")
+    job = httpx.get(f"{stack.url}/v1/jobs", headers={"X-API-Key": KEY}).json()["jobs"][0]
+    assert job["id"].startswith(job_id)
+    result = job["items"][0]["result"]
+    assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
+    expect(page.locator("#dimensions dd[data-field=points]")).to_have_text(f"{result['points']:,}")
+    expect(page.locator(".downloads a")).to_have_count(3)
+    expect(page.locator(f"#jobs tr[data-job='{job['id']}']")).to_contain_text("succeeded")
+
+    pixels = d.viewer_pixels()  # the 3D view rendered: many colours, not one flat fill
+    assert pixels.shape[0] > 200 and pixels.shape[1] > 400
+    colours = np.unique(pixels.reshape(-1, 3), axis=0)
+    assert len(colours) > 50 and pixels.std() > 5, (len(colours), pixels.std())
+    page.get_by_label("Point colours").select_option("depth")
+    assert not np.array_equal(d.viewer_pixels(), pixels)
+
+    # The key stays with the tab (sessionStorage, never the URL): a reload is still logged in,
+    # and the job can be opened again from the list of recent jobs.
+    assert KEY not in page.url and page.evaluate("sessionStorage.getItem('prism.apiKey')") == KEY
+    page.reload()
+    page.get_by_role("button", name=f"Open job {job['id'][:8]} (succeeded)").click()
+    expect(page.locator("#dimensions dd[data-field=width]")).to_have_text(f"{shown['width']:.2f} mm")
+    page.locator("#result").screenshot(path=str(tmp_path / "result.png"))
+    assert d.viewer_pixels().std() > 5
+
+
+@pytest.mark.parametrize("extra", [False, True], ids=["p1-p5", "p1-p7"])
+def test_two_square_photos(page, stack, tmp_path, extra):
+    front = render_front_view(BOX, seed=5)
+    side = render_side_view(BOX, seed=5)
+    d = PageDriver(page)
+    d.log_in()
+    page.get_by_label("Two photos").check()
+    d.add_photos(save_photo(front, tmp_path / "front.png"), save_photo(side, tmp_path / "side.png"))
+    page.get_by_label("Front photo", exact=True).select_option(label="front.png")
+    page.get_by_label("Side photo", exact=True).select_option(label="side.png")
+    if extra:
+        page.get_by_label("Also mark P6 and P7").check()
+    for name in ("p1", "p2", "p3", "p6")[: 4 if extra else 3]:
+        d.click_photo(front.points[name])
+    # The side points are marked on the side photo, which the canvas turns to by itself.
+    expect(page.get_by_role("button", name="Side photo")).to_have_attribute("aria-pressed", "true")
+    for name in ("p4", "p5", "p7")[: 3 if extra else 2]:
+        d.click_photo(side.points[name])
+    page.get_by_label("Scale", exact=True).select_option(label="Millimetres per pixel")
+    page.get_by_label("Millimetres per pixel (front)").fill(str(front.mm_per_px))
+    page.get_by_label("Millimetres per pixel (side photo, optional)").fill(str(side.mm_per_px))
+    assert "Done" in d.submit_and_wait()
+    _close(d.dimensions(), BOX)

@@ -1,0 +1,95 @@
+// The page's wiring: log in, then the four steps (photos, points, settings, run), the result
+// and the list of recent jobs. Each step lives in its own module; this file only connects them.
+
+import "./style.css";
+
+import { getJson, message, saveKey, savedKey } from "./api";
+import { FramePicker } from "./frame-picker";
+import { FrameSelectionForm } from "./frame-selection";
+import { History } from "./history";
+import { Marking } from "./marking";
+import { Photos } from "./photos";
+import { ResultPanel } from "./result";
+import { Runner } from "./run";
+import { SettingsForm } from "./settings";
+import { clear, clearAll, photoShown, state } from "./state";
+import type { JobList } from "./types";
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+
+const settings = new SettingsForm(() => state.twoPhoto);
+const marking = new Marking(() => settings.paper());
+const photos = new Photos();
+const picker = new FramePicker();
+const frames = new FrameSelectionForm(() => photoShown("front")?.video?.info ?? null);
+const runner = new Runner(() => settings.read(), (info, marked) => frames.read(info, marked));
+const result = new ResultPanel();
+const history = new History();
+
+// A video's frame picker and frame selection follow the points and the frame shown.
+const videoParts = () => {
+  picker.render();
+  frames.render();
+};
+marking.onChange = videoParts;
+picker.onShown = () => marking.changed(() => {});
+frames.onModeChange = () => marking.changed(() => {});
+
+photos.onChange = (what) => {
+  if (what === "front") marking.changed(() => (state.twoPhoto ? clear(["p1", "p2", "p3", "p6"]) : clearAll()));
+  if (what === "side") marking.changed(() => clear(["p4", "p5", "p7"]));
+  if (what === "mode") {
+    settings.render();
+    marking.changed(() => clear(["p4", "p5", "p7"]));
+  }
+  if (what !== "photos") marking.show(state.shown === "side" && state.twoPhoto ? "side" : "front");
+  else marking.refresh();
+  videoParts();
+};
+$("method").addEventListener("change", () => marking.refresh());
+runner.onAdded = () => marking.changed(clearAll);
+runner.onFinished = (job) => {
+  result.show(job);
+  void history.load();
+};
+history.onOpen = (job) => runner.follow(job);
+
+async function logIn(key: string): Promise<boolean> {
+  const error = $("login-error");
+  error.textContent = "";
+  try {
+    await getJson<JobList>("/v1/jobs?limit=1", key); // proves the key before keeping it
+  } catch (err) {
+    error.textContent = message(err);
+    return false;
+  }
+  saveKey(key);
+  $("login-form").hidden = true;
+  $("session").hidden = false;
+  $("main").hidden = false;
+  settings.render();
+  marking.refresh();
+  marking.marker.fit();
+  void history.load();
+  return true;
+}
+
+$("login-form").addEventListener("submit", (e) => {
+  e.preventDefault();
+  const input = $<HTMLInputElement>("api-key");
+  void logIn(input.value.trim()).then((ok) => {
+    if (ok) {
+      input.value = "";
+      $("files").focus();
+    }
+  });
+});
+
+$("logout").addEventListener("click", () => {
+  saveKey(null);
+  location.reload(); // forget every photo and job shown, not only the key
+});
+
+const kept = savedKey();
+if (kept) void logIn(kept);
+else $("api-key").focus();

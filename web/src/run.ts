@@ -1,0 +1,117 @@
+// Step 4 of the page: the batch of scans, submitting it as one job (POST /v1/jobs), following
+// the job's state and progress until it ends, and cancelling it.
+
+import { getJson, message, postJson } from "./api";
+import { currentScan, hasMarks, type Scan, type SelectFrames } from "./scan";
+import type { Settings } from "./settings";
+import { FINAL, type Job } from "./types";
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const POLL_MS = 600;
+const WORDS: Record<string, string> = {
+  queued: "Queued: waiting for a worker.", running: "Running.", succeeded: "Done.",
+  failed: "Failed.", cancelled: "Cancelled.",
+};
+
+export class Runner {
+  private batch: Scan[] = [];
+  private job: Job | null = null;
+  private timer = 0;
+  onAdded: () => void = () => {};
+  onFinished: (job: Job) => void = () => {};
+
+  constructor(private settings: () => Settings, private selectFrames: SelectFrames) {
+    $("add-batch").addEventListener("click", () => this.guard(() => this.add()));
+    $("submit").addEventListener("click", () => this.guard(() => this.submit()));
+    $("cancel").addEventListener("click", () => this.guard(() => this.cancel()));
+  }
+
+  private async guard(action: () => unknown): Promise<void> {
+    const error = $("form-error");
+    error.textContent = "";
+    try {
+      await action();
+    } catch (err) {
+      error.textContent = message(err);
+    }
+  }
+
+  private add(): void {
+    this.batch.push(currentScan(this.settings(), this.selectFrames));
+    this.renderBatch();
+    this.onAdded();
+  }
+
+  private renderBatch(): void {
+    $("batch").replaceChildren(...this.batch.map((scan, i) => {
+      const li = document.createElement("li");
+      const remove = document.createElement("button");
+      remove.type = "button";
+      remove.textContent = "Remove";
+      remove.setAttribute("aria-label", `Remove scan ${i + 1} (${scan.label}) from the batch`);
+      remove.addEventListener("click", () => {
+        this.batch.splice(i, 1);
+        this.renderBatch();
+      });
+      li.append(`Scan ${i + 1}: ${scan.label} `, remove);
+      return li;
+    }));
+  }
+
+  private async submit(): Promise<void> {
+    const scans = this.batch.length && !hasMarks() ? [...this.batch]
+      : [...this.batch, currentScan(this.settings(), this.selectFrames)];
+    const button = $<HTMLButtonElement>("submit");
+    button.disabled = true;
+    try {
+      const job = await postJson<Job>("/v1/jobs", { items: scans.map((s) => s.spec), client_reference: "web page" });
+      this.batch = [];
+      this.renderBatch();
+      this.follow(job);
+    } finally {
+      button.disabled = false;
+    }
+  }
+
+  /** Show `job` and poll it until it ends. */
+  follow(job: Job): void {
+    window.clearTimeout(this.timer);
+    this.job = null;
+    this.update(job);
+  }
+
+  private update(job: Job): void {
+    const changed = this.job?.state !== job.state || this.job?.id !== job.id;
+    this.job = job;
+    const progress = $<HTMLProgressElement>("job-progress");
+    progress.value = job.progress;
+    // Progress counts frames for a video: say how many are measured so far.
+    const frames = job.items.reduce((n, i) => n + i.frames.length, 0);
+    $("job-percent").textContent = `${job.progress} %` + (frames ? ` (${frames} frames measured)` : "");
+    if (changed) {
+      // The status region is read out: only when the state changes, not at every percent.
+      const failed = job.items.filter((i) => i.state === "failed").length;
+      const extra = job.state === "succeeded" && failed ? ` ${failed} of ${job.items.length} scans failed.` : "";
+      $("job-state").textContent = `Job ${job.id.slice(0, 8)}: ${WORDS[job.state]}${extra}` +
+        (job.error ? ` ${job.error.charAt(0).toUpperCase()}${job.error.slice(1)}.` : "");
+    }
+    $("cancel").hidden = FINAL.includes(job.state);
+    if (FINAL.includes(job.state)) return this.onFinished(job);
+    this.timer = window.setTimeout(() => void this.poll(job.id), POLL_MS);
+  }
+
+  private async poll(id: string): Promise<void> {
+    try {
+      const job = await getJson<Job>(`/v1/jobs/${id}`);
+      if ($("form-error").textContent?.startsWith("Lost track")) $("form-error").textContent = "";
+      this.update(job);
+    } catch (err) {
+      $("form-error").textContent = `Lost track of the job: ${message(err)} Retrying…`;
+      this.timer = window.setTimeout(() => void this.poll(id), POLL_MS * 5);
+    }
+  }
+
+  private async cancel(): Promise<void> {
+    if (this.job) this.follow(await postJson<Job>(`/v1/jobs/${this.job.id}/cancel`, {}));
+  }
+}

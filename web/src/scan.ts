@@ -1,0 +1,70 @@
+// The scan the user has set up, as one item of a job (the ScanSpec model with upload references),
+// or a sentence saying what is still missing. A video's item has `frames` and `points`, or
+// `frame_points` (per-frame points: exactly the frames marked are measured).
+
+import { describe, sequence, type Marks } from "./points";
+import type { Settings } from "./settings";
+import { allFrameMarks, photoShown, state } from "./state";
+import type { FrameSelection, PointSet, ScanSpec, VideoInfo } from "./types";
+
+export interface Scan {
+  spec: ScanSpec;
+  label: string;
+}
+
+/** The video's frame selection, given the frame the points were marked on. */
+export type SelectFrames = (info: VideoInfo, marked: number | null) => FrameSelection;
+
+export function hasMarks(): boolean {
+  return Object.keys(state.marks).length > 0 || Object.keys(state.frameMarks).length > 0;
+}
+
+function reference(which: "front" | "side"): { ref: string; name: string } {
+  const photo = photoShown(which);
+  if (!photo) throw new Error(`Choose the ${which} photo first.`);
+  if (!photo.upload) {
+    throw new Error(photo.status === "uploading…"
+      ? `Wait for ${photo.name} to finish uploading.`
+      : `${photo.name} was not uploaded (${photo.status}); add it again.`);
+  }
+  return { ref: photo.upload.reference, name: photo.name };
+}
+
+/** Every point asked for, in order; throws an Error naming the first one missing. */
+function complete(marks: Marks, where = ""): PointSet {
+  const missing = sequence(state.extra, state.twoPhoto).filter((n) => !marks[n]);
+  if (missing.length) {
+    const n = missing[0];
+    throw new Error(`${where}${n.toUpperCase()} (${describe(n, state.twoPhoto)}) is not placed yet` +
+      (n === "p6" || n === "p7" ? "; place it, or untick P6 and P7." : "."));
+  }
+  return Object.fromEntries(sequence(state.extra, state.twoPhoto).map((n) => [n, marks[n]!]));
+}
+
+/** The current scan as a job item; throws an Error saying what to do when it is not ready. */
+export function currentScan(settings: Settings, selectFrames: SelectFrames): Scan {
+  const front = reference("front");
+  const video = photoShown("front")?.video;
+  if (video) return videoScan(front, video.info, settings, selectFrames);
+  const side = state.twoPhoto ? reference("side") : null;
+  const spec: ScanSpec = { image: front.ref, points: complete(state.marks), ...settings };
+  if (side) spec.side_image = side.ref;
+  return { spec, label: side ? `${front.name} + ${side.name}` : front.name };
+}
+
+function videoScan(front: { ref: string; name: string }, info: VideoInfo | null, settings: Settings,
+                   selectFrames: SelectFrames): Scan {
+  if (state.twoPhoto) throw new Error("A video is measured in single-photo mode: choose “One photo” under Mode.");
+  if (!info) throw new Error(`Wait for the service to read ${front.name}.`);
+  if (!state.perFrame) {
+    const spec = { image: front.ref, points: complete(state.marks), frames: selectFrames(info, state.markedFrame) };
+    return { spec: { ...spec, ...settings }, label: `${front.name} (video)` };
+  }
+  const marked = Object.entries(allFrameMarks()).sort(([a], [b]) => Number(a) - Number(b));
+  if (!marked.length) throw new Error("Mark the points on at least one frame.");
+  const framePoints = Object.fromEntries(marked.map(([f, marks]) => [f, complete(marks, `Frame ${f}: `)]));
+  return {
+    spec: { image: front.ref, frame_points: framePoints, ...settings },
+    label: `${front.name} (video, frames ${marked.map(([f]) => f).join(", ")})`,
+  };
+}

@@ -1,0 +1,78 @@
+// Step 3 of the page: tolerance, method, cloud kind, scale and focal length, read into the
+// matching fields of the scan spec; a field left wrong gets a sentence naming it.
+
+import type { Scale, ScanSpec } from "./types";
+
+const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
+const value = (id: string) => $<HTMLInputElement | HTMLSelectElement>(id).value;
+
+export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px">;
+
+export class SettingsForm {
+  constructor(private twoPhoto: () => boolean) {
+    $("scale-kind").addEventListener("change", () => this.render());
+  }
+
+  paper(): boolean {
+    return value("method") === "paper";
+  }
+
+  /** Show the fields of the chosen scale (and the side photo's only in two-photo mode). */
+  render(): void {
+    const kind = value("scale-kind");
+    for (const el of document.querySelectorAll<HTMLElement>("[data-scale]")) {
+      el.hidden = el.dataset.scale !== kind || ("two" in el.dataset && !this.twoPhoto());
+    }
+  }
+
+  /** The settings as spec fields; throws an Error whose message says what to fix. */
+  read(): Settings {
+    const tolerance = number("tolerance", "The colour tolerance", { min: 0, max: 128 })!;
+    const focal = number("focal", "The focal length", { positive: true, optional: true });
+    const kind = value("scale-kind");
+    let scale: Scale | undefined;
+    if (kind === "mm_per_px") {
+      scale = { kind, front: number("mm-front", "Millimetres per pixel", { positive: true })! };
+      const side = this.twoPhoto() ? number("mm-side", "The side photo's millimetres per pixel",
+        { positive: true, optional: true }) : undefined;
+      if (side !== undefined) scale.side = side;
+    } else if (kind === "pinhole") {
+      scale = { kind, distance_mm: number("distance", "The shooting distance", { positive: true })! };
+      const side = this.twoPhoto() ? number("side-distance", "The side photo's shooting distance",
+        { positive: true, optional: true }) : undefined;
+      if (side !== undefined) scale.side_distance_mm = side;
+      if (focal === undefined) throw new Error("A shooting distance needs the focal length in pixels.");
+    } else if (kind === "edge") {
+      const edge = value("edge") as "width" | "height" | "depth";
+      scale = { kind, edge, length_mm: number("edge-mm", `The ${edge}`, { positive: true })! };
+    }
+    const settings: Settings = {
+      tolerance, method: value("method") as Settings["method"], cloud: value("cloud") as Settings["cloud"],
+    };
+    if (scale) settings.scale = scale;
+    if (focal !== undefined) settings.focal_px = focal;
+    return settings;
+  }
+}
+
+function number(id: string, what: string,
+                rule: { min?: number; max?: number; positive?: boolean; optional?: boolean }): number | undefined {
+  const input = $<HTMLInputElement>(id);
+  const text = input.value.trim();
+  if (text === "") {
+    if (rule.optional) return undefined;
+    input.focus();
+    throw new Error(`${what} is missing.`);
+  }
+  const v = Number(text);
+  let problem = "";
+  if (!Number.isFinite(v)) problem = "is not a number";
+  else if (rule.positive && v <= 0) problem = "must be more than 0";
+  else if (rule.min !== undefined && v < rule.min) problem = `must be at least ${rule.min}`;
+  else if (rule.max !== undefined && v > rule.max) problem = `must be at most ${rule.max}`;
+  if (problem) {
+    input.focus();
+    throw new Error(`${what} ${problem} (got ${JSON.stringify(text)}).`);
+  }
+  return v;
+}

@@ -1,0 +1,113 @@
+// The API's shapes (prism_api.schemas) and the scan spec's (prismcore.spec.ScanSpec), as used here.
+
+export type State = "queued" | "running" | "succeeded" | "failed" | "cancelled";
+export const FINAL: readonly State[] = ["succeeded", "failed", "cancelled"];
+
+export interface Upload {
+  id: string;
+  reference: string;
+  size: number;
+  name: string;
+}
+
+export interface VideoInfo {
+  id: string;
+  frame_count: number;
+  fps: number;
+  width: number;
+  height: number;
+  codec: string;
+  duration_s: number;
+}
+
+export type Dimension = "width" | "height" | "depth";
+
+export interface DimensionStats {
+  median: number;
+  min: number;
+  max: number;
+  spread: number;
+  std: number | null;
+  relative_spread: number | null;
+}
+
+/** A video item's summary.json (prismcore.summary.summarize). */
+export interface Summary {
+  frames: { selected: number; measured: number; failed: number };
+  unit: string | null;
+  dimensions: Partial<Record<Dimension, DimensionStats>>;
+  per_frame: ({ frame: number; time_s?: number } & Record<Dimension, number>)[];
+  failed: { frame: number; error: string }[];
+}
+
+export interface Result {
+  points: number;
+  dimensions: Record<Dimension, number> & { unit: string };
+  point_loss: number;
+  warnings: string[];
+  summary?: Summary | null;
+}
+
+export interface Frame {
+  index: number;
+  state: State;
+  error: string | null;
+  result: Result | null;
+  downloads: Record<string, string>;
+}
+
+export interface Item {
+  index: number;
+  state: State;
+  error: string | null;
+  result: Result | null;
+  downloads: Record<string, string>;
+  frames: Frame[];
+}
+
+export interface Job {
+  id: string;
+  state: State;
+  progress: number;
+  created_at: string;
+  finished_at: string | null;
+  client_reference: string | null;
+  error: string | null;
+  items: Item[];
+}
+
+export interface JobList {
+  jobs: Job[];
+  next_cursor: string | null;
+}
+
+export type Point = [number, number];
+export type PointName = "p1" | "p2" | "p3" | "p4" | "p5" | "p6" | "p7";
+
+export type Scale =
+  | { kind: "mm_per_px"; front: number; side?: number }
+  | { kind: "pinhole"; distance_mm: number; side_distance_mm?: number }
+  | { kind: "edge"; edge: "width" | "height" | "depth"; length_mm: number };
+
+export interface FrameSelection {
+  every?: number;
+  start_s?: number;
+  end_s?: number;
+  indices?: number[];
+  sharpest?: number;
+}
+
+export type PointSet = Partial<Record<PointName, Point>>;
+
+export interface ScanSpec {
+  image: string;
+  side_image?: string;
+  points?: PointSet;
+  frames?: FrameSelection;
+  frame_points?: Record<string, PointSet>;
+  tolerance: number;
+  method: "default" | "paper";
+  cloud: "surface" | "volume";
+  scale?: Scale;
+  focal_px?: number;
+}
