@@ -20,10 +20,11 @@ import numpy as np
 import pytest
 from plyfile import PlyData
 from prism_common.metrics import read_task_durations
-from prism_common.queue import TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE
+from prism_common.queue import QUEUE_SCANS, TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE, queue_lists
 from prism_common.records import State
 
 from prism_worker import plans, tiles
+from prism_worker.pending import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.scan import merge_bands, row_tiles, scan_band
@@ -35,13 +36,16 @@ from .servers import free_port
 from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env
 
 TILES_PER_FACE = 4
+# Short enough for the kill test's lost message to be found and redone within its wait.
+STALL_TIMEOUT_S = 12
 
 
 @pytest.fixture(scope="module")
 def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
     # One item at a time per job: the second item only starts if the first one refills.
     with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=2,
-                    bucket="t-worker", tiles_per_face=TILES_PER_FACE, items_in_flight=1) as made:
+                    bucket="t-worker", tiles_per_face=TILES_PER_FACE, items_in_flight=1,
+                    stall_timeout_s=STALL_TIMEOUT_S) as made:
         yield made
 
 
@@ -268,8 +272,31 @@ def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
     assert job.items[0].error == "internal error: ValueError"
 
 
+def _drop_one_message(client, job_id: str) -> str | None:
+    """Delete one of the job's messages, held by a worker or else queued; its task name.
+
+    kombu's Redis transport can lose a message this way by itself: a worker killed between
+    popping it from the queue and recording it as unacknowledged takes it along.
+    """
+    for tag, raw in client.hgetall(UNACKED_HASH).items():
+        if job_id in raw:
+            client.hdel(UNACKED_HASH, tag)
+            client.zrem(f"{UNACKED_HASH}_index", tag)
+            return json.loads(raw)[0]["headers"]["task"]
+    for name in queue_lists(QUEUE_SCANS):
+        for raw in client.lrange(name, 0, -1):
+            if job_id in raw:
+                client.lrem(name, 1, raw)
+                return json.loads(raw)["headers"]["task"]
+    return None
+
+
 def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
-    """Last in the module: it kills and restarts the worker."""
+    """Last in the module: it kills and restarts the worker.
+
+    The dead worker's messages come back after the visibility timeout, except one that the test
+    deletes as lost: the watchdog finds the job stalled and restarts it where it stopped.
+    """
     photo = encode(scene.image)
     specs = [spec_for(env.upload(photo), scene) for _ in range(4)]
     job_id = env.submit(specs)
@@ -279,13 +306,16 @@ def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
         time.sleep(0.02)
     readies = env.worker.log.count(" ready.")
     env.worker.kill()  # SIGKILL to the group: tasks in flight die unacknowledged
+    lost = _drop_one_message(env.redis, job_id)
+    assert lost is not None, "the job had no message left to lose"
     env.worker.start()
     deadline = time.monotonic() + 60
     while env.worker.log.count(" ready.") == readies:
         assert time.monotonic() < deadline, env.worker.log[-4000:]
         time.sleep(0.1)
-    job = env.wait(job_id, timeout=90)  # lost tasks come back after the visibility timeout
-    assert job.state == State.succeeded, job
+    job = env.wait(job_id, timeout=90)
+    assert job.state == State.succeeded, (lost, job)
+    assert f"watchdog: job {job_id} made no progress" in env.worker.log, lost
     assert all(item.state == State.succeeded for item in job.items), job
     local = run_scan(specs[0], load_image(photo))
     assert {item.result.points for item in job.items} == {local.report["points"]}

@@ -85,7 +85,7 @@ class Env:
 @contextmanager
 def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir: Path, *, db: int,
                bucket: str, tiles_per_face: int, items_in_flight: int,
-               max_frames: int = 1000) -> Iterator[Env]:
+               max_frames: int = 1000, stall_timeout_s: int = 600) -> Iterator[Env]:
     """Start a worker with these settings on Redis database `db` and `bucket`; stop it after."""
     settings = Settings(
         api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
@@ -95,12 +95,15 @@ def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir:
         readable_buckets=[INPUTS_BUCKET], webhook_allowed_hosts=["127.0.0.1"],
         webhook_allow_private=True, tiles_per_face=tiles_per_face,
         items_in_flight_per_job=items_in_flight, visibility_timeout_s=10,
-        max_frames_per_job=max_frames)
+        max_frames_per_job=max_frames, job_stall_timeout_s=stall_timeout_s,
+        watchdog_interval_s=min(30, max(1, stall_timeout_s // 4)))
     variables = service_env(
         redis_server.port, s3_server.port, db=db, bucket=bucket,
         READABLE_BUCKETS=json.dumps([INPUTS_BUCKET]), WEBHOOK_ALLOWED_HOSTS='["127.0.0.1"]',
         WEBHOOK_ALLOW_PRIVATE="true", TILES_PER_FACE=str(tiles_per_face), VISIBILITY_TIMEOUT_S="10",
-        ITEMS_IN_FLIGHT_PER_JOB=str(items_in_flight), MAX_FRAMES_PER_JOB=str(max_frames))
+        ITEMS_IN_FLIGHT_PER_JOB=str(items_in_flight), MAX_FRAMES_PER_JOB=str(max_frames),
+        JOB_STALL_TIMEOUT_S=str(settings.job_stall_timeout_s),
+        WATCHDOG_INTERVAL_S=str(settings.watchdog_interval_s))
     objects = ObjectStore.from_settings(settings)
     objects.ensure_bucket()
     ObjectStore(objects.client, INPUTS_BUCKET).ensure_bucket()
