@@ -14,7 +14,7 @@ from typing import Annotated, TypeVar
 
 import redis
 from celery import Celery
-from fastapi import Depends, HTTPException, Security, status
+from fastapi import Depends, HTTPException, Request, Security, status
 from fastapi.security import APIKeyHeader
 from prism_common.queue import make_celery
 from prism_common.settings import Settings, get_settings
@@ -82,8 +82,31 @@ _api_key = APIKeyHeader(name="X-API-Key", auto_error=False,
                         description="The key of your tenant; every /v1 call needs it.")
 
 
-def get_tenant(settings: SettingsDep, api_key: Annotated[str | None, Security(_api_key)]) -> str:
-    """The tenant whose key came in the X-API-Key header; 401 otherwise."""
+def get_rate_limiter(settings: SettingsDep, client: RedisDep) -> RateLimiter:
+    return _once(("rate", settings.redis_url, settings.rate_limit_per_minute),
+                 lambda: RateLimiter(client, settings.rate_limit_per_minute))
+
+
+def get_auth_failure_limiter(settings: SettingsDep, client: RedisDep) -> RateLimiter:
+    return _once(("authfail", settings.redis_url, settings.auth_failures_per_minute),
+                 lambda: RateLimiter(client, settings.auth_failures_per_minute, scope="authfail"))
+
+
+def _too_many(message: str, limiter: RateLimiter, wait: float) -> HTTPException:
+    return HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"{message}; retry in {wait:.1f} s",
+                         headers={"Retry-After": limiter.retry_after(wait)})
+
+
+def get_tenant(settings: SettingsDep, request: Request,
+               api_key: Annotated[str | None, Security(_api_key)],
+               failures: Annotated[RateLimiter, Depends(get_auth_failure_limiter)]) -> str:
+    """The tenant whose key came in the X-API-Key header; 401 otherwise, and 429 to an address
+    that had too many keys refused lately, whatever key it sends now."""
+    address = request.client.host if request.client else "unknown"
+    wait = failures.wait_s(address, count=False)
+    if wait > 0:
+        raise _too_many(f"too many refused API keys from this address (limit "
+                        f"{failures.per_minute} a minute)", failures, wait)
     given = (api_key or "").encode()
     tenant = None
     # Every key is compared, in constant time, whichever matches: the time taken says nothing
@@ -92,14 +115,10 @@ def get_tenant(settings: SettingsDep, api_key: Annotated[str | None, Security(_a
         if hmac.compare_digest(given, key.get_secret_value().encode()) and given:
             tenant = name
     if tenant is None:
+        failures.wait_s(address)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing or invalid X-API-Key header",
                             headers={"WWW-Authenticate": "ApiKey"})
     return tenant
-
-
-def get_rate_limiter(settings: SettingsDep, client: RedisDep) -> RateLimiter:
-    return _once(("rate", settings.redis_url, settings.rate_limit_per_minute),
-                 lambda: RateLimiter(client, settings.rate_limit_per_minute))
 
 
 def get_rate_limited_tenant(tenant: Annotated[str, Depends(get_tenant)],
@@ -107,9 +126,8 @@ def get_rate_limited_tenant(tenant: Annotated[str, Depends(get_tenant)],
     """The caller's tenant, once its call fits the per-key rate limit; 429 + Retry-After if not."""
     wait = limiter.wait_s(tenant)
     if wait > 0:
-        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS,
-                            f"rate limit of {limiter.per_minute} calls a minute exceeded for this key; "
-                            f"retry in {wait:.1f} s", headers={"Retry-After": limiter.retry_after(wait)})
+        raise _too_many(f"rate limit of {limiter.per_minute} calls a minute exceeded for this key",
+                        limiter, wait)
     return tenant
 
 

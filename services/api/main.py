@@ -51,7 +51,8 @@ _RETRY_AFTER = {"Retry-After": {"description": "Seconds to wait before trying ag
 _V1_RESPONSES: dict[int | str, dict] = {
     400: {"description": "A body that cannot be parsed at all (not JSON, cut multipart)"},
     401: {"description": "Missing or invalid X-API-Key"},
-    429: {"description": "Rate limit of this key exceeded", "headers": _RETRY_AFTER},
+    429: {"description": "Rate limit of this key, or of refused keys from this address, exceeded",
+          "headers": _RETRY_AFTER},
     503: {"description": "At capacity (Retry-After) or a backend is unavailable"},
 }
 

@@ -32,7 +32,7 @@ def settings(redis_server, s3_server, request) -> Settings:
         webhook_allowed_hosts=["127.0.0.1"], webhook_allow_private=True,
         # Every test shares these tenants on one Redis: the limit is on (its code runs on every
         # call) but out of reach; the rate-limit tests set their own.
-        rate_limit_per_minute=1_000_000,
+        rate_limit_per_minute=1_000_000, auth_failures_per_minute=1_000_000,
     )
 
 

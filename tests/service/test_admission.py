@@ -31,11 +31,11 @@ def apps(settings, objects) -> Iterator:
     """Make TestClients (each its own app, like separate API processes) with setting changes."""
     clients: list[TestClient] = []
 
-    def make(**changes) -> TestClient:
+    def make(address: str = "testclient", **changes) -> TestClient:
         app = create_app()
         app_settings = settings.model_copy(update=changes)
         app.dependency_overrides[get_settings] = lambda: app_settings
-        client = TestClient(app).__enter__()
+        client = TestClient(app, client=(address, 50000)).__enter__()
         clients.append(client)
         return client
 
@@ -125,3 +125,38 @@ def test_rate_limit_refills_at_its_rate(apps, settings):
     assert codes[:120] == [200] * 120  # the burst is whole
     time.sleep(0.6)
     assert client.get("/v1/jobs", headers=headers).status_code == 200
+
+
+# -- refused keys per address -------------------------------------------------------------------
+def _address() -> str:
+    """An address of the test's own (the budgets live on in the session's Redis)."""
+    n = uuid.uuid4().int
+    return f"10.{n % 250}.{n // 250 % 250}.{n // 62500 % 250 + 1}"
+
+
+def test_an_address_guessing_keys_is_locked_out_for_a_while(apps, settings):
+    address = _address()
+    one = apps(address, auth_failures_per_minute=3)
+    two = apps(address, auth_failures_per_minute=3)  # another API process, the same Redis
+    # Good calls cost nothing from the refused-key budget.
+    assert all(one.get("/v1/jobs", headers=ACME).status_code == 200 for _ in range(10))
+    guesses = [c.get("/v1/jobs", headers={"X-API-Key": f"guess-{i}"}).status_code
+               for i, c in enumerate((one, two, one))]
+    assert guesses == [401, 401, 401]
+    for client, headers in ((one, {"X-API-Key": "guess-4"}), (two, {}), (two, ACME)):
+        r = client.get("/v1/jobs", headers=headers)  # the right key too: the address is locked
+        assert r.status_code == 429, r.text
+        assert "too many refused API keys from this address (limit 3 a minute)" in r.json()["detail"]
+        assert 1 <= int(r.headers["Retry-After"]) <= 20  # one refused key every 20 s refills
+    # Another address is not affected.
+    other = apps(_address(), auth_failures_per_minute=3)
+    assert other.get("/v1/jobs", headers=ACME).status_code == 200
+    assert other.get("/v1/jobs", headers={"X-API-Key": "guess"}).status_code == 401
+
+
+def test_a_locked_out_address_gets_its_budget_back_at_the_set_rate(apps, settings):
+    client = apps(_address(), auth_failures_per_minute=120)  # one refused key every 0.5 s
+    codes = [client.get("/v1/jobs", headers={"X-API-Key": "guess"}).status_code for _ in range(125)]
+    assert codes[:120] == [401] * 120 and 429 in codes[120:]
+    time.sleep(0.6)
+    assert client.get("/v1/jobs", headers=ACME).status_code == 200
