@@ -15,6 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from prism_common.settings import get_settings
 
+from .bodylimit import BodyLimit
 from .deps import get_objects
 from .routes import health, jobs, previews, upload_video, uploads
 from .webapp import mount_web
@@ -68,6 +69,7 @@ def create_app() -> FastAPI:
     app.include_router(v1)
     app.include_router(health.router)
     mount_web(app)
+    app.add_middleware(BodyLimit)
     app.add_exception_handler(RequestValidationError, _invalid)
     for error in (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError):
         app.add_exception_handler(error, _backend_down)

@@ -39,6 +39,9 @@ class Settings(BaseSettings):
     webhook_allow_private: bool = False  # tests only
 
     upload_max_bytes: int = 100 * 2**20
+    # Any other request body (a job's JSON is read whole before the key is checked); a 5000-item
+    # job is about 3 MB.
+    request_max_bytes: int = 16 * 2**20
     presign_ttl_s: int = 3600
     max_items_per_job: int = 5000
     max_pixels: int = 50_000_000

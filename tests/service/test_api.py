@@ -609,3 +609,48 @@ def test_frames_named_over_the_job_cap_are_refused_at_submit(make_client, indice
             f"the job's videos name {named} frames, over the cap of 5 frames per job")
     else:
         assert [it["frames"] for it in r.json()["items"]] == [[], []]  # none measured yet
+
+
+@pytest.mark.parametrize("chunked", [True, False])
+@pytest.mark.parametrize("headers", [{}, ACME], ids=["no key", "key"])
+def test_a_job_body_over_the_cap_is_refused_while_it_arrives(settings, chunked, headers):
+    # FastAPI reads a JSON body before the key is checked: the cap holds for strangers too.
+    app = create_app()
+    app_settings = settings.model_copy(update={"request_max_bytes": 100_000})
+    app.dependency_overrides[get_settings] = lambda: app_settings
+    chunk, sent = b" " * 2**14, 0  # 16 MiB of JSON whitespace offered
+
+    async def body():
+        nonlocal sent
+        yield b'{"items": []'
+        for _ in range(1024):
+            sent += 1
+            yield chunk
+        yield b"}"
+
+    async def post() -> httpx.Response:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app),
+                                     base_url="http://testserver") as http:
+            if chunked:
+                return await http.post("/v1/jobs", content=body(), headers=headers)
+            return await http.post("/v1/jobs", content=b"[" + b" " * 200_000 + b"]",
+                                   headers={**headers, "Content-Type": "application/json"})
+
+    r = anyio.run(post)
+    assert r.status_code == 413, r.text
+    assert r.json()["detail"] == ("the request body is larger than 100000 bytes "
+                                  "(PRISM_REQUEST_MAX_BYTES)")
+    assert sent <= 100_000 // len(chunk) + 2  # read just past the cap
+
+
+def test_a_job_body_under_the_cap_is_read_as_usual(settings, objects):
+    # 2,000 items of ~330 bytes: about 0.7 MB of JSON under the default cap of 16 MiB.
+    app = create_app()
+    app.dependency_overrides[get_settings] = lambda: settings
+    with TestClient(app) as client:
+        ref = client.post("/v1/uploads", files={"file": ("a.png", b"\x89PNG")}, headers=ACME)
+        item = {"image": ref.json()["reference"], "points": [[10, 10], [110, 12], [108, 80],
+                                                              [150, 6], [200, 8]]}
+        r = client.post("/v1/jobs", json={"items": [item] * 2000}, headers=ACME)
+    assert r.status_code == 202, r.text
+    assert len(r.json()["items"]) == 2000

@@ -1,0 +1,56 @@
+"""A cap on request bodies, enforced while they arrive.
+
+FastAPI reads a JSON body whole before any dependency runs, the API key check included, so
+without a cap anyone could make an API process buffer as much as they care to send. Uploads
+have their own, larger limit (routes/uploads.py) and are checked after the key, so they pass.
+A declared Content-Length over the cap is refused unread; a chunked body is counted as it comes
+and refused as soon as it passes the cap.
+"""
+
+from __future__ import annotations
+
+from fastapi import HTTPException, status
+from prism_common.settings import get_settings
+from starlette.responses import JSONResponse
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+__all__ = ["BodyLimit"]
+
+_EXEMPT = ("/v1/uploads",)  # streamed to storage under PRISM_UPLOAD_MAX_BYTES
+
+
+def _too_large(limit: int) -> str:
+    return f"the request body is larger than {limit} bytes (PRISM_REQUEST_MAX_BYTES)"
+
+
+class BodyLimit:
+    """ASGI middleware: 413 for bodies over `Settings.request_max_bytes`, outside uploads."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["path"].rstrip("/") in _EXEMPT:
+            await self.app(scope, receive, send)
+            return
+        # The settings the routes see, overrides included (as in main.lifespan).
+        limit = scope["app"].dependency_overrides.get(get_settings, get_settings)().request_max_bytes
+        length = dict(scope["headers"]).get(b"content-length", b"")
+        if length.isdigit() and int(length) > limit:
+            response = JSONResponse({"detail": _too_large(limit)}, headers={"Connection": "close"},
+                                    status_code=status.HTTP_413_CONTENT_TOO_LARGE)
+            await response(scope, receive, send)
+            return
+        seen = 0
+
+        async def counted() -> Message:
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > limit:
+                    raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit),
+                                        headers={"Connection": "close"})
+            return message
+
+        await self.app(scope, counted, send)
