@@ -58,18 +58,24 @@ def get_store(settings: SettingsDep, client: RedisDep) -> JobStore:
     return _once(("store", settings.redis_url), lambda: JobStore(client))
 
 
-def get_objects(settings: SettingsDep) -> ObjectStore:
+def _s3(settings: Settings, *, for_links: bool = False) -> tuple:
+    """What an S3 client is built from, as a key for _once."""
     key_id, secret = settings.s3_access_key_id, settings.s3_secret_access_key
-    key = ("s3", settings.s3_endpoint_url, settings.s3_region, settings.s3_bucket,
-           key_id.get_secret_value() if key_id else None, secret.get_secret_value() if secret else None)
-    return _once(key, lambda: ObjectStore.from_settings(settings))
+    endpoint = (for_links and settings.s3_public_endpoint_url) or settings.s3_endpoint_url
+    return (endpoint, settings.s3_region, settings.s3_bucket,
+            key_id.get_secret_value() if key_id else None,
+            secret.get_secret_value() if secret else None)
 
 
-def get_presigner(settings: SettingsDep,
-                  objects: Annotated[ObjectStore, Depends(get_objects)]) -> Presigner:
-    # id() is safe here: the object store it names is kept in _built for good.
-    return _once(("presign", id(objects), settings.presign_ttl_s),
-                 lambda: Presigner(objects, settings.presign_ttl_s))
+def get_objects(settings: SettingsDep) -> ObjectStore:
+    return _once(("s3", *_s3(settings)), lambda: ObjectStore.from_settings(settings))
+
+
+def get_presigner(settings: SettingsDep) -> Presigner:
+    # Its own client: links are signed for the host clients reach (s3_public_endpoint_url).
+    return _once(("presign", *_s3(settings, for_links=True), settings.presign_ttl_s),
+                 lambda: Presigner(ObjectStore.from_settings(settings, for_links=True),
+                                   settings.presign_ttl_s))
 
 
 def get_celery(settings: SettingsDep) -> Celery:

@@ -25,6 +25,9 @@ class Settings(BaseSettings):
 
     redis_url: str = "redis://127.0.0.1:6379/0"
     s3_endpoint_url: str | None = None  # None: AWS S3
+    # The store as clients reach it, for the presigned download links (the signature covers the
+    # host, so links cannot be rewritten afterwards). None: s3_endpoint_url.
+    s3_public_endpoint_url: str | None = None
     s3_region: str = "us-east-1"
     s3_bucket: str = "prismcloud"
     s3_access_key_id: SecretStr | None = None  # None: boto3's usual chain (AWS_* variables, ...)

@@ -45,12 +45,16 @@ class ObjectStore:
         self.bucket = bucket
 
     @classmethod
-    def from_settings(cls, settings: Settings) -> ObjectStore:
+    def from_settings(cls, settings: Settings, *, for_links: bool = False) -> ObjectStore:
+        """The service's bucket; `for_links`: at the public endpoint, to presign downloads."""
+        endpoint = settings.s3_endpoint_url
+        if for_links and settings.s3_public_endpoint_url:
+            endpoint = settings.s3_public_endpoint_url
         secret = settings.s3_secret_access_key
         key_id = settings.s3_access_key_id
         client = boto3.client(
             "s3",
-            endpoint_url=settings.s3_endpoint_url,
+            endpoint_url=endpoint,
             region_name=settings.s3_region,
             aws_access_key_id=key_id.get_secret_value() if key_id else None,
             aws_secret_access_key=secret.get_secret_value() if secret else None,

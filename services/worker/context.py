@@ -15,7 +15,7 @@ from prism_common.settings import Settings, get_settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
 
-__all__ = ["objects", "redis_client", "settings", "store"]
+__all__ = ["link_objects", "objects", "redis_client", "settings", "store"]
 
 log = logging.getLogger(__name__)
 
@@ -41,9 +41,15 @@ def objects() -> ObjectStore:
     return ObjectStore.from_settings(settings())
 
 
+@cache
+def link_objects() -> ObjectStore:
+    """The bucket at its public endpoint: presigns the links clients download from."""
+    return ObjectStore.from_settings(settings(), for_links=True)
+
+
 @worker_process_init.connect
 def _fresh_clients(**_: object) -> None:
-    for made in (redis_client, store, objects):
+    for made in (redis_client, store, objects, link_objects):
         made.cache_clear()
 
 

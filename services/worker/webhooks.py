@@ -28,7 +28,7 @@ class WebhookError(Exception):
 
 def job_resource(job: JobRecord) -> JobPublic:
     """The job as the API answers it, with presigned download links for finished items."""
-    ttl, objects = context.settings().presign_ttl_s, context.objects()
+    ttl, objects = context.settings().presign_ttl_s, context.link_objects()
     return to_public(job, lambda key, name: objects.presign_get(key, ttl, filename=name))
 
 

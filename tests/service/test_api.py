@@ -529,6 +529,24 @@ def test_results_and_presigned_downloads(client, store, objects):
     assert client.get(f"/v1/jobs/{job_id}", headers=GLOBEX).status_code == 404
 
 
+def test_download_links_are_signed_for_the_public_endpoint(make_client, settings, store, objects):
+    # The API talks to the store at 127.0.0.1; clients are told another name for it.
+    public = settings.s3_endpoint_url.replace("127.0.0.1", "localhost")
+    client = make_client(s3_public_endpoint_url=public)
+    job_id = submit(client, [item(upload(client))]).json()["id"]
+    record = store.get(job_id)
+    store.put_item(job_id, record.items[0].model_copy(update={
+        "state": State.succeeded, "result": ItemResult(points=1, point_loss=0.0, dimensions={
+            "width": 1.0, "height": 1.0, "depth": 1.0, "unit": "mm"}),
+        "outputs": {"csv": f"jobs/{job_id}/0/cloud.csv"}}))
+    objects.put_bytes(f"jobs/{job_id}/0/cloud.csv", b"4,5,6\n")
+    store.transition(job_id, State.succeeded)
+    url = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0]["downloads"]["csv"]
+    assert url.startswith(public + "/"), url
+    got = httpx.get(url)  # the signature holds for the host the client used
+    assert got.status_code == 200 and got.content == b"4,5,6\n"
+
+
 # -- probes, metrics, OpenAPI -----------------------------------------------------------------
 def test_probes_need_no_key(client):
     assert client.get("/healthz").json() == {"status": "ok"}
