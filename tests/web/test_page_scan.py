@@ -4,6 +4,8 @@ real worker, its dimensions checked against the synthetic box's true size, the c
 from __future__ import annotations
 
 import json
+import math
+import re
 
 import httpx
 import numpy as np
@@ -118,3 +120,34 @@ def test_two_square_photos(page, stack, tmp_path, extra):
     page.get_by_label("Millimetres per pixel (side photo, optional)").fill(str(side.mm_per_px))
     assert "Done" in d.submit_and_wait()
     _close(d.dimensions(), BOX)
+    if not extra:
+        _a_large_cloud_is_thinned_for_display(page, d)
+
+
+def _ply(n: int) -> bytes:
+    """A binary PLY of n points on a 120 x 80 mm plate, coloured by position."""
+    rng = np.random.default_rng(0)
+    rows = np.zeros(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
+                              ("red", "u1"), ("green", "u1"), ("blue", "u1")])
+    rows["x"], rows["y"] = rng.uniform(0, 120, n), rng.uniform(0, 80, n)
+    rows["red"], rows["green"] = rows["x"] * 2, rows["y"] * 3
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\n"
+              "property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
+              "property uchar blue\nend_header\n")
+    return header.encode() + rows.tobytes()
+
+
+def _a_large_cloud_is_thinned_for_display(page, d: PageDriver) -> None:
+    # Worker previews stop at 100k points; a larger cloud (an older or another producer's
+    # preview) is thinned by the page to every k-th point, at most 200k.
+    n, limit = 300_001, 200_000
+    big = _ply(n)
+    page.route(re.compile(r".*/preview\.ply$"), lambda route: route.fulfill(
+        body=big, content_type="application/octet-stream"))
+    page.get_by_role("button", name=re.compile(r"Open job \w+ \(succeeded\)")).first.click()
+    status = page.locator("#viewer-status")
+    expect(status).to_contain_text(f"thinned from {n:,} for display", timeout=30_000)
+    kept = math.ceil(n / math.ceil(n / limit))
+    assert page.locator("#viewer").get_attribute("data-points") == str(kept)
+    assert f"Showing {kept:,}" in status.text_content()
+    assert d.viewer_pixels().std() > 5  # drawn, not a flat fill
