@@ -1,8 +1,9 @@
 """Job store benchmark: what a task about one item pays to read it, in a big job.
 
 A worker task reads its item (and the job facts it needs) several times per item; reading the
-whole record of a 5000-item job each time would cost more than scanning the photo. Prints the
-whole-job read against the one-item read on a real redis-server, side by side.
+whole record of a 5000-item job each time would cost more than scanning the photo. A client
+polling a big job reads a page of its items (or none). Prints the whole-job read against the
+one-item read and the pages, on a real redis-server, side by side.
 
 Run: .venv/bin/python benchmarks/store.py [--items 5000] [--runs 20]
 """
@@ -51,6 +52,7 @@ def main() -> None:
         store.create(job)
         whole = _ms(lambda: store.get(job.id), args.runs)
         one = _ms(lambda: store.get_item(job.id, args.items - 1), args.runs)
+        pages = {n: _ms(lambda n=n: store.get_page(job.id, 0, n), args.runs) for n in (0, 100)}
     finally:
         server.stop()
     table = Table(title=f"reading a {args.items}-item job (mean of {args.runs} runs)")
@@ -58,7 +60,10 @@ def main() -> None:
         table.add_column(col)
     table.add_row("the whole job (JobStore.get)", f"{whole:.2f}")
     table.add_row("one item and its job's facts (JobStore.get_item)", f"{one:.2f}")
-    table.add_row("ratio", f"{whole / one:.0f}x")
+    table.add_row("ratio whole / one item", f"{whole / one:.0f}x")
+    for n, ms in pages.items():
+        table.add_row(f"a poll's page of {n} items (JobStore.get_page)",
+                      f"{ms:.2f}  ({whole / ms:.0f}x less)")
     Console().print(table)
 
 

@@ -69,6 +69,8 @@ class JobPublic(BaseModel):
     client_reference: str | None
     webhook_url: str | None
     error: str | None
+    item_count: int = Field(ge=0, description="How many items the job has; `items` holds those "
+                                              "asked for with item_offset and item_limit (all by default).")
     items: list[ItemPublic]
 
 
@@ -82,8 +84,10 @@ def _result(result: ItemResult | None) -> ResultPublic | None:
     return ResultPublic.model_validate(result.model_dump()) if result else None
 
 
-def to_public(job: JobRecord, url_for: Callable[[str, str], str]) -> JobPublic:
-    """The client's view of `job`; `url_for(object_key, filename)` makes each download URL."""
+def to_public(job: JobRecord, url_for: Callable[[str, str], str],
+              item_count: int | None = None) -> JobPublic:
+    """The client's view of `job`; `url_for(object_key, filename)` makes each download URL.
+    `item_count`: how many items the job has, when `job` holds only a page of them."""
     items = []
     for item in job.items:
         downloads = {kind: url_for(key, download_name(job.id, item.index, kind))
@@ -94,4 +98,5 @@ def to_public(job: JobRecord, url_for: Callable[[str, str], str]) -> JobPublic:
                   for f in item.frames]
         items.append(ItemPublic(index=item.index, state=item.state, error=item.error,
                                 result=_result(item.result), downloads=downloads, frames=frames))
-    return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items)
+    return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items,
+                     item_count=len(job.items) if item_count is None else item_count)

@@ -33,6 +33,9 @@ from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord,
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
 
 _P = "prism:"
+# A job hash's fields other than its items and frames.
+_JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
+               "units_done"]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
 
@@ -129,6 +132,27 @@ class JobStore:
         """The job as it stands now, or None."""
         fields = self._r.hgetall(f"{_P}job:{job_id}")
         return _job(fields) if fields else None
+
+    def get_page(self, job_id: str, offset: int, limit: int) -> tuple[JobRecord, int] | None:
+        """The job with only its items offset..offset+limit-1 (fewer past the end), and how many
+        items it has: a poll of a large job reads and parses only the page asked for."""
+        key = f"{_P}job:{job_id}"
+        base = dict(zip(_JOB_FIELDS, self._r.hmget(key, _JOB_FIELDS), strict=True))
+        if base["doc"] is None:
+            return None
+        n = int(base["n_items"])
+        indices = range(min(offset, n), min(offset + limit, n))
+        fields = {k: v for k, v in base.items() if v is not None}
+        if indices:
+            names = [f"item:{i}" for i in indices]
+            fields.update(zip(names, self._r.hmget(key, names), strict=True))
+        job = _job(fields, indices)
+        for item in job.items:
+            if item.spec.is_video:  # its frames are fields of their own, found by name
+                found = self._r.hscan_iter(key, match=f"frame:{item.index}:*", count=1000)
+                item.frames = [FrameRecord.model_validate_json(v) for _, v in
+                               sorted(found, key=lambda kv: int(kv[0].rsplit(":", 1)[1]))]
+        return job, n
 
     def get_item(self, job_id: str, index: int) -> ItemView | None:
         """One item and the job facts its tasks need, without reading the rest of the job."""
@@ -238,15 +262,17 @@ class JobStore:
         return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
 
 
-def _job(fields: dict[str, str]) -> JobRecord:
-    """A job record from its hash's fields."""
-    n = int(fields["n_items"])
-    items = [ItemRecord.model_validate_json(fields[f"item:{i}"]) for i in range(n)]
+def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
+    """A job record from its hash's fields, with the items at `indices` (default: all)."""
+    if indices is None:
+        indices = range(int(fields["n_items"]))
+    items = {i: ItemRecord.model_validate_json(fields[f"item:{i}"]) for i in indices}
     frames = sorted((int(k.split(":")[1]), int(k.split(":")[2]), v) for k, v in fields.items()
                     if k.startswith("frame:"))
     for i, _, value in frames:
-        items[i].frames.append(FrameRecord.model_validate_json(value))
-    job = JobRecord.model_validate({**json.loads(fields["doc"]), "items": items})
+        if i in items:
+            items[i].frames.append(FrameRecord.model_validate_json(value))
+    job = JobRecord.model_validate({**json.loads(fields["doc"]), "items": list(items.values())})
     job.state = State(fields["state"])
     for name in ("started_at", "finished_at"):
         if fields.get(name):

@@ -547,6 +547,33 @@ def test_download_links_are_signed_for_the_public_endpoint(make_client, settings
     assert got.status_code == 200 and got.content == b"4,5,6\n"
 
 
+@pytest.mark.parametrize("query", ["item_offset=1&item_limit=2", "item_offset=3", "item_limit=0",
+                                   "item_offset=9&item_limit=1"])
+def test_a_page_of_items_is_that_slice_of_the_whole_job(client, store, query):
+    ref = upload(client)
+    job_id = submit(client, [item(ref) for _ in range(5)]).json()["id"]
+    record = store.get(job_id)
+    store.put_item(job_id, record.items[2].model_copy(update={"state": State.failed, "error": "e"}))
+    whole = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()
+    got = client.get(f"/v1/jobs/{job_id}?{query}", headers=ACME).json()
+    params = dict(pair.split("=") for pair in query.split("&"))
+    offset, limit = int(params.get("item_offset", 0)), int(params.get("item_limit", 10**9))
+    assert got["items"] == whole["items"][offset:offset + limit]
+    assert {k: v for k, v in got.items() if k != "items"} == {k: v for k, v in whole.items()
+                                                                if k != "items"}
+    assert got["item_count"] == whole["item_count"] == 5
+    # Paged or not, another tenant's job is not there.
+    assert client.get(f"/v1/jobs/{job_id}?{query}", headers=GLOBEX).status_code == 404
+
+
+@pytest.mark.parametrize("query", ["item_offset=-1", "item_limit=-1", "item_limit=10001",
+                                   "item_offset=x"])
+def test_bad_item_pages_are_422(client, query):
+    job_id = submit(client, [item(upload(client))]).json()["id"]
+    r = client.get(f"/v1/jobs/{job_id}?{query}", headers=ACME)
+    assert r.status_code == 422, r.text
+
+
 # -- probes, metrics, OpenAPI -----------------------------------------------------------------
 def test_probes_need_no_key(client):
     assert client.get("/healthz").json() == {"status": "ok"}

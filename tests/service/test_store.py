@@ -6,10 +6,10 @@ import uuid
 from datetime import UTC, datetime, timedelta
 
 import pytest
-from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.records import FrameRecord, ItemRecord, JobRecord, State
 from prism_common.store import IdempotencyConflictError
 
-from prismcore.spec import ScanSpec
+from prismcore.spec import FrameSelection, ScanSpec
 
 SPEC = ScanSpec(image="upload:abc", points=[[1, 1], [9, 1], [9, 9], [9, 1], [12, 1]])
 
@@ -89,3 +89,25 @@ def test_get_item_reads_one_item_with_its_jobs_facts(store):
     assert store.get_item(job.id, 2).item == job.items[2]
     assert store.get(job.id).items == [job.items[0], done, job.items[2]]  # the same truth
     assert store.get_item(job.id, 3) is None and store.get_item(uuid.uuid4().hex, 0) is None
+
+
+@pytest.mark.parametrize(("offset", "limit"), [(0, 7), (2, 3), (3, 1), (5, 10), (7, 5), (0, 0), (99, 1)])
+def test_a_page_of_items_is_the_same_slice_as_the_whole_job(store, offset, limit):
+    # Items 3 and 5 are videos with frames (stored as fields of their own), one frame left out
+    # of order, so the page must find and sort them as the whole read does.
+    video = SPEC.model_copy(update={"image": "upload:v", "frames": FrameSelection(every=2)})
+    job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
+                    items=[ItemRecord(index=i, spec=video if i in (3, 5) else SPEC) for i in range(7)])
+    store.create(job)
+    store.transition(job.id, State.running)
+    for item, frames in ((3, (4, 0, 2)), (5, (10,))):
+        for n in frames:
+            store.put_frame(job.id, item, FrameRecord(index=n, state=State.succeeded))
+    store.put_item(job.id, job.items[6].model_copy(update={"state": State.failed, "error": "x"}))
+    whole = store.get(job.id)
+    page, count = store.get_page(job.id, offset, limit)
+    assert count == 7
+    assert page.items == whole.items[offset:offset + limit]
+    assert page.model_dump(exclude={"items"}) == whole.model_dump(exclude={"items"})
+    assert [f.index for f in whole.items[3].frames] == [0, 2, 4]
+    assert store.get_page(uuid.uuid4().hex, 0, 1) is None

@@ -34,14 +34,18 @@ log = logging.getLogger(__name__)
 _JOB_ID = re.compile(r"^[0-9a-f]{32}$")
 
 
-def to_public(job: JobRecord, presigner: Presigner) -> JobPublic:
-    return public.to_public(job, presigner.url)
+def to_public(job: JobRecord, presigner: Presigner, item_count: int | None = None) -> JobPublic:
+    return public.to_public(job, presigner.url, item_count)
+
+
+def _not_found(job_id: str) -> HTTPException:
+    return HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id[:64]!r}")
 
 
 def own_job(store: JobStore, job_id: str, tenant: str) -> JobRecord:
     job = store.get(job_id) if _JOB_ID.match(job_id) else None
     if job is None or job.tenant != tenant:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no job {job_id[:64]!r}")
+        raise _not_found(job_id)
     return job
 
 
@@ -110,8 +114,18 @@ def list_jobs(tenant: TenantDep, store: StoreDep, presigner: PresignerDep,
 
 
 @router.get("/{job_id}", response_model=JobPublic, responses={404: {"description": "No such job"}})
-def get_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep) -> JobPublic:
-    return to_public(own_job(store, job_id, tenant), presigner)
+def get_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: PresignerDep,
+            item_offset: Annotated[int, Query(ge=0, le=10**9)] = 0,
+            item_limit: Annotated[int | None, Query(ge=0, le=10_000)] = None) -> JobPublic:
+    """The job, with all its items, or the page of them that item_offset and item_limit name
+    (item_limit=0: none, for a cheap poll of a large job's state and progress)."""
+    if item_offset == 0 and item_limit is None:
+        return to_public(own_job(store, job_id, tenant), presigner)
+    page = store.get_page(job_id, item_offset, 10**9 if item_limit is None else item_limit) \
+        if _JOB_ID.match(job_id) else None
+    if page is None or page[0].tenant != tenant:
+        raise _not_found(job_id)
+    return to_public(page[0], presigner, page[1])
 
 
 @router.post("/{job_id}/cancel", response_model=JobPublic,
