@@ -53,22 +53,25 @@ class ApiClient:
         headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
         return self._call("POST", "/v1/jobs", json=body, headers=headers).json()
 
-    def job(self, job_id: str) -> dict:
-        return self._call("GET", f"/v1/jobs/{job_id}").json()
+    def job(self, job_id: str, *, items: bool = True) -> dict:
+        """The job; without its items (state and progress only) when `items` is False."""
+        params = {} if items else {"item_limit": 0}
+        return self._call("GET", f"/v1/jobs/{job_id}", params=params).json()
 
     def cancel(self, job_id: str) -> dict:
         return self._call("POST", f"/v1/jobs/{job_id}/cancel").json()
 
     def wait(self, job_id: str, *, timeout: float, poll_s: float = 0.5,
              on_update: Callable[[dict], None] | None = None) -> dict:
-        """Poll until the job is final; ApiError if `timeout` seconds pass first."""
+        """Poll until the job is final, then return it whole; ApiError if `timeout` seconds pass
+        first. The polls leave out the items: a big job's would be megabytes each time."""
         deadline = time.monotonic() + timeout
         while True:
-            job = self.job(job_id)
+            job = self.job(job_id, items=False)
             if on_update:
                 on_update(job)
             if job["state"] in FINAL_STATES:
-                return job
+                return self.job(job_id)
             if time.monotonic() > deadline:
                 raise ApiError(f"job {job_id} still {job['state']} after {timeout:g} s")
             time.sleep(poll_s)
