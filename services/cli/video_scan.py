@@ -17,7 +17,7 @@ from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
 from prismcore.spec import SUMMARY_NAME, frame_folder
-from prismcore.summary import DIMENSIONS, summarize
+from prismcore.summary import DIMENSIONS, frame_info, summarize
 from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
 
 from .outputs import report_path, write_outputs
@@ -44,7 +44,7 @@ def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tile
              decode_ms: float) -> dict:
     one = frame_spec(spec, index)
     result = run_scan(one, frame, tiles=tiles)
-    result.report["frame"] = {"index": index, "time_s": round(index / info.fps, 6) if info.fps else None}
+    result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
     write_outputs(result, one, folder)

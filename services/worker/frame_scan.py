@@ -16,7 +16,7 @@ from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView
 from prismcore import InputError, run_scan
 from prismcore.images import load_image
 from prismcore.spec import SUMMARY_NAME
-from prismcore.summary import summarize
+from prismcore.summary import frame_info, summarize
 from prismcore.video import frame_spec
 
 from . import context, fanout
@@ -35,7 +35,10 @@ def scan_frame(view: ItemView, frame: int) -> None:
         photo_spec = frame_spec(spec, frame)
         data = context.objects().get_bytes(frame_key(job_id, item, frame, "frame.png"))
         image = load_image(data, max_pixels=max_pixels(spec.max_pixels), name=f"frame {frame}")
-        result, outputs = write_outputs(job_id, item, photo_spec, run_scan(photo_spec, image), frame=frame)
+        scan = run_scan(photo_spec, image)
+        fps = _frames(item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
+        scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
+        result, outputs = write_outputs(job_id, item, photo_spec, scan, frame=frame)
     except InputError as exc:
         record = FrameRecord(index=frame, state=State.failed, error=str(exc))
     else:
@@ -79,6 +82,9 @@ def _finish_video(job_id: str, item: int, frames: dict, *, maybe_repeat: bool) -
             fanout.fail_item(job_id, item, f"no frame could be measured (frame {first['frame']}: "
                                            f"{first['error']})")
         else:
+            # The same document as the CLI's summary.json; the video named by its reference.
+            summary["video"] = {"reference": view.item.spec.image, **frames["video"]}
+            summary["selection"] = view.item.spec.frames.model_dump(mode="json", exclude_none=True)
             key = item_key(job_id, item, SUMMARY_NAME)
             context.objects().put_json(key, summary)
             dims = {k: v["median"] for k, v in summary["dimensions"].items()}

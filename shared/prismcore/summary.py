@@ -8,7 +8,7 @@ from __future__ import annotations
 import statistics
 from collections.abc import Mapping
 
-__all__ = ["DECIMALS", "DIMENSIONS", "summarize"]
+__all__ = ["DECIMALS", "DIMENSIONS", "frame_info", "summarize"]
 
 DIMENSIONS = ("width", "height", "depth")
 DECIMALS = 6  # the figures are rounded to this many decimals (the reports' dimensions have 4)
@@ -27,6 +27,12 @@ def _stats(values: list[float]) -> dict[str, float | None]:
         "relative_spread": spread / abs(median) if median else None,
     }
     return {k: None if v is None else round(v, DECIMALS) for k, v in stats.items()}
+
+
+def frame_info(index: int, fps: float | None) -> dict[str, int | float | None]:
+    """What a frame's report.json says of the frame: ``{"index", "time_s"}`` (s; None without
+    a frame rate)."""
+    return {"index": int(index), "time_s": round(index / fps, 6) if fps else None}
 
 
 def summarize(per_frame: Mapping[int, Mapping], *, fps: float | None = None) -> dict:
@@ -67,7 +73,7 @@ def summarize(per_frame: Mapping[int, Mapping], *, fps: float | None = None) -> 
             raise ValueError(f"frame {index}: the report has no dimensions and no error")
         row: dict = {"frame": int(index)}
         if fps:
-            row["time_s"] = round(index / fps, 6)
+            row["time_s"] = frame_info(index, fps)["time_s"]
         row.update({k: float(dims[k]) for k in DIMENSIONS})
         row["unit"] = dims.get("unit")
         measured.append(row)

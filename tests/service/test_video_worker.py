@@ -21,6 +21,7 @@ from .worker_env import NAMES, Env, encode, spec_for, worker_env
 
 BOX = Box(120.0, 80.0, 60.0)
 FRAMES = 6
+FPS = 12.0
 CAP = 5  # frames per job
 FRAME_FILES = {"frame.png", "cloud.csv", "cloud.ply", "preview.ply", "report.json"}
 
@@ -36,7 +37,7 @@ def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
 def clip(tmp_path_factory) -> tuple[list, bytes]:
     scenes = render_clip(BOX, FRAMES, seed=3)
     path = Path(tmp_path_factory.mktemp("clip")) / "clip.avi"
-    write_video((s.image for s in scenes), path, codec="MJPG")
+    write_video((s.image for s in scenes), path, codec="MJPG", fps=FPS)
     return scenes, path.read_bytes()
 
 
@@ -74,8 +75,13 @@ def test_a_video_is_measured_frame_by_frame_beside_photos_and_bad_videos(env, cl
         widths.append(dims["width"])
         report = json.loads(env.objects.get_bytes(frame.outputs["report"]))
         assert report["dimensions"] == frame.result.dimensions
+        # As the CLI's per-frame report: which frame, and when (the clip runs at FPS).
+        assert report["frame"] == {"index": frame.index, "time_s": pytest.approx(frame.index / FPS, abs=1e-6)}
     summary = json.loads(env.objects.get_bytes(video.outputs["summary"]))
     assert summary == video.result.summary
+    assert summary["selection"] == {"every": 2}
+    assert summary["video"]["reference"] == specs[0].image
+    assert (summary["video"]["frame_count"], summary["video"]["width"]) == (FRAMES, scenes[0].image.shape[1])
     assert summary["frames"] == {"selected": 3, "measured": 3, "failed": 0}
     assert summary["dimensions"]["width"]["median"] == pytest.approx(statistics.median(widths), abs=1e-6)
     assert summary["dimensions"]["width"]["spread"] == pytest.approx(max(widths) - min(widths), abs=1e-6)
