@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ssl
 import time
+from typing import BinaryIO
 
 import httpx
 from prism_common.settings import Settings
@@ -33,7 +34,9 @@ def _client(settings: Settings) -> httpx.Client:
     return httpx.Client(verify=context, timeout=TIMEOUT, trust_env=False, follow_redirects=False)
 
 
-def _read(response: httpx.Response, url: str, limit: int, deadline: float) -> bytes:
+def _read(response: httpx.Response, url: str, limit: int, deadline: float,
+          dest: BinaryIO | None) -> bytes:
+    """The body (or, given `dest`, b"" and the body written into it as it comes)."""
     declared = response.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
         raise FetchError(f"{url} is {int(declared)} bytes, over the limit of {limit} bytes")
@@ -44,12 +47,16 @@ def _read(response: httpx.Response, url: str, limit: int, deadline: float) -> by
             raise FetchError(f"{url} is larger than the limit of {limit} bytes")
         if time.monotonic() > deadline:
             raise FetchError(f"{url} took longer than {DEADLINE_S:g} s to download")
-        chunks.append(chunk)
+        if dest is None:
+            chunks.append(chunk)
+        else:
+            dest.write(chunk)
     return b"".join(chunks)
 
 
-def fetch_url(url: str, settings: Settings) -> bytes:
-    """The body of `url`.
+def fetch_url(url: str, settings: Settings, dest: BinaryIO | None = None) -> bytes:
+    """The body of `url`; or, given `dest`, b"" and the body streamed into it (a video is never
+    held whole; on an error `dest` may hold part of it).
 
     Raises
     ------
@@ -74,7 +81,7 @@ def fetch_url(url: str, settings: Settings) -> bytes:
                         continue
                     if response.status_code != 200:
                         raise FetchError(f"{url} answered HTTP {response.status_code}")
-                    return _read(response, url, settings.fetch_max_bytes, deadline)
+                    return _read(response, url, settings.fetch_max_bytes, deadline, dest)
             except httpx.HTTPError as exc:
                 raise FetchError(f"cannot fetch {url}: {exc or type(exc).__name__}") from None
         raise FetchError(f"{url}: more than {MAX_REDIRECTS} redirects")

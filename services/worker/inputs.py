@@ -58,11 +58,7 @@ def _read(text: str, tenant: str, dest: BinaryIO | None = None) -> tuple[bytes, 
         return data, upload.get("name") or text
     if ref.kind == "s3":
         return _read_s3(ref.bucket, ref.key, text, settings.fetch_max_bytes, dest), text
-    data = fetch_url(ref.url, settings)  # held once, under PRISM_FETCH_MAX_BYTES
-    if dest is None:
-        return data, ref.url
-    dest.write(data)
-    return b"", ref.url
+    return fetch_url(ref.url, settings, dest), ref.url
 
 
 def read_input(view: ItemView, which: str) -> tuple[bytes, str]:

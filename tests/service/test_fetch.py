@@ -6,13 +6,11 @@ service, and must not have been connected to.
 
 from __future__ import annotations
 
-import shutil
+import io
 import socket
-import ssl
-import subprocess
-import threading
+import time
 from collections.abc import Iterator
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler
 from pathlib import Path
 from typing import ClassVar
 
@@ -24,6 +22,7 @@ from prism_worker.egress import check_target
 from prism_worker.fetch import FetchError, fetch_url
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
+from .tls import https_server, make_cert
 
 LIMIT = 2000
 
@@ -43,6 +42,13 @@ class _Handler(BaseHTTPRequestHandler):
             self.end_headers()
             for _ in range(3):
                 self.wfile.write(b"y" * 1000)
+        elif path == "/pieces":  # a body that arrives in parts, as a large video's would
+            self.send_response(200)
+            self.end_headers()
+            for n in range(3):
+                self.wfile.write(bytes([65 + n]) * 500)
+                self.wfile.flush()
+                time.sleep(0.05)
         elif path == "/redirect":
             self.send_response(302)
             self.send_header("Location", query)
@@ -68,26 +74,13 @@ class _Handler(BaseHTTPRequestHandler):
 
 @pytest.fixture(scope="module")
 def cert(tmp_path_factory) -> Path:
-    # openssl is on every machine this project runs on; missing, the test must fail, not pass.
-    assert shutil.which("openssl"), "the openssl command is needed to make a test certificate"
-    folder = tmp_path_factory.mktemp("tls")
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2",
-                    "-keyout", str(folder / "key.pem"), "-out", str(folder / "cert.pem"),
-                    "-subj", "/CN=localhost", "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1"],
-                   check=True, capture_output=True)
-    return folder
+    return make_cert(tmp_path_factory.mktemp("tls"))
 
 
 @pytest.fixture(scope="module")
 def https_port(cert) -> Iterator[int]:
-    server = ThreadingHTTPServer(("127.0.0.1", 0), _Handler)
-    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
-    context.load_cert_chain(cert / "cert.pem", cert / "key.pem")
-    server.socket = context.wrap_socket(server.socket, server_side=True)
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    yield server.server_address[1]
-    server.shutdown()
-    server.server_close()
+    with https_server(cert, _Handler) as port:
+        yield port
 
 
 def _settings(cert: Path | None = None, hosts: tuple[str, ...] = ("localhost",),
@@ -103,6 +96,20 @@ def test_fetches_an_allowed_host_with_its_name_in_host_and_tls(cert, https_port)
     # Connected to the checked address, but the server saw the name (Host header; the
     # certificate was verified against it).
     assert _Handler.hosts == [f"localhost:{https_port}"]
+
+
+def test_a_body_can_be_streamed_into_a_file_as_it_arrives(cert, https_port):
+    writes: list[int] = []
+
+    class Recorder(io.BytesIO):
+        def write(self, data) -> int:
+            writes.append(len(data))
+            return super().write(data)
+
+    dest = Recorder()
+    assert fetch_url(f"https://localhost:{https_port}/redirect?/pieces", _settings(cert), dest) == b""
+    assert dest.getvalue() == b"A" * 500 + b"B" * 500 + b"C" * 500
+    assert len(writes) > 1 and max(writes) < 1500  # written part by part, never held whole
 
 
 def test_certificates_are_verified(https_port):

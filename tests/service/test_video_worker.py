@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import statistics
 from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,8 @@ from prismcore.spec import ScanSpec, frame_folder
 from prismcore.synth import Box
 from prismcore.synth_video import render_clip, write_video
 
-from .worker_env import NAMES, Env, encode, spec_for, worker_env
+from .tls import https_server, make_cert
+from .worker_env import INPUTS_BUCKET, NAMES, Env, encode, spec_for, worker_env
 
 BOX = Box(120.0, 80.0, 60.0)
 FRAMES = 6
@@ -27,9 +29,17 @@ FRAME_FILES = {"frame.png", "cloud.csv", "cloud.ply", "preview.ply", "report.jso
 
 
 @pytest.fixture(scope="module")
-def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
+def cert(tmp_path_factory) -> Path:
+    return make_cert(tmp_path_factory.mktemp("tls"))
+
+
+@pytest.fixture(scope="module")
+def env(redis_server, s3_server, tmp_path_factory, cert) -> Iterator[Env]:
+    fetch = {"FETCH_ALLOWED_HOSTS": '["localhost"]', "FETCH_ALLOW_PRIVATE": "true",
+             "FETCH_CA_BUNDLE": str(cert / "cert.pem")}
     with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=5,
-                    bucket="t-video", tiles_per_face=4, items_in_flight=2, max_frames=CAP) as made:
+                    bucket="t-video", tiles_per_face=4, items_in_flight=2, max_frames=CAP,
+                    extra_env=fetch) as made:
         yield made
 
 
@@ -96,6 +106,36 @@ def test_a_video_is_measured_frame_by_frame_beside_photos_and_bad_videos(env, cl
     total, done = env.units(job.id)
     # video: plan, 3 frames, complete; photo: plan, 2 faces x 2 tiles, complete; junk: plan, complete
     assert total == done == (1 + 3 + 1) + (1 + 2 * 2 + 1) + 2
+
+
+def test_videos_from_a_bucket_and_an_https_url_are_streamed_and_measured(env, clip, cert):
+    scenes, video = clip
+    env.objects.client.put_object(Bucket=INPUTS_BUCKET, Key="videos/clip.avi", Body=video)
+
+    class Server(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_response(200)  # no Content-Length: the body arrives in parts until it ends
+            self.end_headers()
+            for start in range(0, len(video), 64 * 1024):
+                self.wfile.write(video[start:start + 64 * 1024])
+
+        def log_message(self, *args) -> None:
+            pass
+
+    with https_server(cert, Server) as port:
+        # Every 3rd frame of each: 4 in all, within the job's cap of CAP.
+        specs = [_video_spec(f"s3://{INPUTS_BUCKET}/videos/clip.avi", scenes, frames={"every": 3}),
+                 _video_spec(f"https://localhost:{port}/clip.avi", scenes, frames={"every": 3})]
+        job = env.wait(env.submit(specs), timeout=120)
+    assert job.state == State.succeeded, job
+    for item in job.items:
+        assert item.state == State.succeeded, item
+        assert [f.index for f in item.frames] == [0, 3]
+        for name, true in (("width", BOX.width_mm), ("height", BOX.height_mm), ("depth", BOX.depth_mm)):
+            assert abs(item.result.dimensions[name] / true - 1) < 0.02, (item.index, name)
+    # The same bytes, whichever way they came: the same measurements.
+    assert job.items[0].result == job.items[1].result.model_copy(
+        update={"summary": {**job.items[1].result.summary, "video": job.items[0].result.summary["video"]}})
 
 
 def test_per_frame_points_and_a_frame_that_fails_alone(env, clip):

@@ -85,8 +85,10 @@ class Env:
 @contextmanager
 def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir: Path, *, db: int,
                bucket: str, tiles_per_face: int, items_in_flight: int,
-               max_frames: int = 1000, stall_timeout_s: int = 600) -> Iterator[Env]:
-    """Start a worker with these settings on Redis database `db` and `bucket`; stop it after."""
+               max_frames: int = 1000, stall_timeout_s: int = 600,
+               extra_env: dict[str, str] | None = None) -> Iterator[Env]:
+    """Start a worker with these settings on Redis database `db` and `bucket`; stop it after.
+    `extra_env`: more PRISM_<NAME> settings for the worker process only, e.g. FETCH_CA_BUNDLE."""
     settings = Settings(
         api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
         redis_url=f"redis://127.0.0.1:{redis_server.port}/{db}",
@@ -103,7 +105,7 @@ def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir:
         WEBHOOK_ALLOW_PRIVATE="true", TILES_PER_FACE=str(tiles_per_face), VISIBILITY_TIMEOUT_S="10",
         ITEMS_IN_FLIGHT_PER_JOB=str(items_in_flight), MAX_FRAMES_PER_JOB=str(max_frames),
         JOB_STALL_TIMEOUT_S=str(settings.job_stall_timeout_s),
-        WATCHDOG_INTERVAL_S=str(settings.watchdog_interval_s))
+        WATCHDOG_INTERVAL_S=str(settings.watchdog_interval_s), **(extra_env or {}))
     objects = ObjectStore.from_settings(settings)
     objects.ensure_bucket()
     ObjectStore(objects.client, INPUTS_BUCKET).ensure_bucket()
