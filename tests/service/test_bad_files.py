@@ -148,6 +148,27 @@ def test_bad_video_fails_its_item_only_or_reads_what_is_there(stack, clip, case,
         assert spoilt["state"] == "succeeded", spoilt
 
 
+@pytest.mark.parametrize("case", ["no-frames", "indices-out-of-range"])
+def test_a_video_with_nothing_to_measure_fails_its_item_only(stack, clip, tmp_path, case, figures):
+    scenes, video = clip
+    if case == "no-frames":  # a well-formed AVI that holds no frame at all
+        path = tmp_path / "empty.avi"
+        cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48)).release()
+        bad = {**_video_item(stack.upload(path.read_bytes(), name="empty.avi"), scenes[0])}
+        needle = "'empty.avi'"
+    else:  # indices are checked against the video when it is read: the clip has 4 frames
+        bad = {**_video_item(stack.upload(video, name="clip.avi"), scenes[0]),
+               "frames": {"indices": [1, 9]}}
+        needle = "frame indices 9 out of range: 'clip.avi' has 4 frames (0-3)"
+    job_id = stack.submit([bad, item(stack.upload(GOOD), SCENE)])
+    job = stack.wait([job_id], timeout=90)[job_id]
+    figures["inputs tried"] += 1
+    spoilt, fine = job["items"]
+    assert job["state"] == "succeeded" and fine["state"] == "succeeded", job
+    assert spoilt["state"] == "failed" and needle in spoilt["error"], spoilt
+    assert "/tmp" not in spoilt["error"]
+
+
 def test_no_worker_died(stack):
     for worker in stack.workers:  # the bad files were refused, not crashed on: never restarted
         assert worker.proc is not None and worker.proc.poll() is None
