@@ -103,13 +103,9 @@ class JobStore:
         """
         digest = hashlib.sha256(body).hexdigest()
         if idempotency_key:
-            idem = f"{_P}idem:{job.tenant}:{hashlib.sha256(idempotency_key.encode()).hexdigest()}"
+            idem = _idem_key(job.tenant, idempotency_key)
             if not self._r.set(idem, f"{job.id} {digest}", nx=True, ex=7 * 86400):
-                existing_id, existing_digest = (self._r.get(idem) or " ").split(" ", 1)
-                if existing_digest != digest:
-                    raise IdempotencyConflictError(
-                        "this Idempotency-Key was already used with a different request body")
-                existing = self.get(existing_id)
+                existing = self.find_idempotent(job.tenant, idempotency_key, body)
                 if existing is not None:
                     return existing, False
                 # The first request's job write never landed: this one takes the key over.
@@ -127,6 +123,20 @@ class JobStore:
             pipe.zadd(f"{_P}state:queued", {job.id: score})
             pipe.execute()
         return job, True  # what get() would read back: queued, no progress, no timestamps
+
+    def find_idempotent(self, tenant: str, idempotency_key: str, body: bytes) -> JobRecord | None:
+        """The job this tenant's key already made, if any (and it was stored).
+
+        Raises IdempotencyConflictError if the key was used with a different body.
+        """
+        found = self._r.get(_idem_key(tenant, idempotency_key))
+        if found is None:
+            return None
+        existing_id, existing_digest = found.split(" ", 1)
+        if existing_digest != hashlib.sha256(body).hexdigest():
+            raise IdempotencyConflictError(
+                "this Idempotency-Key was already used with a different request body")
+        return self.get(existing_id)
 
     def get(self, job_id: str) -> JobRecord | None:
         """The job as it stands now, or None."""
@@ -260,6 +270,10 @@ class JobStore:
         """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
         extraction once, not at every poll (and again if that task got lost)."""
         return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
+
+
+def _idem_key(tenant: str, idempotency_key: str) -> str:
+    return f"{_P}idem:{tenant}:{hashlib.sha256(idempotency_key.encode()).hexdigest()}"
 
 
 def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:

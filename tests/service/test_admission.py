@@ -63,7 +63,8 @@ def test_submit_is_refused_with_retry_after_while_the_queue_is_full(apps, settin
     broker.flushdb()
     client = apps(redis_url=url, queue_max_depth=2, queue_retry_after_s=17)
     body = {"items": [{"image": _upload(client, ACME), "points": POINTS}]}
-    accepted = [client.post("/v1/jobs", json=body, headers=ACME) for _ in range(2)]
+    keyed = {**ACME, "Idempotency-Key": f"k-{uuid.uuid4().hex}"}
+    accepted = [client.post("/v1/jobs", json=body, headers=h) for h in (keyed, ACME)]
     assert [r.status_code for r in accepted] == [202, 202]
     assert broker.llen("scans") == 2
     jobs_before = client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"]
@@ -74,6 +75,13 @@ def test_submit_is_refused_with_retry_after_while_the_queue_is_full(apps, settin
     assert "2 tasks waiting, limit 2" in refused.json()["detail"]
     assert broker.llen("scans") == 2  # nothing was queued ...
     assert client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"] == jobs_before  # or stored
+    # A client retrying a job that was taken (its answer lost, say) gets that job, full or not.
+    again = client.post("/v1/jobs", json=body, headers=keyed)
+    assert again.status_code == 202 and again.json()["id"] == accepted[0].json()["id"], again.text
+    assert again.headers["Location"].endswith(f"/v1/jobs/{again.json()['id']}")
+    other = client.post("/v1/jobs", json={**body, "client_reference": "x"}, headers=keyed)
+    assert other.status_code == 409, other.text
+    assert broker.llen("scans") == 2
 
     broker.rpop("scans")  # a worker takes a task: there is room again
     assert client.post("/v1/jobs", json=body, headers=ACME).status_code == 202

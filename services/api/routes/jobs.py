@@ -60,6 +60,13 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
                body: Annotated[bytes, Depends(_raw_body)],
                idempotency_key: Annotated[str | None, Header(max_length=200)] = None) -> JobPublic:
     """Queue a batch of scans. Repeating a request with the same Idempotency-Key returns its job."""
+    try:
+        # First: a client retrying a job that was taken gets it back even while the queue is full.
+        if idempotency_key and (job := store.find_idempotent(tenant, idempotency_key, body)):
+            response.headers["Location"] = _location(settings.public_base_url, job.id)
+            return to_public(job, presigner)
+    except IdempotencyConflictError as exc:
+        raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     check_job(job_in, settings, store, tenant)
     check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
@@ -82,8 +89,12 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
             store.transition(job.id, State.failed, error="the job could not be queued")
             raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE,
                                 f"the job queue is unavailable; job {job.id} was not started") from None
-    response.headers["Location"] = f"{(settings.public_base_url or '').rstrip('/')}/v1/jobs/{job.id}"
+    response.headers["Location"] = _location(settings.public_base_url, job.id)
     return to_public(job, presigner)
+
+
+def _location(base_url: str | None, job_id: str) -> str:
+    return f"{(base_url or '').rstrip('/')}/v1/jobs/{job_id}"
 
 
 def _encode_cursor(score: float | None) -> str | None:
