@@ -10,7 +10,7 @@ import math
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from .spec import MmPerPx, Pinhole, ScanSpec
 __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "run_scan", "scan_face"]
 
 SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
+SAME_SCALE_ASSUMED = ("two photos, no P7 and no scale for the side photo: it is taken to be at the "
+                      "front photo's scale (shot from the same distance), so the depth rests on "
+                      "that; mark P7 or give the side's scale to measure it")
 
 
 @dataclass
@@ -168,6 +171,11 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
             quads, fits = _refine(spec, images, marked, warnings)
     with _timed(timings, "measure"):
         dims, quads = _measure(spec, quads, marked, fits, images, warnings)
+    if spec.two_photo and spec.points.p7 is None and _side_height_guess(spec) is None:
+        # Nothing ties the side photo's scale to the front's: it is assumed, and said so
+        # (instead of the note that the height carried it across, which would read as measured).
+        dims = replace(dims, notes=tuple(n for n in dims.notes if "shared height" not in n))
+        warnings.append(SAME_SCALE_ASSUMED)
     for name in ("width", "height", "depth"):
         value = getattr(dims, name)
         if not (math.isfinite(value) and value > 0):  # e.g. a pose fitted behind the camera

@@ -119,3 +119,28 @@ def test_default_method_has_no_holes_where_paper_has_them():
     paper = run_scan(spec.model_copy(update={"method": "paper"}), scene.image, side.image).report
     assert ours["faces"]["front"]["point_loss"] < 0.01
     assert paper["faces"]["front"]["point_loss"] > 0.05  # the label and the lighting punch holes
+
+
+@pytest.mark.parametrize("method", ["default", "paper"])
+def test_two_photos_at_different_scales_need_p7_or_a_side_scale(method):
+    # The side photo is shot closer (0.21 mm/px against the front's 0.375): one known edge on
+    # the front cannot say so without P7, and the result must admit what it assumed.
+    box = Box(120.0, 80.0, 60.0)
+    front = render_front_view(box, image_size=(640, 512), focal_px=700.0, seed=7)
+    side = render_side_view(box, image_size=(640, 512), focal_px=700.0, seed=7)
+    assert front.mm_per_px / side.mm_per_px > 1.5
+    points = [front.points[n] for n in ("p1", "p2", "p3")] + [side.points["p4"], side.points["p5"]]
+    spec = ScanSpec(image="f", side_image="s", points=[list(map(float, p)) for p in points],
+                    method=method, scale={"kind": "edge", "edge": "width", "length_mm": 120.0})
+    assumed = run_scan(spec, front.image, side.image).report
+    assert any("taken to be at the front photo's scale" in w for w in assumed["warnings"])
+    assert not any("shared height" in w for w in assumed["warnings"])
+    # The assumption is what makes the depth wrong, by the ratio of the scales.
+    ratio = assumed["dimensions"]["depth"] / box.depth_mm
+    assert ratio == pytest.approx(front.mm_per_px / side.mm_per_px, rel=0.01)
+
+    with_p7 = spec.model_copy(update={"points": spec.points.model_copy(
+        update={"p6": tuple(map(float, front.points["p6"])), "p7": tuple(map(float, side.points["p7"]))})})
+    measured = run_scan(with_p7, front.image, side.image).report
+    assert measured["dimensions"]["depth"] == pytest.approx(box.depth_mm, rel=0.005)
+    assert not any("taken to be at the front photo's scale" in w for w in measured["warnings"])

@@ -151,3 +151,59 @@ def _a_large_cloud_is_thinned_for_display(page, d: PageDriver) -> None:
     assert page.locator("#viewer").get_attribute("data-points") == str(kept)
     assert f"Showing {kept:,}" in status.text_content()
     assert d.viewer_pixels().std() > 5  # drawn, not a flat fill
+
+
+# Records every value the page gives its progress bar (a property, so no DOM mutation shows it).
+_WATCH_PROGRESS = """
+const own = Object.getOwnPropertyDescriptor(HTMLProgressElement.prototype, "value");
+window.progressSeen = [];
+Object.defineProperty(HTMLProgressElement.prototype, "value", {
+  get() { return own.get.call(this); },
+  set(v) { if (this.id === "job-progress") window.progressSeen.push(v); own.set.call(this, v); },
+});
+"""
+
+
+def test_paper_method_volume_cloud_and_a_known_edge(page, stack, tmp_path):
+    page.add_init_script(_WATCH_PROGRESS)
+    page.reload()
+    # Shot from different distances: with one known edge, P7 carries the scale to the side photo.
+    # 640 x 512, so the volume cloud stays under the default point limit.
+    views = {"image_size": (640, 512), "focal_px": 700.0, "seed": 7}
+    front, side = render_front_view(BOX, **views), render_side_view(BOX, **views)
+    d = PageDriver(page)
+    d.log_in()
+    page.get_by_label("Two photos").check()
+    d.add_photos(save_photo(front, tmp_path / "front.png"), save_photo(side, tmp_path / "side.png"))
+    page.get_by_label("Front photo", exact=True).select_option(label="front.png")
+    page.get_by_label("Side photo", exact=True).select_option(label="side.png")
+    page.get_by_label("Also mark P6 and P7").check()
+    for name in ("p1", "p2", "p3", "p6"):
+        d.click_photo(front.points[name])
+    for name in ("p4", "p5", "p7"):
+        d.click_photo(side.points[name])
+    page.get_by_label("Method").select_option(label="The paper's colour scan")
+    page.get_by_label("Cloud", exact=True).select_option(label="Volume: filled through the depth")
+    page.get_by_label("Scale", exact=True).select_option(label="One known edge")
+    page.get_by_label("Known edge").select_option(label="Width (P1 to P2)")
+    page.get_by_label("Its length (mm)").fill("120")
+    with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
+        state = d.submit_and_wait()
+    assert "Done" in state, (state, page.locator("#result").text_content())
+    spec = ScanSpec.model_validate(json.loads(sent.value.post_data)["items"][0])
+    assert (spec.method, spec.cloud) == ("paper", "volume")
+    assert spec.scale.model_dump() == {"kind": "edge", "edge": "width", "length_mm": 120.0}
+
+    shown = d.dimensions()
+    assert shown["width"] == 120.0  # the known edge, exactly
+    _close(shown, BOX)
+    job = httpx.get(f"{stack.url}/v1/jobs", headers={"X-API-Key": KEY}).json()["jobs"][0]
+    result = job["items"][0]["result"]
+    assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
+    expect(page.locator("#dimensions dd[data-field=points]")).to_have_text(f"{result['points']:,}")
+    expect(page.locator("#dimensions dd[data-field=point-loss]")).to_have_text(
+        f"{result['point_loss'] * 100:.2f} %")
+    # The bar followed the job's own progress: never backwards, from running to 100.
+    seen = page.evaluate("window.progressSeen")
+    assert seen == sorted(seen) and seen[-1] == 100 and min(seen) < 100, seen
+    assert d.viewer_pixels().std() > 5
