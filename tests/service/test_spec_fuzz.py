@@ -80,7 +80,15 @@ anything = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12),
                      st.floats(allow_nan=False, allow_infinity=False),
                      st.text(max_size=30), st.lists(st.integers(-5, 5000), max_size=8))
 FIELDS = ("image", "side_image", "points", "tolerance", "method", "scale", "focal_px",
-          "principal_point", "formats", "cloud", "max_pixels", "max_points", "csv", "ply_ascii")
+          "principal_point", "formats", "cloud", "max_pixels", "max_points", "csv", "ply_ascii",
+          "frames", "frame_points")
+# A video's frame selection and per-frame points: in range, out of it, and of the wrong shape.
+selections = st.fixed_dictionaries({}, optional={
+    "every": st.integers(-2, 50), "start_s": st.floats(-5, 100), "end_s": st.floats(-5, 100),
+    "sharpest": st.integers(-1, 2000), "indices": st.lists(st.integers(-3, 5000), max_size=6),
+    "bogus": anything})
+frame_points = st.dictionaries(st.one_of(st.integers(-3, 3000).map(str), st.text(max_size=4)),
+                               points.map(lambda p: [list(x) for x in p]), max_size=3)
 
 
 @pytest.fixture
@@ -91,12 +99,22 @@ def client(settings, objects):
         yield client
 
 
+@pytest.fixture
+def reference(client) -> str:
+    """A real upload of the tenant's, so that bodies get past the reference check to the rest."""
+    r = client.post("/v1/uploads", files={"file": ("box.png", b"\x89PNG not checked here")},
+                    headers={"X-API-Key": API_KEYS["acme"]})
+    assert r.status_code == 201, r.text
+    return r.json()["reference"]
+
+
 @settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
 @given(data=st.data())
-def test_any_job_body_is_202_or_a_readable_422(client, data, figures):
-    body_item = item("upload:" + "0" * 32, SCENE)
+def test_any_job_body_is_202_or_a_readable_422(client, reference, data, figures):
+    body_item = item(reference, SCENE)
     for name in data.draw(st.lists(st.sampled_from(FIELDS), max_size=3, unique=True)):
-        choice = data.draw(st.one_of(anything, points.map(lambda p: [list(x) for x in p]), scales))
+        choice = data.draw(st.one_of(anything, points.map(lambda p: [list(x) for x in p]), scales,
+                                     selections, frame_points))
         body_item[name] = choice
     if data.draw(st.booleans()):
         body_item.pop(data.draw(st.sampled_from(sorted(body_item))))
