@@ -60,6 +60,15 @@ class PageDriver:
         x, y = re.fullmatch(r"x (-?[\d.]+), y (-?[\d.]+)", text).groups()
         return float(x), float(y)
 
+    def loupe_pixels(self) -> np.ndarray:
+        """The magnifier's canvas as drawn: (H, W, 3) uint8 RGB."""
+        width, height, data = self.page.evaluate("""() => {
+            const c = document.getElementById("loupe");
+            const pixels = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+            return [c.width, c.height, Array.from(pixels)];
+        }""")
+        return np.array(data, np.uint8).reshape(height, width, 4)[..., :3]
+
     def zoom_at(self, xy: tuple[float, float], clicks: int) -> None:
         for _ in range(clicks):
             before = self.view()[0]

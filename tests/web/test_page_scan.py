@@ -40,6 +40,7 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     scale = d.view()[0]
     hover = d.hover_readout(truth["p3"])  # the live readout under the pointer
     assert np.allclose(hover, truth["p3"], atol=1 / scale + 0.05), (hover, truth["p3"])
+    _loupe_shows_the_photo_enlarged(d.loupe_pixels(), scene.image, hover)
     d.click_photo((truth["p3"][0] + 60, truth["p3"][1] + 40))  # a slip...
     page.get_by_role("button", name="Undo").click()  # ...taken back
     assert d.mark("p3") is None
@@ -95,6 +96,21 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     expect(page.locator("#dimensions dd[data-field=width]")).to_have_text(f"{shown['width']:.2f} mm")
     page.locator("#result").screenshot(path=str(tmp_path / "result.png"))
     assert d.viewer_pixels().std() > 5
+
+
+def _loupe_shows_the_photo_enlarged(loupe: np.ndarray, image: np.ndarray, at) -> None:
+    """The magnifier holds the photo's own pixels around `at`, 22 across, each a square block."""
+    size = loupe.shape[0]
+    zoom = size / 22
+    ys, xs = np.mgrid[0:size, 0:size]
+    # Canvas pixel centre -> image pixel, as loupe.ts draws it (image point x at pixel edge x + 0.5).
+    cols = np.floor(at[0] + 0.5 - 11 + (xs + 0.5) / zoom).astype(int)
+    rows = np.floor(at[1] + 0.5 - 11 + (ys + 0.5) / zoom).astype(int)
+    inside = (cols >= 0) & (cols < image.shape[1]) & (rows >= 0) & (rows < image.shape[0])
+    off_cross = (np.abs(xs - size / 2) > 2) & (np.abs(ys - size / 2) > 2)
+    want = image[rows.clip(0, image.shape[0] - 1), cols.clip(0, image.shape[1] - 1)]
+    same = (np.abs(loupe.astype(int) - want.astype(int)) <= 3).all(axis=-1)
+    assert same[inside & off_cross].mean() > 0.9, same[inside & off_cross].mean()
 
 
 @pytest.mark.parametrize("extra", [False, True], ids=["p1-p5", "p1-p7"])
