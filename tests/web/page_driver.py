@@ -60,6 +60,20 @@ class PageDriver:
         x, y = re.fullmatch(r"x (-?[\d.]+), y (-?[\d.]+)", text).groups()
         return float(x), float(y)
 
+    def canvas_colour_near(self, xy: tuple[float, float], want: tuple[int, int, int]) -> float:
+        """How far (RGB distance) the photo canvas's pixel nearest to `want` within 3 screen px
+        of image point `xy` is from it."""
+        scale, ox, oy = self.view()
+        sx, sy = (xy[0] + 0.5) * scale + ox, (xy[1] + 0.5) * scale + oy
+        pixels = self.page.evaluate("""([x, y]) => {
+            const c = document.getElementById("marker");
+            const r = window.devicePixelRatio || 1;
+            const d = c.getContext("2d").getImageData(Math.round(x * r) - 3, Math.round(y * r) - 3, 7, 7);
+            return Array.from(d.data);
+        }""", [sx, sy])
+        rgb = np.array(pixels, float).reshape(-1, 4)[:, :3]
+        return float(np.min(np.linalg.norm(rgb - np.array(want, float), axis=1)))
+
     def loupe_pixels(self) -> np.ndarray:
         """The magnifier's canvas as drawn: (H, W, 3) uint8 RGB."""
         width, height, data = self.page.evaluate("""() => {

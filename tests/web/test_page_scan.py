@@ -17,6 +17,7 @@ from prismcore.spec import ScanSpec
 from prismcore.synth import Box, render_front_view, render_oblique_view, render_side_view
 
 BOX = Box(120.0, 80.0, 60.0)
+CYAN, ORANGE = (0, 200, 255), (255, 140, 0)  # the front's and the side's outlines (marker-draw.ts)
 TOLERANCE = 0.02  # clicks land within about a screen pixel: ~1 image pixel at the fitted zoom
 
 
@@ -37,6 +38,7 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
 
     d.click_photo((truth["p1"][0] + 25, truth["p1"][1] + 18))  # off the corner, dragged there below
     d.click_photo(truth["p2"])
+    assert d.canvas_colour_near(np.mean([d.mark("p1"), d.mark("p2")], axis=0), CYAN) > 60  # no region yet
     scale = d.view()[0]
     hover = d.hover_readout(truth["p3"])  # the live readout under the pointer
     assert np.allclose(hover, truth["p3"], atol=1 / scale + 0.05), (hover, truth["p3"])
@@ -48,9 +50,16 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     expect(page.locator("#next-point")).to_contain_text("the same corner as P2")
     d.click_photo(truth["p2"])  # P4: a click on P2 puts it on the very same spot
     assert d.mark("p4") == d.mark("p2")
+    # The regions are drawn as clicked: the front's outline (cyan) once P3 is placed, the side's
+    # (orange) once P5 is.
+    front_top = np.mean([d.mark("p1"), d.mark("p2")], axis=0)  # P1 is still off its corner
+    side_top = np.mean([d.mark("p2"), truth["p5"]], axis=0)
+    assert d.canvas_colour_near(front_top, CYAN) < 40
+    assert d.canvas_colour_near(side_top, ORANGE) > 60
     for name in ("p5", "p6", "p7"):
         d.click_photo(truth[name])
     expect(page.locator("#next-point")).to_contain_text("Every point is placed")
+    assert d.canvas_colour_near(side_top, ORANGE) < 40
 
     d.zoom_at(truth["p1"], clicks=3)  # precise corners: zoom in, then drag P1 onto its corner
     assert d.view()[0] > 3 * scale
