@@ -75,8 +75,10 @@ class Settings(BaseSettings):
     # The watchdog (in every worker; one sweep at a time across hosts, through a Redis lock).
     watchdog_interval_s: int = 30
     # A job with no progress and no task of its own waiting or running for this long is
-    # restarted where it stopped, `job_stall_restarts` times, then failed with the reason.
-    job_stall_timeout_s: int = 600
+    # restarted where it stopped, `job_stall_restarts` times, then failed with the reason. A
+    # waiting or running task keeps a job from looking stalled however long it takes, so this
+    # can be short: it is how long a job waits when a worker's death took a message with it.
+    job_stall_timeout_s: int = 120
     job_stall_restarts: int = 2
     job_max_age_s: int = 86_400  # any job not final this long after submission fails
 

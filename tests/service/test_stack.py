@@ -67,7 +67,10 @@ def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("stack")
     env = service_env(redis_server.port, s3_server.port, db=1, bucket="stack-e2e",
                       WEBHOOK_ALLOWED_HOSTS='["127.0.0.1"]', WEBHOOK_ALLOW_PRIVATE="true",
-                      TILES_PER_FACE="4", VISIBILITY_TIMEOUT_S="10")
+                      TILES_PER_FACE="4", VISIBILITY_TIMEOUT_S="10",
+                      # A SIGKILL can take a message along (a claimed item not yet sent, or one
+                      # popped by the dying worker): the watchdog redoes it within the test's wait.
+                      JOB_STALL_TIMEOUT_S="15", WATCHDOG_INTERVAL_S="3")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
     stack = Stack(api, worker, env, tmp)
