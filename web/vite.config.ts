@@ -1,8 +1,9 @@
 // The page is served by the API under /app/, from services/api/static (see prism_api.webapp).
+// Relative asset paths: behind a proxy that adds a prefix the page still finds its files.
 import { defineConfig } from "vite";
 
 export default defineConfig({
-  base: "/app/",
+  base: "./",
   build: {
     outDir: "../services/api/static",
     emptyOutDir: true,

@@ -37,7 +37,8 @@ class _Page(StaticFiles):
 
 
 def _home() -> RedirectResponse:
-    return RedirectResponse("/app/", status_code=status.HTTP_307_TEMPORARY_REDIRECT)
+    # Relative, so that behind a proxy serving us under a prefix it stays under that prefix.
+    return RedirectResponse("app/", status_code=status.HTTP_307_TEMPORARY_REDIRECT)
 
 
 def _not_built() -> PlainTextResponse:

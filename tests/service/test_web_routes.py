@@ -98,7 +98,7 @@ def test_frame_preview_round_trip_and_its_refusals(api, store, objects):
 
 def test_home_redirects_to_the_page(api):
     r = api.get("/", follow_redirects=False)
-    assert r.status_code == 307 and r.headers["Location"] == "/app/"
+    assert r.status_code == 307 and r.headers["Location"] == "app/"  # relative: kept under a proxy prefix
 
 
 @pytest.mark.skipif(not (STATIC_DIR / "index.html").is_file(), reason="web page not built (needs npm)")
@@ -107,7 +107,7 @@ def test_the_built_page_is_served_with_its_policy(api):
     assert r.status_code == 200 and r.headers["Content-Type"].startswith("text/html")
     assert r.headers["Content-Security-Policy"] == CSP and r.headers["Cache-Control"] == "no-cache"
     asset = next(p for p in (STATIC_DIR / "assets").iterdir() if p.suffix == ".js")
-    assert f"/app/assets/{asset.name}" in r.text
+    assert f"./assets/{asset.name}" in r.text  # relative, like every asset path
     js = api.get(f"/app/assets/{asset.name}")
     assert js.status_code == 200 and js.content == asset.read_bytes()
     assert "immutable" in js.headers["Cache-Control"]

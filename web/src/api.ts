@@ -39,12 +39,18 @@ export function plainWords(status: number, detail: Detail): string {
   return `The service answered with an error (HTTP ${status}).`;
 }
 
+/** The API's URL for `path` ("/v1/..."): beside the page's folder, so that the page and the API
+ * may sit together under any prefix a proxy gives them (the page is <prefix>/app/). */
+export function apiUrl(path: string): string {
+  return new URL(path.replace(/^\//, ""), new URL("../", document.baseURI)).href;
+}
+
 export async function call(path: string, init: RequestInit = {}, key = savedKey()): Promise<Response> {
   const headers = new Headers(init.headers);
   if (key) headers.set("X-API-Key", key);
   let response: Response;
   try {
-    response = await fetch(path, { ...init, headers, cache: "no-store" });
+    response = await fetch(apiUrl(path), { ...init, headers, cache: "no-store" });
   } catch {
     throw new ApiError("Could not reach the service. Check the connection and try again.", 0);
   }
