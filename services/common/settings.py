@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["Settings", "get_settings"]
@@ -81,6 +81,16 @@ class Settings(BaseSettings):
     job_stall_timeout_s: int = 120
     job_stall_restarts: int = 2
     job_max_age_s: int = 86_400  # any job not final this long after submission fails
+    # Uploads (and the frames decoded from a video upload) are deleted this long after they were
+    # made, by the watchdog's sweep (0: kept for good). Jobs keep their outputs regardless.
+    upload_ttl_s: int = 7 * 86_400
+
+    @model_validator(mode="after")
+    def _uploads_outlive_jobs(self) -> Settings:
+        if 0 < self.upload_ttl_s < self.job_max_age_s:
+            raise ValueError(f"upload_ttl_s={self.upload_ttl_s} is shorter than job_max_age_s="
+                             f"{self.job_max_age_s}: a job could outlive the uploads it reads")
+        return self
 
 
 @lru_cache

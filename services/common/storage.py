@@ -125,6 +125,12 @@ class ObjectStore:
         return [obj["Key"] for page in paginator.paginate(Bucket=self.bucket, Prefix=prefix)
                 for obj in page.get("Contents", [])]
 
+    def delete_keys(self, keys: list[str]) -> None:
+        """Delete these objects (missing ones are no error), in batches of 1000."""
+        for start in range(0, len(keys), 1000):
+            batch = [{"Key": k} for k in keys[start:start + 1000]]
+            self.client.delete_objects(Bucket=self.bucket, Delete={"Objects": batch, "Quiet": True})
+
     def presign_get(self, key: str, ttl_s: int, filename: str | None = None) -> str:
         params = {"Bucket": self.bucket, "Key": key}
         if filename:

@@ -33,6 +33,7 @@ from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord,
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
 
 _P = "prism:"
+_UPLOADS = f"{_P}uploads"  # sorted set: upload id -> created at (s since the epoch)
 # A job hash's fields other than its items and frames.
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
                "units_done"]
@@ -259,9 +260,23 @@ class JobStore:
 
     # -- uploads ----------------------------------------------------------------------------
     def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str) -> None:
-        self._r.hset(f"{_P}upload:{upload_id}", mapping={
-            "tenant": tenant, "key": key, "size": size, "name": name,
-            "created_at": _now().isoformat()})
+        now = _now()
+        with self._r.pipeline() as pipe:
+            pipe.hset(f"{_P}upload:{upload_id}", mapping={
+                "tenant": tenant, "key": key, "size": size, "name": name,
+                "created_at": now.isoformat()})
+            pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
+            pipe.execute()
+
+    def uploads_before(self, when: float, limit: int = 500) -> list[str]:
+        """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
+        return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)
+
+    def delete_upload(self, upload_id: str) -> None:
+        with self._r.pipeline() as pipe:
+            pipe.delete(f"{_P}upload:{upload_id}")
+            pipe.zrem(_UPLOADS, upload_id)
+            pipe.execute()
 
     def get_upload(self, upload_id: str) -> dict[str, str] | None:
         return self._r.hgetall(f"{_P}upload:{upload_id}") or None

@@ -14,6 +14,8 @@ clock, so the next sweep may run on another host. A sweep looks at every queued 
   to `job_stall_restarts` times; if it still makes no progress it fails, saying so;
 * any job not final `job_max_age_s` after submission fails, whatever else (a task that kills its
   worker each time it is handed out would otherwise be redelivered for ever).
+
+The same sweep deletes uploads older than `upload_ttl_s` (retention.py).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from celery.signals import worker_ready, worker_shutdown
 from prism_common.records import State
 from prism_common.settings import Settings
 
-from . import context, recovery
+from . import context, recovery, retention
 from .pending import pending_job_ids
 
 __all__ = ["LOCK_KEY", "sweep", "try_sweep"]
@@ -103,7 +105,10 @@ def try_sweep(settings: Settings, holder: str) -> dict[str, int] | None:
     if not client.set(LOCK_KEY, holder, nx=True, ex=max(1, settings.watchdog_interval_s)):
         return None
     seconds, micros = client.time()
-    return sweep(settings, seconds + micros / 1e6)
+    now = seconds + micros / 1e6
+    counts = sweep(settings, now)
+    counts["uploads expired"] = retention.expire_uploads(settings, now)
+    return counts
 
 
 def _loop(holder: str) -> None:

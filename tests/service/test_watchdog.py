@@ -13,9 +13,11 @@ from datetime import UTC, datetime, timedelta
 import pytest
 import redis
 from prism_common.records import ItemRecord, JobRecord, State
-from prism_common.settings import get_settings
+from prism_common.settings import Settings, get_settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
+from prism_common.upload_keys import frame_png_key, upload_key, video_info_key
+from pydantic import ValidationError
 
 from prismcore import ScanSpec
 
@@ -151,3 +153,35 @@ def test_one_sweep_per_interval_across_workers(wd):
     assert watchdog.try_sweep(settings, "worker-b") is None  # a's lock holds for the interval
     assert client.get(watchdog.LOCK_KEY) == "worker-a"
     assert 0 < client.ttl(watchdog.LOCK_KEY) <= settings.watchdog_interval_s
+
+
+def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
+    watchdog, settings, client = wd
+    retention = importlib.import_module("prism_worker.retention")
+    store, objects = JobStore(client), ObjectStore.from_settings(settings)
+    ids = {"old": uuid.uuid4().hex, "new": uuid.uuid4().hex}
+    for upload_id in ids.values():
+        key = upload_key("acme", upload_id)
+        store.put_upload(upload_id, tenant="acme", key=key, size=3, name="clip.avi")
+        for k in (key, video_info_key("acme", upload_id), frame_png_key("acme", upload_id, 0),
+                  frame_png_key("acme", upload_id, 7)):
+            objects.put_bytes(k, b"abc")
+    objects.put_bytes(f"jobs/{uuid.uuid4().hex}/items/0/cloud.csv", b"1,2,3\n")  # a job's output
+    before = set(objects.list_keys(""))
+    now = datetime.now(UTC).timestamp()
+    client.zadd("prism:uploads", {ids["old"]: now - settings.upload_ttl_s - 5})  # made long ago
+
+    client.delete(watchdog.LOCK_KEY)
+    counts = watchdog.try_sweep(settings, "test")  # the sweep expires uploads too
+    assert counts["uploads expired"] == 1
+    gone = {k for k in before if ids["old"] in k}
+    assert len(gone) == 4 and set(objects.list_keys("")) == before - gone
+    assert store.get_upload(ids["old"]) is None and store.get_upload(ids["new"]) is not None
+    assert retention.expire_uploads(settings, now) == 0  # nothing left to do: idempotent
+
+
+def test_an_upload_ttl_shorter_than_a_job_may_live_is_refused():
+    with pytest.raises(ValidationError, match="upload_ttl_s=3600 is shorter than job_max_age_s=86400"):
+        Settings(api_keys={"a": "k"}, webhook_secret="s", upload_ttl_s=3600, job_max_age_s=86400)
+    assert Settings(api_keys={"a": "k"}, webhook_secret="s", upload_ttl_s=0,
+                    job_max_age_s=86400).upload_ttl_s == 0
