@@ -36,6 +36,14 @@ class PageDriver:
             expect(self.page.locator("#photo-list")).to_contain_text(f"{path.name} (")
         expect(self.page.locator("#photo-list li", has_text="uploaded")).to_have_count(len(paths))
 
+    def two_photos(self, front: Scene, side: Scene, folder: Path) -> None:
+        """Log in, switch to two-photo mode and add the front and side photos as such."""
+        self.log_in()
+        self.page.get_by_label("Two photos").check()
+        self.add_photos(save_photo(front, folder / "front.png"), save_photo(side, folder / "side.png"))
+        self.page.get_by_label("Front photo", exact=True).select_option(label="front.png")
+        self.page.get_by_label("Side photo", exact=True).select_option(label="side.png")
+
     def view(self) -> tuple[float, float, float]:
         """(scale, ox, oy) of the photo canvas: screen = (image + 0.5) * scale + offset."""
         scale, ox, oy = self.page.locator("#marker").get_attribute("data-view").split(",")

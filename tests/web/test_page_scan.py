@@ -140,11 +140,7 @@ def test_two_square_photos(page, stack, tmp_path, extra):
     front = render_front_view(BOX, seed=5)
     side = render_side_view(BOX, seed=5)
     d = PageDriver(page)
-    d.log_in()
-    page.get_by_label("Two photos").check()
-    d.add_photos(save_photo(front, tmp_path / "front.png"), save_photo(side, tmp_path / "side.png"))
-    page.get_by_label("Front photo", exact=True).select_option(label="front.png")
-    page.get_by_label("Side photo", exact=True).select_option(label="side.png")
+    d.two_photos(front, side, tmp_path)
     if extra:
         page.get_by_label("Also mark P6 and P7").check()
     for name in ("p1", "p2", "p3", "p6")[: 4 if extra else 3]:
@@ -210,11 +206,7 @@ def test_paper_method_volume_cloud_and_a_known_edge(page, stack, tmp_path):
     views = {"image_size": (640, 512), "focal_px": 700.0, "seed": 7}
     front, side = render_front_view(BOX, **views), render_side_view(BOX, **views)
     d = PageDriver(page)
-    d.log_in()
-    page.get_by_label("Two photos").check()
-    d.add_photos(save_photo(front, tmp_path / "front.png"), save_photo(side, tmp_path / "side.png"))
-    page.get_by_label("Front photo", exact=True).select_option(label="front.png")
-    page.get_by_label("Side photo", exact=True).select_option(label="side.png")
+    d.two_photos(front, side, tmp_path)
     page.get_by_label("Also mark P6 and P7").check()
     for name in ("p1", "p2", "p3", "p6"):
         d.click_photo(front.points[name])
