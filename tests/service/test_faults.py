@@ -7,6 +7,7 @@ suite's figures.
 from __future__ import annotations
 
 import io
+import re
 import threading
 import time
 import uuid
@@ -129,6 +130,7 @@ def test_object_store_down_for_a_while_retries_and_finishes(stack, figures):
 def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(stack, figures):
     scene = tiny_scene(3)
     ref = stack.upload(png(scene.image))
+    log_start = len(stack.workers[0].log)
     stack.s3.stop()
     try:
         job_id = stack.submit([item(ref, scene)])
@@ -140,6 +142,10 @@ def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(st
         stack.s3.start()
     assert job["state"] == "failed" and job["error"] == "all items failed", job
     assert job["items"][0]["error"] == "the object store was unreachable (gave up after 5 retries)"
+    # Five retries, each waiting (with jitter) at most half the visibility timeout (10 s here):
+    # a retry waits unacknowledged, and past that timeout the broker would hand out a copy.
+    waits = [int(w) for w in re.findall(r"Retry in (\d+)s", stack.workers[0].log[log_start:])]
+    assert len(waits) == 5 and all(0 <= w <= 5 for w in waits) and sum(waits) > 0, waits
     _wait_ready(stack, 200)
     figures["faults survived"] += 1
     figures["jobs submitted"] += 1
