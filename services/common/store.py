@@ -175,15 +175,25 @@ class JobStore:
                         item=ItemRecord.model_validate_json(item))
 
     def list(self, tenant: str, *, state: State | None = None, limit: int = 50,
-             cursor: float | None = None) -> tuple[list[JobRecord], float | None]:
-        """The tenant's jobs, newest first; returns the page and the next page's cursor."""
+             cursor: float | None = None, items: bool = True
+             ) -> tuple[list[tuple[JobRecord, int]], float | None]:
+        """The tenant's jobs, newest first, each with its number of items; and the next page's
+        cursor. Without `items` the records hold none (a listing of big jobs stays small)."""
         key = f"{_P}tenant:{tenant}:state:{state.value}" if state else f"{_P}tenant:{tenant}:jobs"
         top = f"({cursor!r}" if cursor is not None else "+inf"
         rows = self._r.zrevrangebyscore(key, top, "-inf", start=0, num=limit + 1, withscores=True)
         with self._r.pipeline(transaction=False) as pipe:
             for job_id, _ in rows[:limit]:
-                pipe.hgetall(f"{_P}job:{job_id}")
-            jobs = [_job(fields) for fields in pipe.execute() if fields]
+                if items:
+                    pipe.hgetall(f"{_P}job:{job_id}")
+                else:
+                    pipe.hmget(f"{_P}job:{job_id}", _JOB_FIELDS)
+            found = pipe.execute()
+        if not items:
+            found = [{k: v for k, v in zip(_JOB_FIELDS, values, strict=True) if v is not None}
+                     for values in found]
+        jobs = [(_job(fields, None if items else range(0)), int(fields["n_items"]))
+                for fields in found if fields]
         return jobs, (rows[limit - 1][1] if len(rows) > limit else None)
 
     def transition(self, job_id: str, state: State, *, error: str | None = None) -> bool:

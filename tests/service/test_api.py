@@ -566,6 +566,16 @@ def test_a_page_of_items_is_that_slice_of_the_whole_job(client, store, query):
     assert client.get(f"/v1/jobs/{job_id}?{query}", headers=GLOBEX).status_code == 404
 
 
+def test_a_listing_can_leave_the_items_out(client):
+    job_id = submit(client, [item(upload(client)) for _ in range(3)]).json()["id"]
+    full = client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"]
+    bare = client.get("/v1/jobs?limit=200&items=false", headers=ACME).json()["jobs"]
+    assert [j["id"] for j in bare] == [j["id"] for j in full]
+    mine = next(j for j in bare if j["id"] == job_id)
+    assert mine["items"] == [] and mine["item_count"] == 3
+    assert [{**j, "items": []} for j in full] == bare
+
+
 @pytest.mark.parametrize("query", ["item_offset=-1", "item_limit=-1", "item_limit=10001",
                                    "item_offset=x"])
 def test_bad_item_pages_are_422(client, query):

@@ -52,13 +52,19 @@ def test_list_newest_first_with_cursor_and_state(store):
     ids = [store.create(_job(tenant, minutes=i))[0].id for i in range(7)]
     store.transition(ids[3], State.running)
     page, cursor = store.list(tenant, limit=3)
-    seen = [j.id for j in page]
+    seen = [j.id for j, _ in page]
     while cursor is not None:
         page, cursor = store.list(tenant, limit=3, cursor=cursor)
-        seen += [j.id for j in page]
+        seen += [j.id for j, _ in page]
     assert seen == ids[::-1]
     running, _ = store.list(tenant, state=State.running)
-    assert [j.id for j in running] == [ids[3]]
+    assert [(j.id, n) for j, n in running] == [(ids[3], 1)]
+    # Without items: the same jobs and facts, no items, their count kept.
+    bare, _ = store.list(tenant, limit=7, items=False)
+    whole, _ = store.list(tenant, limit=7)
+    assert [(j.model_dump(exclude={"items"}), n) for j, n in bare] == [
+        (j.model_dump(exclude={"items"}), n) for j, n in whole]
+    assert all(j.items == [] for j, _ in bare) and all(len(j.items) == n == 1 for j, n in whole)
 
 
 def test_tiles_count_once_and_progress(store):

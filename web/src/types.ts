@@ -73,6 +73,7 @@ export interface Job {
   finished_at: string | null;
   client_reference: string | null;
   error: string | null;
+  item_count: number;
   items: Item[];
 }
 

@@ -118,10 +118,14 @@ def _decode_cursor(cursor: str | None) -> float | None:
 @router.get("", response_model=JobList)
 def list_jobs(tenant: TenantDep, store: StoreDep, presigner: PresignerDep,
               state: State | None = None, limit: Annotated[int, Query(ge=1, le=200)] = 50,
-              cursor: Annotated[str | None, Query(max_length=100)] = None) -> JobList:
-    """Your jobs, newest first; follow `next_cursor` for the next page."""
-    jobs, next_score = store.list(tenant, state=state, limit=limit, cursor=_decode_cursor(cursor))
-    return JobList(jobs=[to_public(j, presigner) for j in jobs], next_cursor=_encode_cursor(next_score))
+              cursor: Annotated[str | None, Query(max_length=100)] = None,
+              items: bool = True) -> JobList:
+    """Your jobs, newest first; follow `next_cursor` for the next page. `items=false` leaves
+    the items out (each job still says its `item_count`): a listing of big jobs stays small."""
+    jobs, next_score = store.list(tenant, state=state, limit=limit, cursor=_decode_cursor(cursor),
+                                  items=items)
+    return JobList(jobs=[to_public(j, presigner, n) for j, n in jobs],
+                   next_cursor=_encode_cursor(next_score))
 
 
 @router.get("/{job_id}", response_model=JobPublic, responses={404: {"description": "No such job"}})
