@@ -8,6 +8,7 @@ requests (connection pools), not once per request.
 from __future__ import annotations
 
 import hmac
+import ipaddress
 import threading
 from collections.abc import Callable
 from typing import Annotated, TypeVar
@@ -103,28 +104,54 @@ def _too_many(message: str, limiter: RateLimiter, wait: float) -> HTTPException:
                          headers={"Retry-After": limiter.retry_after(wait)})
 
 
+def client_address(request: Request) -> str:
+    """Who is calling, for the refused-key budget: the client's IPv4 address, or its IPv6 /64
+    (one host can hold a whole /64, so a budget per address would be no budget)."""
+    host = request.client.host if request.client else "unknown"
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        return host
+    if isinstance(address, ipaddress.IPv6Address):
+        if address.ipv4_mapped is not None:
+            return str(address.ipv4_mapped)
+        return str(ipaddress.ip_network(f"{address}/64", strict=False))
+    return str(address)
+
+
 def get_tenant(settings: SettingsDep, request: Request,
                api_key: Annotated[str | None, Security(_api_key)],
                failures: Annotated[RateLimiter, Depends(get_auth_failure_limiter)]) -> str:
-    """The tenant whose key came in the X-API-Key header; 401 otherwise, and 429 to an address
-    that had too many keys refused lately, whatever key it sends now."""
-    address = request.client.host if request.client else "unknown"
-    wait = failures.wait_s(address, count=False)
+    """The tenant whose key came in the X-API-Key header; 401 otherwise.
+
+    Every key presented takes a token from its address's refused-key budget, given back when
+    the key is right; with the budget spent, the address gets 429 whatever key it sends, so keys
+    cannot be tried at speed (a right one would otherwise pass among the wrong). A call with no
+    key at all cannot be a guess and costs nothing.
+    """
+    given = (api_key or "").encode()
+    if not given:
+        raise _unauthorized()
+    address = client_address(request)
+    wait = failures.wait_s(address)
     if wait > 0:
         raise _too_many(f"too many refused API keys from this address (limit "
                         f"{failures.per_minute} a minute)", failures, wait)
-    given = (api_key or "").encode()
     tenant = None
     # Every key is compared, in constant time, whichever matches: the time taken says nothing
     # about which key (or how much of one) was right.
     for name, key in settings.api_keys.items():
-        if hmac.compare_digest(given, key.get_secret_value().encode()) and given:
+        if hmac.compare_digest(given, key.get_secret_value().encode()):
             tenant = name
     if tenant is None:
-        failures.wait_s(address)
-        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "missing or invalid X-API-Key header",
-                            headers={"WWW-Authenticate": "ApiKey"})
+        raise _unauthorized()
+    failures.give_back(address)
     return tenant
+
+
+def _unauthorized() -> HTTPException:
+    return HTTPException(status.HTTP_401_UNAUTHORIZED, "missing or invalid X-API-Key header",
+                         headers={"WWW-Authenticate": "ApiKey"})
 
 
 def get_rate_limited_tenant(tenant: Annotated[str, Depends(get_tenant)],

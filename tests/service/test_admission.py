@@ -8,6 +8,7 @@ import time
 import uuid
 import warnings
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 import redis
@@ -146,14 +147,15 @@ def test_an_address_guessing_keys_is_locked_out_for_a_while(apps, settings):
     address = _address()
     one = apps(address, auth_failures_per_minute=3)
     two = apps(address, auth_failures_per_minute=3)  # another API process, the same Redis
-    # Good calls cost nothing from the refused-key budget.
+    # Right keys cost nothing from the refused-key budget, nor do calls without a key.
     assert all(one.get("/v1/jobs", headers=ACME).status_code == 200 for _ in range(10))
+    assert all(one.get("/v1/jobs").status_code == 401 for _ in range(10))
     guesses = [c.get("/v1/jobs", headers={"X-API-Key": f"guess-{i}"}).status_code
                for i, c in enumerate((one, two, one))]
     assert guesses == [401, 401, 401]
-    for client, headers in ((one, {"X-API-Key": "guess-4"}), (two, {}), (two, ACME)):
-        r = client.get("/v1/jobs", headers=headers)  # the right key too: the address is locked
-        assert r.status_code == 429, r.text
+    for client, headers in ((one, {"X-API-Key": "guess-4"}), (two, ACME)):
+        r = client.get("/v1/jobs", headers=headers)  # the right key too: else a guess that is
+        assert r.status_code == 429, r.text         # right would pass among the refused ones
         assert "too many refused API keys from this address (limit 3 a minute)" in r.json()["detail"]
         assert 1 <= int(r.headers["Retry-After"]) <= 20  # one refused key every 20 s refills
     # Another address is not affected.
@@ -168,3 +170,28 @@ def test_a_locked_out_address_gets_its_budget_back_at_the_set_rate(apps, setting
     assert codes[:120] == [401] * 120 and 429 in codes[120:]
     time.sleep(0.6)
     assert client.get("/v1/jobs", headers=ACME).status_code == 200
+
+
+def test_guesses_sent_at_once_get_no_more_than_the_budget(apps, settings):
+    client = apps(_address(), auth_failures_per_minute=5)
+    with ThreadPoolExecutor(8) as pool:
+        codes = list(pool.map(lambda i: client.get("/v1/jobs", headers={"X-API-Key": f"g{i}"}).status_code,
+                              range(24)))
+    assert sorted(codes) == [401] * 5 + [429] * 19
+
+
+def _pair(kind: str) -> tuple[str, str]:
+    """Two client addresses of the test's own (the budgets live on in the session's Redis)."""
+    n = uuid.uuid4().int
+    net = f"2001:db8:{n % 65000:x}:{n // 65000 % 65000:x}"
+    return {"same /64": (f"{net}::1", f"{net}:ffff::9"),
+            "next /64": (f"{net}::1", f"2001:db8:{n % 65000:x}:{(n // 65000 + 1) % 65000:x}::1"),
+            "mapped": (f"::ffff:{(v4 := _address())}", v4)}[kind]
+
+
+@pytest.mark.parametrize(("kind", "shared"), [("same /64", True), ("next /64", False), ("mapped", True)])
+def test_the_budget_is_per_ipv4_address_and_per_ipv6_64(apps, settings, kind, shared):
+    first, second = _pair(kind)
+    a, b = apps(first, auth_failures_per_minute=2), apps(second, auth_failures_per_minute=2)
+    assert [a.get("/v1/jobs", headers={"X-API-Key": "g"}).status_code for _ in range(2)] == [401, 401]
+    assert b.get("/v1/jobs", headers=ACME).status_code == (429 if shared else 200)
