@@ -158,11 +158,11 @@ class JobStore:
             names = [f"item:{i}" for i in indices]
             fields.update(zip(names, self._r.hmget(key, names), strict=True))
         job = _job(fields, indices)
-        for item in job.items:
-            if item.spec.is_video:  # its frames are fields of their own, found by name
-                found = self._r.hscan_iter(key, match=f"frame:{item.index}:*", count=1000)
-                item.frames = [FrameRecord.model_validate_json(v) for _, v in
-                               sorted(found, key=lambda kv: int(kv[0].rsplit(":", 1)[1]))]
+        if any(item.spec.is_video for item in job.items):
+            # Frames are fields of their own: one pass over the hash for the whole page (a scan
+            # may return a field twice; the dict keeps it once), then only this page's are read.
+            _attach_frames({item.index: item for item in job.items},
+                           dict(self._r.hscan_iter(key, match="frame:*", count=1000)))
         return job, n
 
     def get_item(self, job_id: str, index: int) -> ItemView | None:
@@ -297,6 +297,15 @@ class JobStore:
         return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
 
 
+def _attach_frames(items: dict[int, ItemRecord], fields: dict[str, str]) -> None:
+    """Add to `items` (index -> record) their frames among `fields` (``frame:{i}:{n}``), in order."""
+    frames = sorted((int(k.split(":")[1]), int(k.split(":")[2]), v) for k, v in fields.items()
+                    if k.startswith("frame:"))
+    for i, _, value in frames:
+        if i in items:
+            items[i].frames.append(FrameRecord.model_validate_json(value))
+
+
 def _idem_key(tenant: str, idempotency_key: str) -> str:
     return f"{_P}idem:{tenant}:{hashlib.sha256(idempotency_key.encode()).hexdigest()}"
 
@@ -306,11 +315,7 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
     if indices is None:
         indices = range(int(fields["n_items"]))
     items = {i: ItemRecord.model_validate_json(fields[f"item:{i}"]) for i in indices}
-    frames = sorted((int(k.split(":")[1]), int(k.split(":")[2]), v) for k, v in fields.items()
-                    if k.startswith("frame:"))
-    for i, _, value in frames:
-        if i in items:
-            items[i].frames.append(FrameRecord.model_validate_json(value))
+    _attach_frames(items, fields)
     job = JobRecord.model_validate({**json.loads(fields["doc"]), "items": list(items.values())})
     job.state = State(fields["state"])
     for name in ("started_at", "finished_at"):

@@ -117,3 +117,18 @@ def test_a_page_of_items_is_the_same_slice_as_the_whole_job(store, offset, limit
     assert page.model_dump(exclude={"items"}) == whole.model_dump(exclude={"items"})
     assert [f.index for f in whole.items[3].frames] == [0, 2, 4]
     assert store.get_page(uuid.uuid4().hex, 0, 1) is None
+
+
+def test_a_page_of_a_large_video_job_reads_its_frames_once(store):
+    # 300 items and 600 frame fields: a hash Redis scans in several steps, not one reply.
+    video = SPEC.model_copy(update={"image": "upload:v", "frames": FrameSelection(every=2)})
+    job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
+                    items=[ItemRecord(index=i, spec=video) for i in range(300)])
+    store.create(job)
+    for i in range(300):
+        for n in (4, 2):
+            store.put_frame(job.id, i, FrameRecord(index=n, state=State.succeeded))
+    whole = store.get(job.id)
+    page, _ = store.get_page(job.id, 150, 100)
+    assert page.items == whole.items[150:250]
+    assert all([f.index for f in item.frames] == [2, 4] for item in page.items)
