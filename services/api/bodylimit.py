@@ -30,7 +30,11 @@ class BodyLimit:
         self.app = app
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or scope["path"].rstrip("/") in _EXEMPT:
+        # The route's own path: under uvicorn --root-path the scope's path carries the prefix.
+        path, root = scope.get("path", ""), scope.get("root_path", "")
+        if root and path.startswith(root):
+            path = path[len(root):]
+        if scope["type"] != "http" or path.rstrip("/") in _EXEMPT:
             await self.app(scope, receive, send)
             return
         # The settings the routes see, overrides included (as in main.lifespan).

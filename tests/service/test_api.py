@@ -698,6 +698,19 @@ def test_a_job_body_over_the_cap_is_refused_while_it_arrives(settings, chunked, 
     assert sent <= 100_000 // len(chunk) + 2  # read just past the cap
 
 
+@pytest.mark.parametrize("root_path", ["", "/prism"])
+def test_uploads_are_not_held_to_the_request_cap(settings, objects, root_path):
+    # Uploads have their own, larger limit, also when the app runs under a root path.
+    app = create_app()
+    app_settings = settings.model_copy(update={"request_max_bytes": 1000})
+    app.dependency_overrides[get_settings] = lambda: app_settings
+    with TestClient(app, root_path=root_path) as client:
+        r = client.post(f"{root_path}/v1/uploads", files={"file": ("big.bin", b"x" * 50_000)},
+                        headers=ACME)
+        assert r.status_code == 201, r.text
+        assert client.post(f"{root_path}/v1/jobs", content=b" " * 2000, headers=ACME).status_code == 413
+
+
 def test_a_job_body_under_the_cap_is_read_as_usual(settings, objects):
     # 2,000 items of ~330 bytes: about 0.7 MB of JSON under the default cap of 16 MiB.
     app = create_app()
