@@ -39,8 +39,9 @@ def webhook_problem(url: str, settings: Settings) -> str | None:
     return None
 
 
-def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) -> None:
-    """Raise RequestValidationError naming every item (and field) the service will not run."""
+def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) -> set[str]:
+    """Raise RequestValidationError naming every item (and field) the service will not run;
+    else return the ids of the uploads the job reads."""
     errors: list[dict[str, Any]] = []
 
     def fail(loc: tuple, msg: str) -> None:
@@ -73,3 +74,4 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) 
                 fail(("items", i, field), f"item {i} {field}: {exc}")
     if errors:
         raise RequestValidationError(errors[:_MAX_REPORTED])
+    return set(owners)

@@ -82,7 +82,8 @@ class Settings(BaseSettings):
     job_stall_restarts: int = 2
     job_max_age_s: int = 86_400  # any job not final this long after submission fails
     # Uploads (and the frames decoded from a video upload) are deleted this long after they were
-    # made, by the watchdog's sweep (0: kept for good). Jobs keep their outputs regardless.
+    # made or last named by a job, by the watchdog's sweep (0: kept for good). Jobs keep their
+    # outputs regardless.
     upload_ttl_s: int = 7 * 86_400
 
     @model_validator(mode="after")

@@ -129,7 +129,13 @@ class ObjectStore:
         """Delete these objects (missing ones are no error), in batches of 1000."""
         for start in range(0, len(keys), 1000):
             batch = [{"Key": k} for k in keys[start:start + 1000]]
-            self.client.delete_objects(Bucket=self.bucket, Delete={"Objects": batch, "Quiet": True})
+            answer = self.client.delete_objects(Bucket=self.bucket,
+                                                Delete={"Objects": batch, "Quiet": True})
+            # Failures come back in the body of an HTTP 200: raise, so nothing is forgotten.
+            if errors := answer.get("Errors"):
+                first = errors[0]
+                raise OSError(f"could not delete {len(errors)} objects, e.g. {first.get('Key')!r}: "
+                              f"{first.get('Code')} {first.get('Message')}")
 
     def presign_get(self, key: str, ttl_s: int, filename: str | None = None) -> str:
         params = {"Bucket": self.bucket, "Key": key}

@@ -278,6 +278,26 @@ class JobStore:
             pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
             pipe.execute()
 
+    def touch_uploads(self, upload_ids: set[str]) -> None:
+        """Count these uploads' age from now (a job reads them: they must outlive it)."""
+        if upload_ids:
+            now = _now().timestamp()
+            self._r.zadd(_UPLOADS, dict.fromkeys(upload_ids, now), gt=True)
+
+    def index_old_uploads(self) -> int:
+        """List for expiry the uploads made before uploads were listed (at their made time);
+        how many were added. Safe to run again: listed ones are left as they are."""
+        added = 0
+        for key in self._r.scan_iter(match=f"{_P}upload:*", count=1000):
+            upload_id = key.removeprefix(f"{_P}upload:")
+            if ":" in upload_id:  # an extraction claim, not an upload
+                continue
+            made = self._r.hget(key, "created_at")
+            if made is not None:
+                stamp = datetime.fromisoformat(made).timestamp()
+                added += self._r.zadd(_UPLOADS, {upload_id: stamp}, nx=True)
+        return added
+
     def uploads_before(self, when: float, limit: int = 500) -> list[str]:
         """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
         return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)

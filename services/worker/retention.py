@@ -17,6 +17,7 @@ from . import context
 __all__ = ["expire_uploads"]
 
 log = logging.getLogger(__name__)
+_indexed = False
 
 
 def expire_uploads(settings: Settings, now: float) -> int:
@@ -24,6 +25,11 @@ def expire_uploads(settings: Settings, now: float) -> int:
     if settings.upload_ttl_s <= 0:
         return 0
     store, objects = context.store(), context.objects()
+    global _indexed
+    if not _indexed:  # once per process: uploads made before they were listed for expiry
+        if added := store.index_old_uploads():
+            log.info("listed %d older uploads for expiry", added)
+        _indexed = True
     gone = 0
     for upload_id in store.uploads_before(now - settings.upload_ttl_s):
         upload = store.get_upload(upload_id)

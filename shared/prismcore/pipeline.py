@@ -27,9 +27,9 @@ from .spec import MmPerPx, Pinhole, ScanSpec
 __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "run_scan", "scan_face"]
 
 SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
-SAME_SCALE_ASSUMED = ("two photos, no P7 and no scale for the side photo: it is taken to be at the "
-                      "front photo's scale (shot from the same distance), so the depth rests on "
-                      "that; mark P7 or give the side's scale to measure it")
+SAME_SCALE_ASSUMED = ("two photos, no P7 and a scale for only one of them: the other is taken to be "
+                      "at the same scale (shot from the same distance), and the dimensions it gives "
+                      "rest on that; mark P7, or give each photo its scale, to measure them")
 
 
 @dataclass

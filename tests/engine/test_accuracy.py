@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec, run_scan
+from prismcore.pipeline import SAME_SCALE_ASSUMED
 from prismcore.synth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
 BOXES = [Box(120.0, 80.0, 60.0), Box(90.0, 140.0, 45.0), Box(200.0, 60.0, 110.0)]
@@ -133,7 +134,7 @@ def test_two_photos_at_different_scales_need_p7_or_a_side_scale(method):
     spec = ScanSpec(image="f", side_image="s", points=[list(map(float, p)) for p in points],
                     method=method, scale={"kind": "edge", "edge": "width", "length_mm": 120.0})
     assumed = run_scan(spec, front.image, side.image).report
-    assert any("taken to be at the front photo's scale" in w for w in assumed["warnings"])
+    assert SAME_SCALE_ASSUMED in assumed["warnings"]
     assert not any("shared height" in w for w in assumed["warnings"])
     # The assumption is what makes the depth wrong, by the ratio of the scales.
     ratio = assumed["dimensions"]["depth"] / box.depth_mm
@@ -143,4 +144,4 @@ def test_two_photos_at_different_scales_need_p7_or_a_side_scale(method):
         update={"p6": tuple(map(float, front.points["p6"])), "p7": tuple(map(float, side.points["p7"]))})})
     measured = run_scan(with_p7, front.image, side.image).report
     assert measured["dimensions"]["depth"] == pytest.approx(box.depth_mm, rel=0.005)
-    assert not any("taken to be at the front photo's scale" in w for w in measured["warnings"])
+    assert SAME_SCALE_ASSUMED not in measured["warnings"]

@@ -566,6 +566,14 @@ def test_a_page_of_items_is_that_slice_of_the_whole_job(client, store, query):
     assert client.get(f"/v1/jobs/{job_id}?{query}", headers=GLOBEX).status_code == 404
 
 
+def test_a_job_renews_the_uploads_it_reads(client, broker):
+    ref = upload(client)
+    upload_id = ref.removeprefix("upload:")
+    broker.zadd("prism:uploads", {upload_id: 1.0})  # as if made in 1970
+    submit(client, [item(ref)])
+    assert broker.zscore("prism:uploads", upload_id) > time.time() - 60  # counted from now
+
+
 def test_a_listing_can_leave_the_items_out(client):
     job_id = submit(client, [item(upload(client)) for _ in range(3)]).json()["id"]
     full = client.get("/v1/jobs?limit=200", headers=ACME).json()["jobs"]

@@ -159,7 +159,7 @@ def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
     watchdog, settings, client = wd
     retention = importlib.import_module("prism_worker.retention")
     store, objects = JobStore(client), ObjectStore.from_settings(settings)
-    ids = {"old": uuid.uuid4().hex, "new": uuid.uuid4().hex}
+    ids = {"old": uuid.uuid4().hex, "new": uuid.uuid4().hex, "unlisted": uuid.uuid4().hex}
     for upload_id in ids.values():
         key = upload_key("acme", upload_id)
         store.put_upload(upload_id, tenant="acme", key=key, size=3, name="clip.avi")
@@ -170,13 +170,19 @@ def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
     before = set(objects.list_keys(""))
     now = datetime.now(UTC).timestamp()
     client.zadd("prism:uploads", {ids["old"]: now - settings.upload_ttl_s - 5})  # made long ago
+    # One made long ago by a version that did not list uploads for expiry.
+    client.zrem("prism:uploads", ids["unlisted"])
+    long_ago = datetime.fromtimestamp(now - settings.upload_ttl_s - 60, UTC).isoformat()
+    client.hset(f"prism:upload:{ids['unlisted']}", "created_at", long_ago)
 
+    retention._indexed = False  # as in a worker process just started
     client.delete(watchdog.LOCK_KEY)
     counts = watchdog.try_sweep(settings, "test")  # the sweep expires uploads too
-    assert counts["uploads expired"] == 1
-    gone = {k for k in before if ids["old"] in k}
-    assert len(gone) == 4 and set(objects.list_keys("")) == before - gone
-    assert store.get_upload(ids["old"]) is None and store.get_upload(ids["new"]) is not None
+    assert counts["uploads expired"] == 2
+    gone = {k for k in before if ids["old"] in k or ids["unlisted"] in k}
+    assert len(gone) == 8 and set(objects.list_keys("")) == before - gone
+    assert store.get_upload(ids["old"]) is None and store.get_upload(ids["unlisted"]) is None
+    assert store.get_upload(ids["new"]) is not None
     assert retention.expire_uploads(settings, now) == 0  # nothing left to do: idempotent
 
 

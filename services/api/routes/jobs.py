@@ -67,7 +67,7 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
             return to_public(job, presigner)
     except IdempotencyConflictError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
-    check_job(job_in, settings, store, tenant)
+    uploads = check_job(job_in, settings, store, tenant)
     check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
         update={"max_pixels": min(spec.max_pixels, settings.max_pixels)}))
@@ -79,6 +79,7 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
     except IdempotencyConflictError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     if created:
+        store.touch_uploads(uploads)  # they expire counting from their last job, not their upload
         try:
             # ignore_result: the API never reads run_job's result; without it Celery's Redis
             # backend subscribes this process to every task's result channel, for good.
