@@ -18,7 +18,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import redis
-from prism_common.records import ItemRecord, JobRecord
+from prism_common.records import FrameRecord, ItemRecord, JobRecord, State
 from prism_common.store import JobStore
 from rich.console import Console
 from rich.table import Table
@@ -41,21 +41,28 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--items", type=int, default=5000)
     parser.add_argument("--runs", type=int, default=20)
+    parser.add_argument("--video", action="store_true",
+                        help="every item a video with one measured frame (frames: fields of their own)")
     args = parser.parse_args()
     server = start_redis(Path(tempfile.mkdtemp()))
     try:
         store = JobStore(redis.Redis(port=server.port, decode_responses=True))
         spec = ScanSpec(image="upload:" + "0" * 32, points=POINTS, focal_px=1400,
-                        scale={"kind": "pinhole", "distance_mm": 279.1})
+                        scale={"kind": "pinhole", "distance_mm": 279.1},
+                        frames={"every": 10} if args.video else None)
         job = JobRecord(id=uuid.uuid4().hex, tenant="bench", created_at=datetime.now(UTC),
                         items=[ItemRecord(index=i, spec=spec) for i in range(args.items)])
         store.create(job)
+        if args.video:
+            for i in range(args.items):
+                store.put_frame(job.id, i, FrameRecord(index=0, state=State.succeeded))
         whole = _ms(lambda: store.get(job.id), args.runs)
         one = _ms(lambda: store.get_item(job.id, args.items - 1), args.runs)
         pages = {n: _ms(lambda n=n: store.get_page(job.id, 0, n), args.runs) for n in (0, 100)}
     finally:
         server.stop()
-    table = Table(title=f"reading a {args.items}-item job (mean of {args.runs} runs)")
+    kind = "video " if args.video else ""
+    table = Table(title=f"reading a {args.items}-item {kind}job (mean of {args.runs} runs)")
     for col in ("read", "ms"):
         table.add_column(col)
     table.add_row("the whole job (JobStore.get)", f"{whole:.2f}")
