@@ -85,12 +85,18 @@ class Settings(BaseSettings):
     # made or last named by a job, by the watchdog's sweep (0: kept for good). Jobs keep their
     # outputs regardless.
     upload_ttl_s: int = 7 * 86_400
+    # Ended jobs (their record and every object under jobs/{id}/) are deleted this long after
+    # they were submitted, by the same sweep (0: kept for good, the default: results are the
+    # clients' and removing them is the operator's decision).
+    job_ttl_s: int = 0
 
     @model_validator(mode="after")
-    def _uploads_outlive_jobs(self) -> Settings:
-        if 0 < self.upload_ttl_s < self.job_max_age_s:
-            raise ValueError(f"upload_ttl_s={self.upload_ttl_s} is shorter than job_max_age_s="
-                             f"{self.job_max_age_s}: a job could outlive the uploads it reads")
+    def _lifetimes_fit(self) -> Settings:
+        for name in ("upload_ttl_s", "job_ttl_s"):
+            ttl = getattr(self, name)
+            if 0 < ttl < self.job_max_age_s:
+                raise ValueError(f"{name}={ttl} is shorter than job_max_age_s={self.job_max_age_s}: "
+                                 "a job could outlive it")
         return self
 
 

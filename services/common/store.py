@@ -278,6 +278,33 @@ class JobStore:
             pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
             pipe.execute()
 
+    def ended_before(self, when: float, limit: int = 200) -> list[str]:
+        """Ids of up to `limit` ended jobs (succeeded, failed, cancelled) submitted before
+        `when` (s since the epoch), oldest first."""
+        top = f"({when * 1e6!r}"
+        ids: list[str] = []
+        for state in FINAL_STATES:
+            ids += self._r.zrangebyscore(f"{_P}state:{state.value}", "-inf", top, start=0, num=limit)
+        return ids[:limit]
+
+    def delete_job(self, job_id: str) -> bool:
+        """Remove an ended job's record and every key and listing entry of it; False if there
+        was no such job or it has not ended (a running job's record is never removed)."""
+        key = f"{_P}job:{job_id}"
+        tenant, state, n_items = self._r.hmget(key, "tenant", "state", "n_items")
+        if tenant is None or State(state) not in FINAL_STATES:
+            return False
+        per_item = [f"{key}:{kind}:{i}" for i in range(int(n_items or 0)) for kind in ("tiles", "frames")]
+        with self._r.pipeline() as pipe:
+            pipe.zrem(f"{_P}tenant:{tenant}:jobs", job_id)
+            pipe.zrem(f"{_P}tenant:{tenant}:state:{state}", job_id)
+            pipe.zrem(f"{_P}state:{state}", job_id)
+            for start in range(0, len(per_item), 1000):
+                pipe.delete(*per_item[start:start + 1000])
+            pipe.delete(f"{key}:done", f"{key}:next", f"{key}:frames", f"{_P}watch:{job_id}", key)
+            pipe.execute()
+        return True
+
     def touch_uploads(self, upload_ids: set[str]) -> None:
         """Count these uploads' age from now (a job reads them: they must outlive it)."""
         if upload_ids:

@@ -1,8 +1,9 @@
-"""Expiry of uploads: the uploaded file, a video's probe and its decoded frames, then the record.
+"""Expiry of uploads (the file, a video's probe and decoded frames, the record) and, when the
+operator sets a lifetime for them, of ended jobs (every object under jobs/{id}/, the record).
 
-Run by the watchdog's sweep (one per interval across all workers). Objects go before the record,
-so a sweep cut short leaves the upload listed and the next one finishes it; deleting twice is
-harmless. A job's own outputs are not touched: they live under its prefix, not the upload's.
+Run by the watchdog's sweep (one per interval across all workers). Objects go before records,
+so a sweep cut short leaves the thing listed and the next one finishes it; deleting twice is
+harmless. An upload's expiry does not touch the outputs of the jobs that read it.
 """
 
 from __future__ import annotations
@@ -10,11 +11,12 @@ from __future__ import annotations
 import logging
 
 from prism_common.settings import Settings
+from prism_common.storage import object_key
 from prism_common.upload_keys import upload_key, video_info_key
 
 from . import context
 
-__all__ = ["expire_uploads"]
+__all__ = ["expire_jobs", "expire_uploads"]
 
 log = logging.getLogger(__name__)
 _indexed = False
@@ -41,4 +43,18 @@ def expire_uploads(settings: Settings, now: float) -> int:
         gone += 1
     if gone:
         log.info("deleted %d uploads older than %d s", gone, settings.upload_ttl_s)
+    return gone
+
+
+def expire_jobs(settings: Settings, now: float) -> int:
+    """Delete the ended jobs submitted more than `settings.job_ttl_s` before `now` (s)."""
+    if settings.job_ttl_s <= 0:
+        return 0
+    store, objects = context.store(), context.objects()
+    gone = 0
+    for job_id in store.ended_before(now - settings.job_ttl_s):
+        objects.delete_keys(objects.list_keys(object_key("jobs", job_id) + "/"))
+        gone += store.delete_job(job_id)
+    if gone:
+        log.info("deleted %d jobs submitted more than %d s ago", gone, settings.job_ttl_s)
     return gone

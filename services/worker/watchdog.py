@@ -15,7 +15,8 @@ clock, so the next sweep may run on another host. A sweep looks at every queued 
 * any job not final `job_max_age_s` after submission fails, whatever else (a task that kills its
   worker each time it is handed out would otherwise be redelivered for ever).
 
-The same sweep deletes uploads older than `upload_ttl_s` (retention.py).
+The same sweep deletes uploads older than `upload_ttl_s`, and ended jobs older than `job_ttl_s`
+when that is set (retention.py).
 """
 
 from __future__ import annotations
@@ -108,6 +109,7 @@ def try_sweep(settings: Settings, holder: str) -> dict[str, int] | None:
     now = seconds + micros / 1e6
     counts = sweep(settings, now)
     counts["uploads expired"] = retention.expire_uploads(settings, now)
+    counts["jobs expired"] = retention.expire_jobs(settings, now)
     return counts
 
 

@@ -186,8 +186,37 @@ def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
     assert retention.expire_uploads(settings, now) == 0  # nothing left to do: idempotent
 
 
-def test_an_upload_ttl_shorter_than_a_job_may_live_is_refused():
-    with pytest.raises(ValidationError, match="upload_ttl_s=3600 is shorter than job_max_age_s=86400"):
-        Settings(api_keys={"a": "k"}, webhook_secret="s", upload_ttl_s=3600, job_max_age_s=86400)
-    assert Settings(api_keys={"a": "k"}, webhook_secret="s", upload_ttl_s=0,
-                    job_max_age_s=86400).upload_ttl_s == 0
+@pytest.mark.parametrize("name", ["upload_ttl_s", "job_ttl_s"])
+def test_a_lifetime_shorter_than_a_job_may_live_is_refused(name):
+    with pytest.raises(ValidationError, match=f"{name}=3600 is shorter than job_max_age_s=86400"):
+        Settings(api_keys={"a": "k"}, webhook_secret="s", job_max_age_s=86400, **{name: 3600})
+    assert getattr(Settings(api_keys={"a": "k"}, webhook_secret="s", job_max_age_s=86400,
+                            **{name: 0}), name) == 0
+
+
+def test_ended_jobs_past_their_ttl_are_deleted_when_one_is_set(wd):
+    _, settings, client = wd
+    retention = importlib.import_module("prism_worker.retention")
+    store, objects = JobStore(client), ObjectStore.from_settings(settings)
+    day = 86_400
+    ttl = settings.model_copy(update={"job_ttl_s": 30 * day})
+    old_done = _job(client, state=State.succeeded, items=2, age_s=31 * day)
+    old_running = _job(client, state=State.running, age_s=31 * day)  # never deleted
+    recent_done = _job(client, state=State.failed, age_s=29 * day)
+    for job_id in (old_done, old_running, recent_done):
+        for name in ("job.json", "items/0/cloud.csv", "items/1/frame_000002/cloud.ply"):
+            objects.put_bytes(f"jobs/{job_id}/{name}", b"x")
+    store.tile_done(old_done, 0, "front-0-10")
+    store.item_done(old_done, 1)
+    now = datetime.now(UTC).timestamp()
+
+    assert retention.expire_jobs(settings, now) == 0  # job_ttl_s 0 (the default): kept
+    assert retention.expire_jobs(ttl, now) == 1
+    assert objects.list_keys(f"jobs/{old_done}/") == []
+    for kept in (old_running, recent_done):
+        assert len(objects.list_keys(f"jobs/{kept}/")) == 3
+    assert store.get(old_done) is None and store.get(old_running) and store.get(recent_done)
+    assert not [k for k in client.scan_iter(match=f"*{old_done}*")]  # no key of it is left
+    listed = {j.id for j, _ in store.list("acme", limit=200)[0]}
+    assert old_done not in listed and {old_running, recent_done} <= listed
+    assert retention.expire_jobs(ttl, now) == 0  # idempotent
