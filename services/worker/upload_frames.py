@@ -39,10 +39,19 @@ _folder: tempfile.TemporaryDirectory | None = None  # removed when the process e
 def extract_frame(upload_id: str, frame: int) -> None:
     """Probe the upload (unless done) and store frame `frame` as a PNG (unless done or out of
     range). A file that is not a decodable video gets its error recorded, never raised."""
+    written = _extract(upload_id, frame)
+    if written and context.store().get_upload(upload_id) is None:
+        # The upload expired while this ran: its sweep has gone by, so leave nothing behind.
+        context.objects().delete_keys(written)
+
+
+def _extract(upload_id: str, frame: int) -> list[str]:
+    """What `extract_frame` does; returns the keys it wrote."""
+    written: list[str] = []
     upload = context.store().get_upload(upload_id)
     if upload is None or frame < 0:
         log.warning("no frame %s of upload %s to extract", frame, upload_id)
-        return
+        return written
     tenant, name = upload["tenant"], upload.get("name") or upload_id
     objects = context.objects()
     info_key = video_info_key(tenant, upload_id)
@@ -50,29 +59,33 @@ def extract_frame(upload_id: str, frame: int) -> None:
     info = objects.get_json(info_key)
     if info is not None and ("error" in info or frame >= info["frame_count"]
                              or objects.exists(png_key) or objects.exists(error_key)):
-        return
+        return written
     if info is None:
         head = objects.client.get_object(Bucket=objects.bucket, Key=upload["key"],
                                          Range=f"bytes=0-{HEAD_BYTES - 1}")["Body"].read()
         if video_container(head) is None:  # a photo: no need to fetch the whole file
             objects.put_json(info_key, {"error": f"{name!r} is not a video (AVI, MP4, MOV or MKV): "
                                           f"it starts with {head[:8]!r}"})
-            return
+            return [info_key]
     path = _local_copy(upload_id, upload["key"])
     if info is None:
         try:
             info = asdict(probe_video(path, max_pixels=context.settings().max_pixels))
         except InputError as exc:
             objects.put_json(info_key, {"error": client_message(exc, path, name)})
-            return
+            return [info_key]
         objects.put_json(info_key, info)
+        written.append(info_key)
     if frame >= info["frame_count"]:
-        return
+        return written
     try:
         for _, rgb in iter_frames(path, [frame]):
             objects.put_bytes(png_key, png_bytes(rgb), "image/png")
+            written.append(png_key)
     except InputError as exc:
         objects.put_json(error_key, {"error": client_message(exc, path, name)})
+        written.append(error_key)
+    return written
 
 
 def _local_copy(upload_id: str, key: str) -> Path:
