@@ -19,6 +19,8 @@ import tempfile
 from dataclasses import asdict
 from pathlib import Path
 
+from botocore.exceptions import ClientError
+from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
 
 from prismcore import InputError
@@ -60,14 +62,21 @@ def _extract(upload_id: str, frame: int) -> list[str]:
     if info is not None and ("error" in info or frame >= info["frame_count"]
                              or objects.exists(png_key) or objects.exists(error_key)):
         return written
-    if info is None:
-        head = objects.client.get_object(Bucket=objects.bucket, Key=upload["key"],
-                                         Range=f"bytes=0-{HEAD_BYTES - 1}")["Body"].read()
-        if video_container(head) is None:  # a photo: no need to fetch the whole file
-            objects.put_json(info_key, {"error": f"{name!r} is not a video (AVI, MP4, MOV or MKV): "
-                                          f"it starts with {head[:8]!r}"})
-            return [info_key]
-    path = _local_copy(upload_id, upload["key"])
+    try:
+        if info is None:
+            head = objects.client.get_object(Bucket=objects.bucket, Key=upload["key"],
+                                             Range=f"bytes=0-{HEAD_BYTES - 1}")["Body"].read()
+            if video_container(head) is None:  # a photo: no need to fetch the whole file
+                objects.put_json(info_key, {"error": f"{name!r} is not a video (AVI, MP4, MOV or "
+                                              f"MKV): it starts with {head[:8]!r}"})
+                return [info_key]
+        path = _local_copy(upload_id, upload["key"])
+    except ClientError as exc:
+        if not is_missing(exc):
+            raise  # the store's trouble: retried
+        # The record outlived the file (deleted by hand, or expiring): say so, once, for good.
+        objects.put_json(info_key, {"error": f"{name!r} is no longer stored: upload it again"})
+        return [info_key]
     if info is None:
         try:
             info = asdict(probe_video(path, max_pixels=context.settings().max_pixels))

@@ -147,6 +147,14 @@ def test_not_a_video_is_refused_with_the_reason(api, env, clip, data, name, word
     assert env.runs(TASK_EXTRACT_FRAME) == runs
 
 
+def test_an_upload_whose_file_is_gone_is_refused_with_the_reason(api, env, clip):
+    upload_id = _id(upload(api, clip[1], name="clip.avi"))
+    env.objects.client.delete_object(Bucket=env.objects.bucket,
+                                     Key=env.store.get_upload(upload_id)["key"])
+    r = _poll(api, f"/v1/uploads/{upload_id}/video")
+    assert r.status_code == 422 and r.json()["detail"] == "'clip.avi' is no longer stored: upload it again"
+
+
 def test_another_tenants_upload_is_not_there(api, env, clip):
     upload_id = _id(upload(api, clip[1], name="clip.avi"))
     for path in (f"/v1/uploads/{upload_id}/video", f"/v1/uploads/{upload_id}/frames/0.png"):
