@@ -14,8 +14,7 @@ Layout (all keys under ``prism:``):
   count once.
 * ``tenant:{t}:jobs`` and ``tenant:{t}:state:{s}`` sorted sets (score: creation time, us), and
   ``state:{s}`` across tenants (for metrics).
-* ``idem:{t}:{key}`` the job an idempotency key made; ``upload:{id}`` an uploaded file;
-  ``upload:{id}:extract:{n}`` (expiring) frame n of that video was asked of a worker.
+* ``idem:{t}:{key}`` the job an idempotency key made. Uploads: see upload_records.py.
 
 A state never goes backwards: transitions run in one Lua script that compares ranks.
 """
@@ -29,11 +28,11 @@ from datetime import UTC, datetime
 import redis
 
 from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord, State
+from .upload_records import UploadRecords
 
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
 
 _P = "prism:"
-_UPLOADS = f"{_P}uploads"  # sorted set: upload id -> created at (s since the epoch)
 # A job hash's fields other than its items and frames.
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
                "units_done"]
@@ -76,7 +75,7 @@ def _now() -> datetime:
     return datetime.now(UTC)
 
 
-class JobStore:
+class JobStore(UploadRecords):
     """Job records in Redis. Pass a client (tests give their own server's)."""
 
     def __init__(self, client: redis.Redis) -> None:
@@ -205,6 +204,33 @@ class JobStore:
         value = self._r.hget(f"{_P}job:{job_id}", "state")
         return State(value) if value else None
 
+    def ended_before(self, when: float, limit: int = 200) -> list[str]:
+        """Ids of up to `limit` ended jobs (succeeded, failed, cancelled) submitted before
+        `when` (s since the epoch), oldest first."""
+        top = f"({when * 1e6!r}"
+        ids: list[str] = []
+        for state in FINAL_STATES:
+            ids += self._r.zrangebyscore(f"{_P}state:{state.value}", "-inf", top, start=0, num=limit)
+        return ids[:limit]
+
+    def delete_job(self, job_id: str) -> bool:
+        """Remove an ended job's record and every key and listing entry of it; False if there
+        was no such job or it has not ended (a running job's record is never removed)."""
+        key = f"{_P}job:{job_id}"
+        tenant, state, n_items = self._r.hmget(key, "tenant", "state", "n_items")
+        if tenant is None or State(state) not in FINAL_STATES:
+            return False
+        per_item = [f"{key}:{kind}:{i}" for i in range(int(n_items or 0)) for kind in ("tiles", "frames")]
+        with self._r.pipeline() as pipe:
+            pipe.zrem(f"{_P}tenant:{tenant}:jobs", job_id)
+            pipe.zrem(f"{_P}tenant:{tenant}:state:{state}", job_id)
+            pipe.zrem(f"{_P}state:{state}", job_id)
+            for start in range(0, len(per_item), 1000):
+                pipe.delete(*per_item[start:start + 1000])
+            pipe.delete(f"{key}:done", f"{key}:next", f"{key}:frames", f"{_P}watch:{job_id}", key)
+            pipe.execute()
+        return True
+
     # -- items and progress -----------------------------------------------------------------
     def put_item(self, job_id: str, item: ItemRecord) -> None:
         self._r.hset(f"{_P}job:{job_id}", f"item:{item.index}", item.model_dump_json())
@@ -267,82 +293,6 @@ class JobStore:
             for s in State:
                 pipe.zcard(f"{_P}state:{s.value}")
             return dict(zip([s.value for s in State], pipe.execute(), strict=True))
-
-    # -- uploads ----------------------------------------------------------------------------
-    def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str) -> None:
-        now = _now()
-        with self._r.pipeline() as pipe:
-            pipe.hset(f"{_P}upload:{upload_id}", mapping={
-                "tenant": tenant, "key": key, "size": size, "name": name,
-                "created_at": now.isoformat()})
-            pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
-            pipe.execute()
-
-    def ended_before(self, when: float, limit: int = 200) -> list[str]:
-        """Ids of up to `limit` ended jobs (succeeded, failed, cancelled) submitted before
-        `when` (s since the epoch), oldest first."""
-        top = f"({when * 1e6!r}"
-        ids: list[str] = []
-        for state in FINAL_STATES:
-            ids += self._r.zrangebyscore(f"{_P}state:{state.value}", "-inf", top, start=0, num=limit)
-        return ids[:limit]
-
-    def delete_job(self, job_id: str) -> bool:
-        """Remove an ended job's record and every key and listing entry of it; False if there
-        was no such job or it has not ended (a running job's record is never removed)."""
-        key = f"{_P}job:{job_id}"
-        tenant, state, n_items = self._r.hmget(key, "tenant", "state", "n_items")
-        if tenant is None or State(state) not in FINAL_STATES:
-            return False
-        per_item = [f"{key}:{kind}:{i}" for i in range(int(n_items or 0)) for kind in ("tiles", "frames")]
-        with self._r.pipeline() as pipe:
-            pipe.zrem(f"{_P}tenant:{tenant}:jobs", job_id)
-            pipe.zrem(f"{_P}tenant:{tenant}:state:{state}", job_id)
-            pipe.zrem(f"{_P}state:{state}", job_id)
-            for start in range(0, len(per_item), 1000):
-                pipe.delete(*per_item[start:start + 1000])
-            pipe.delete(f"{key}:done", f"{key}:next", f"{key}:frames", f"{_P}watch:{job_id}", key)
-            pipe.execute()
-        return True
-
-    def touch_uploads(self, upload_ids: set[str]) -> None:
-        """Count these uploads' age from now (a job reads them: they must outlive it)."""
-        if upload_ids:
-            now = _now().timestamp()
-            self._r.zadd(_UPLOADS, dict.fromkeys(upload_ids, now), gt=True)
-
-    def index_old_uploads(self) -> int:
-        """List for expiry the uploads made before uploads were listed (at their made time);
-        how many were added. Safe to run again: listed ones are left as they are."""
-        added = 0
-        for key in self._r.scan_iter(match=f"{_P}upload:*", count=1000):
-            upload_id = key.removeprefix(f"{_P}upload:")
-            if ":" in upload_id:  # an extraction claim, not an upload
-                continue
-            made = self._r.hget(key, "created_at")
-            if made is not None:
-                stamp = datetime.fromisoformat(made).timestamp()
-                added += self._r.zadd(_UPLOADS, {upload_id: stamp}, nx=True)
-        return added
-
-    def uploads_before(self, when: float, limit: int = 500) -> list[str]:
-        """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
-        return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)
-
-    def delete_upload(self, upload_id: str) -> None:
-        with self._r.pipeline() as pipe:
-            pipe.delete(f"{_P}upload:{upload_id}")
-            pipe.zrem(_UPLOADS, upload_id)
-            pipe.execute()
-
-    def get_upload(self, upload_id: str) -> dict[str, str] | None:
-        return self._r.hgetall(f"{_P}upload:{upload_id}") or None
-
-    def claim_extraction(self, upload_id: str, frame: int, ttl_s: int) -> bool:
-        """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
-        extraction once, not at every poll (and again if that task got lost)."""
-        return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
-
 
 def _attach_frames(items: dict[int, ItemRecord], fields: dict[str, str]) -> None:
     """Add to `items` (index -> record) their frames among `fields` (``frame:{i}:{n}``), in order."""

@@ -1,0 +1,71 @@
+"""Upload records in Redis, beside the jobs (JobStore inherits these methods).
+
+* ``upload:{id}`` hash: tenant, object key, size, file name, made at.
+* ``uploads`` sorted set: upload id -> when its lifetime counts from (made, or last named by a
+  submitted job), s since the epoch: the sweep deletes those past ``upload_ttl_s``.
+* ``upload:{id}:extract:{n}`` (expiring): frame n of that video was asked of a worker.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+import redis
+
+__all__ = ["UploadRecords"]
+
+_P = "prism:"
+_UPLOADS = f"{_P}uploads"
+
+
+class UploadRecords:
+    """The upload half of the job store: methods over the store's Redis client, `_r`."""
+
+    _r: redis.Redis
+
+    def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str) -> None:
+        now = datetime.now(UTC)
+        with self._r.pipeline() as pipe:
+            pipe.hset(f"{_P}upload:{upload_id}", mapping={
+                "tenant": tenant, "key": key, "size": size, "name": name,
+                "created_at": now.isoformat()})
+            pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
+            pipe.execute()
+
+    def touch_uploads(self, upload_ids: set[str]) -> None:
+        """Count these uploads' age from now (a job reads them: they must outlive it)."""
+        if upload_ids:
+            now = datetime.now(UTC).timestamp()
+            self._r.zadd(_UPLOADS, dict.fromkeys(upload_ids, now), gt=True)
+
+    def index_old_uploads(self) -> int:
+        """List for expiry the uploads made before uploads were listed (at their made time);
+        how many were added. Safe to run again: listed ones are left as they are."""
+        added = 0
+        for key in self._r.scan_iter(match=f"{_P}upload:*", count=1000):
+            upload_id = key.removeprefix(f"{_P}upload:")
+            if ":" in upload_id:  # an extraction claim, not an upload
+                continue
+            made = self._r.hget(key, "created_at")
+            if made is not None:
+                stamp = datetime.fromisoformat(made).timestamp()
+                added += self._r.zadd(_UPLOADS, {upload_id: stamp}, nx=True)
+        return added
+
+    def uploads_before(self, when: float, limit: int = 500) -> list[str]:
+        """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
+        return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)
+
+    def delete_upload(self, upload_id: str) -> None:
+        with self._r.pipeline() as pipe:
+            pipe.delete(f"{_P}upload:{upload_id}")
+            pipe.zrem(_UPLOADS, upload_id)
+            pipe.execute()
+
+    def get_upload(self, upload_id: str) -> dict[str, str] | None:
+        return self._r.hgetall(f"{_P}upload:{upload_id}") or None
+
+    def claim_extraction(self, upload_id: str, frame: int, ttl_s: int) -> bool:
+        """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
+        extraction once, not at every poll (and again if that task got lost)."""
+        return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
