@@ -124,28 +124,29 @@ def get_tenant(settings: SettingsDep, request: Request,
                failures: Annotated[RateLimiter, Depends(get_auth_failure_limiter)]) -> str:
     """The tenant whose key came in the X-API-Key header; 401 otherwise.
 
-    Every key presented takes a token from its address's refused-key budget, given back when
-    the key is right; with the budget spent, the address gets 429 whatever key it sends, so keys
-    cannot be tried at speed (a right one would otherwise pass among the wrong). A call with no
-    key at all cannot be a guess and costs nothing.
+    A refused key takes a token from its address's refused-key budget; with the budget spent,
+    the address gets 429 whatever key it sends, so keys cannot be tried at speed (a right one
+    would otherwise pass among the wrong). A right key only looks at the budget, and a call with
+    no key at all cannot be a guess: neither costs anything.
     """
     given = (api_key or "").encode()
     if not given:
         raise _unauthorized()
-    address = client_address(request)
-    wait = failures.wait_s(address)
-    if wait > 0:
-        raise _too_many(f"too many refused API keys from this address (limit "
-                        f"{failures.per_minute} a minute)", failures, wait)
     tenant = None
     # Every key is compared, in constant time, whichever matches: the time taken says nothing
     # about which key (or how much of one) was right.
     for name, key in settings.api_keys.items():
         if hmac.compare_digest(given, key.get_secret_value().encode()):
             tenant = name
+    address = client_address(request)
+    # One atomic step either way: a refused key is counted only if the budget has room for it,
+    # so guesses sent at once cannot overdraw it.
+    wait = failures.wait_s(address, count=tenant is None)
+    if wait > 0:
+        raise _too_many(f"too many refused API keys from this address (limit "
+                        f"{failures.per_minute} a minute)", failures, wait)
     if tenant is None:
         raise _unauthorized()
-    failures.give_back(address)
     return tenant
 
 

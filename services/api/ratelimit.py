@@ -17,10 +17,10 @@ import redis
 
 __all__ = ["RateLimiter"]
 
-# KEYS[1] the subject's TAT (microseconds); ARGV[1] interval (us), ARGV[2] burst (us).
-# Returns 0 when the call may go ahead (and counts it), else the microseconds to wait before it
-# would (counting nothing): the look and the count are one step, so callers racing each other
-# cannot all slip through on the last token.
+# KEYS[1] the subject's TAT (microseconds); ARGV[1] interval (us), ARGV[2] burst (us), ARGV[3]
+# 1 to count the call, 0 to only look. Returns 0 when the call may go ahead (counting it if
+# asked), else the microseconds to wait before it would (counting nothing): the look and the
+# count are one step, so callers racing each other cannot all slip through on the last token.
 _GCRA = """
 local t = redis.call('TIME')
 local now = tonumber(t[1]) * 1000000 + tonumber(t[2])
@@ -29,18 +29,8 @@ local tat = tonumber(redis.call('GET', KEYS[1]) or '0')
 if tat < now then tat = now end
 local wait = tat + interval - burst - now
 if wait > 0 then return wait end
+if ARGV[3] == '0' then return 0 end
 redis.call('SET', KEYS[1], tostring(tat + interval), 'PX', math.ceil((tat + interval - now) / 1000) + 1)
-return 0
-"""
-# KEYS[1] the subject's TAT; ARGV[1] interval (us). Gives one counted call back.
-_REFUND = """
-local tat = tonumber(redis.call('GET', KEYS[1]) or '0')
-if tat == 0 then return 0 end
-local t = redis.call('TIME')
-local now = tonumber(t[1]) * 1000000 + tonumber(t[2])
-local back = tat - tonumber(ARGV[1])
-if back <= now then redis.call('DEL', KEYS[1]) return 0 end
-redis.call('SET', KEYS[1], tostring(back), 'PX', math.ceil((back - now) / 1000) + 1)
 return 0
 """
 
@@ -52,27 +42,21 @@ class RateLimiter:
     """
 
     def __init__(self, client: redis.Redis, per_minute: int, scope: str = "rate") -> None:
-        self._take, self._refund = client.register_script(_GCRA), client.register_script(_REFUND)
+        self._script = client.register_script(_GCRA)
         self.per_minute = per_minute
         self._scope = scope
         self._interval_us = 60_000_000 // max(per_minute, 1)
 
-    def _key(self, subject: str) -> str:
-        return f"prism:{self._scope}:" + hashlib.sha256(subject.encode()).hexdigest()[:32]
-
-    def wait_s(self, subject: str) -> float:
-        """0.0 if the subject's call may go ahead now (and counts it), else the seconds to wait
-        before it would (and counts nothing)."""
+    def wait_s(self, subject: str, *, count: bool = True) -> float:
+        """0.0 if the subject's call may go ahead now (counted unless `count` is False), else
+        the seconds to wait before it would (and nothing is counted)."""
         if self.per_minute <= 0:
             return 0.0
-        wait_us = int(self._take(keys=[self._key(subject)],
-                                 args=[self._interval_us, self._interval_us * self.per_minute]))
+        key = f"prism:{self._scope}:" + hashlib.sha256(subject.encode()).hexdigest()[:32]
+        wait_us = int(self._script(keys=[key], args=[self._interval_us,
+                                                     self._interval_us * self.per_minute,
+                                                     1 if count else 0]))
         return wait_us / 1e6
-
-    def give_back(self, subject: str) -> None:
-        """Undo one counted call of the subject's (it turned out not to count)."""
-        if self.per_minute > 0:
-            self._refund(keys=[self._key(subject)], args=[self._interval_us])
 
     @staticmethod
     def retry_after(wait_s: float) -> str:

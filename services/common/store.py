@@ -147,12 +147,11 @@ class JobStore(UploadRecords):
         """The job with only its items offset..offset+limit-1 (fewer past the end), and how many
         items it has: a poll of a large job reads and parses only the page asked for."""
         key = f"{_P}job:{job_id}"
-        base = dict(zip(_JOB_FIELDS, self._r.hmget(key, _JOB_FIELDS), strict=True))
-        if base["doc"] is None:
+        fields = _job_fields(self._r.hmget(key, _JOB_FIELDS))
+        if "doc" not in fields:
             return None
-        n = int(base["n_items"])
+        n = int(fields["n_items"])
         indices = range(min(offset, n), min(offset + limit, n))
-        fields = {k: v for k, v in base.items() if v is not None}
         if indices:
             names = [f"item:{i}" for i in indices]
             fields.update(zip(names, self._r.hmget(key, names), strict=True))
@@ -189,8 +188,7 @@ class JobStore(UploadRecords):
                     pipe.hmget(f"{_P}job:{job_id}", _JOB_FIELDS)
             found = pipe.execute()
         if not items:
-            found = [{k: v for k, v in zip(_JOB_FIELDS, values, strict=True) if v is not None}
-                     for values in found]
+            found = [_job_fields(values) for values in found]
         jobs = [(_job(fields, None if items else range(0)), int(fields["n_items"]))
                 for fields in found if fields]
         return jobs, (rows[limit - 1][1] if len(rows) > limit else None)
@@ -293,6 +291,11 @@ class JobStore(UploadRecords):
             for s in State:
                 pipe.zcard(f"{_P}state:{s.value}")
             return dict(zip([s.value for s in State], pipe.execute(), strict=True))
+
+def _job_fields(values: list[str | None]) -> dict[str, str]:
+    """The job hash's own fields (_JOB_FIELDS) from an HMGET of them, the missing left out."""
+    return {k: v for k, v in zip(_JOB_FIELDS, values, strict=True) if v is not None}
+
 
 def _attach_frames(items: dict[int, ItemRecord], fields: dict[str, str]) -> None:
     """Add to `items` (index -> record) their frames among `fields` (``frame:{i}:{n}``), in order."""

@@ -73,9 +73,7 @@ def test_worker_sigkilled_mid_tiles_gives_exactly_the_outputs(stack, figures):
         for kind in ("csv", "ply"):
             assert httpx.get(it["downloads"][kind], timeout=30).content == expected[kind]
     assert stack.keys(job_id) == _expected_files(spec, photo, 3)  # nothing more, nothing twice
-    figures["faults survived"] += 1
-    figures["jobs submitted"] += 1
-    figures["jobs succeeded"] += 1
+    figures.update({"faults survived": 1, "jobs submitted": 1, "jobs succeeded": 1})
 
 
 def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
@@ -97,9 +95,7 @@ def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
     assert states == ["succeeded"] * len(ids), [j for j in jobs.values() if j["state"] != "succeeded"]
     for job_id in ids:
         assert {f"items/{i}/cloud.ply" for i in range(3)} <= stack.keys(job_id)
-    figures["faults survived"] += 1
-    figures["jobs submitted"] += len(ids)
-    figures["jobs succeeded"] += len(ids)
+    figures.update({"faults survived": 1, "jobs submitted": len(ids), "jobs succeeded": len(ids)})
 
 
 def _wait_ready(stack: FaultStack, want: int, timeout: float = 60) -> dict:
@@ -122,9 +118,7 @@ def test_object_store_down_for_a_while_retries_and_finishes(stack, figures):
     assert _wait_ready(stack, 200) == {"redis": "ok", "object_store": "ok"}
     jobs = stack.wait(ids, timeout=180)
     assert [j["state"] for j in jobs.values()] == ["succeeded"] * 3, jobs
-    figures["faults survived"] += 1
-    figures["jobs submitted"] += 3
-    figures["jobs succeeded"] += 3
+    figures.update({"faults survived": 1, "jobs submitted": 3, "jobs succeeded": 3})
 
 
 def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(stack, figures):
@@ -147,9 +141,7 @@ def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(st
     waits = [int(w) for w in re.findall(r"Retry in (\d+)s", stack.workers[0].log[log_start:])]
     assert len(waits) == 5 and all(0 <= w <= 5 for w in waits) and sum(waits) > 0, waits
     _wait_ready(stack, 200)
-    figures["faults survived"] += 1
-    figures["jobs submitted"] += 1
-    figures["jobs failed"] += 1
+    figures.update({"faults survived": 1, "jobs submitted": 1, "jobs failed": 1})
 
 
 def test_api_restarted_while_clients_submit_and_poll(stack, figures):
@@ -191,9 +183,7 @@ def test_api_restarted_while_clients_submit_and_poll(stack, figures):
         if (cursor := page.json()["next_cursor"]) is None:
             break
     assert sorted(listed) == sorted(every_key)
-    figures["faults survived"] += 2
-    figures["jobs submitted"] += len(every_key)
-    figures["jobs succeeded"] += len(every_key)
+    figures.update({"faults survived": 2, "jobs submitted": len(every_key), "jobs succeeded": len(every_key)})
 
 
 def test_a_job_whose_message_was_lost_is_restarted_by_the_watchdog(stack, figures):
@@ -206,9 +196,7 @@ def test_a_job_whose_message_was_lost_is_restarted_by_the_watchdog(stack, figure
     final = stack.wait([job.id], timeout=90)[job.id]  # stall 15 s + a 2 s sweep, then the run
     assert final["state"] == "succeeded", final
     assert f"watchdog: job {job.id} made no progress" in "".join(w.log for w in stack.workers)
-    figures["faults survived"] += 1
-    figures["jobs submitted"] += 1
-    figures["jobs succeeded"] += 1
+    figures.update({"faults survived": 1, "jobs submitted": 1, "jobs succeeded": 1})
 
 
 def test_no_api_key_in_any_process_log(stack):
