@@ -64,7 +64,9 @@ def submit(
     mm_per_px: Annotated[str | None, typer.Option(help="F or FRONT,SIDE.")] = None,
     distance_mm: Annotated[float | None, typer.Option()] = None,
     focal_px: Annotated[float | None, typer.Option()] = None,
-    width_mm: Annotated[float | None, typer.Option()] = None,
+    width_mm: Annotated[float | None, typer.Option(help="Known real width.")] = None,
+    height_mm: Annotated[float | None, typer.Option(help="Known real height.")] = None,
+    depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     method: Annotated[str, typer.Option()] = "default",
     cloud: Annotated[str, typer.Option()] = "surface",
     webhook: Annotated[str | None, typer.Option(help="URL to POST the finished job to.")] = None,
@@ -80,8 +82,10 @@ def submit(
     else:
         spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
                                distance_mm=distance_mm, focal_px=focal_px, width_mm=width_mm,
-                               method=method, cloud=cloud)
-        items, base = [spec.model_dump(mode="json", exclude_defaults=True)], Path(".")
+                               height_mm=height_mm, depth_mm=depth_mm, method=method, cloud=cloud)
+        # exclude_none, not exclude_defaults: a default that carries meaning (the scale's
+        # `kind` tag) must reach the API, or it cannot tell one scale from another.
+        items, base = [spec.model_dump(mode="json", exclude_none=True)], Path(".")
     body = {"items": [_upload_local(client, dict(item), base) for item in items],
             "client_reference": reference, "webhook_url": webhook}
     job = client.submit(body, idempotency_key=idempotency_key)

@@ -18,7 +18,9 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from .stack import ManagedProcess, start_api, start_redis, start_s3, start_worker
+from prismcore import InputError
+
+from .stack import ManagedProcess, free_port, port_is_free, start_api, start_redis, start_s3, start_worker
 
 __all__ = ["serve"]
 
@@ -35,6 +37,18 @@ def _credentials(data_dir: Path) -> dict[str, str]:
     return creds
 
 
+def _s3_port(data_dir: Path) -> int:
+    """The object store's port, the same across restarts: download links handed out before a
+    restart are signed for it and must keep working for their lifetime."""
+    path = data_dir / "ports.json"
+    kept = json.loads(path.read_text()).get("s3") if path.exists() else None
+    if isinstance(kept, int) and port_is_free(kept):
+        return kept
+    port = free_port()
+    path.write_text(json.dumps({"s3": port}))
+    return port
+
+
 def stack_env(creds: dict[str, str], redis_port: int, s3_port: int) -> dict[str, str]:
     """The PRISM_* environment the API and the workers of a local stack share."""
     return {
@@ -48,12 +62,18 @@ def stack_env(creds: dict[str, str], redis_port: int, s3_port: int) -> dict[str,
 
 
 def serve(
-    data_dir: Annotated[Path, typer.Option(help="Where jobs, objects and keys are kept.")] = Path(".prism"),
-    port: Annotated[int, typer.Option(help="API port on 127.0.0.1.")] = 8000,
+    data_dir: Annotated[Path, typer.Option(help="Where jobs, objects and keys are kept.",
+                                           envvar="PRISM_SERVE_DATA_DIR")] = Path(".prism"),
+    port: Annotated[int, typer.Option(help="API port on 127.0.0.1.", envvar="PRISM_SERVE_PORT")] = 8000,
     workers: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 2,
 ) -> None:
     """Run the API, workers, Redis and S3 storage locally until Ctrl-C."""
     console = Console()
+    if not port_is_free(port):
+        # Checked first: the health check would otherwise reach whatever holds the port and
+        # report this stack ready before its own API died on the bind.
+        raise InputError(f"port {port} on 127.0.0.1 is taken (another prism serve?): stop it "
+                         "or pass --port")
     data_dir = data_dir.resolve()
     creds = _credentials(data_dir)
     started: list[ManagedProcess] = []
@@ -61,7 +81,8 @@ def serve(
         with console.status("starting redis-server and SeaweedFS ..."):
             redis = start_redis(data_dir / "redis")
             started.append(redis)
-            s3 = start_s3(data_dir / "s3", creds["s3_key_id"], creds["s3_secret"])
+            s3 = start_s3(data_dir / "s3", creds["s3_key_id"], creds["s3_secret"],
+                          port=_s3_port(data_dir))
             started.append(s3)
         env = stack_env(creds, redis.port, s3.port)  # type: ignore[arg-type]
         with console.status("starting the workers and the API ..."):
@@ -72,7 +93,7 @@ def serve(
                       f"  API key: {key}\n"
                       f"  try: PRISM_API_KEY={key} prism submit samples/box.jpg --points "
                       f"'395,293 943,331 919,761 943,331 1035,298' --width-mm 120 --wait\n"
-                      f"  logs and data: {data_dir}   (Ctrl-C stops everything)")
+                      f"  logs and data: {data_dir}   (Ctrl-C stops everything)", soft_wrap=True)
         stop = threading.Event()
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
@@ -84,3 +105,4 @@ def serve(
     finally:
         for proc in reversed(started):
             proc.stop()
+    console.print("stopped")

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import httpx
 
-__all__ = ["ManagedProcess", "free_port", "free_ports", "start_api", "start_redis", "start_s3",
-           "start_worker", "wait_for_port"]
+__all__ = ["ManagedProcess", "free_port", "free_ports", "port_is_free", "start_api", "start_redis",
+           "start_s3", "start_worker", "wait_for_port"]
 
 
 def free_port() -> int:
@@ -38,6 +38,18 @@ def free_ports(count: int) -> list[int]:
     finally:
         for s in sockets:
             s.close()
+
+
+def port_is_free(port: int) -> bool:
+    """True when nothing listens on 127.0.0.1:`port` and it can be bound."""
+    with socket.socket() as s:
+        # As the servers bind (SO_REUSEADDR): a port in TIME_WAIT is free, a listening one not.
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
 
 
 def wait_for_port(port: int, timeout: float = 30.0, proc: subprocess.Popen | None = None) -> None:

@@ -1,0 +1,164 @@
+"""Every command the README shows is run here, as written, against a fresh `prism serve`.
+
+The README's `sh` blocks are what a user types; `text` blocks are usage synopses with
+placeholders. Each `sh` block must be claimed by one of the runners below, so a block added to
+the README without a test fails this file. The only changes made to a block before it runs:
+the key placeholder `k-...` becomes the key this test's `prism serve` generated, and the API's
+port 8000 becomes this test's port (the server and client commands are pointed at it through
+their documented environment variables).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+_BLOCK = re.compile(r"^```(\w+)\n(.*?)^```$", re.S | re.M)
+
+
+def sh_blocks() -> list[str]:
+    return [body for lang, body in _BLOCK.findall(README.read_text()) if lang == "sh"]
+
+
+def _block(marker: str) -> str:
+    found = [b for b in sh_blocks() if marker in b]
+    assert len(found) == 1, f"README: expected one sh block containing {marker!r}, found {len(found)}"
+    return found[0]
+
+
+def _bash(script: str, *, cwd: Path, env: dict[str, str], timeout: float) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+# Each runner claims the blocks holding its marker.
+MARKERS = {
+    "two commands": "scripts/demo",
+    "local scan": "prism scan samples/box.jpg",
+    "serve": "prism serve",
+    "client": "export PRISM_API_KEY",
+    "curl": "curl ",
+}
+
+
+def test_every_sh_block_is_run_by_a_test():
+    unclaimed = [b for b in sh_blocks() if not any(m in b for m in MARKERS.values())]
+    assert not unclaimed, f"README sh blocks no test runs: {unclaimed}"
+    for marker in MARKERS.values():
+        _block(marker)
+
+
+@pytest.fixture
+def user_dir(tmp_path: Path) -> Path:
+    """A folder like the repository's top as a user's shell sees it (samples, .venv), whose
+    outputs (`out/...`) land in the test's temporary folder."""
+    for name in ("samples", ".venv"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    return tmp_path
+
+
+def test_two_commands_block():
+    block = _block(MARKERS["two commands"])
+    lines = [line.split("#")[0].strip() for line in block.splitlines() if line.strip()]
+    assert lines == ["scripts/demo", "scripts/test"]
+    # scripts/test is what CI runs (.ci/run execs it), so it runs on every submission; running it
+    # from inside the suite would recurse.
+    assert "exec scripts/test" in (ROOT / ".ci" / "run").read_text()
+    run = _bash("scripts/demo", cwd=ROOT, env=dict(os.environ), timeout=600)
+    assert run.returncode == 0, run.stderr
+    report = json.loads((ROOT / "out" / "demo" / "report.json").read_text())
+    assert report["dimensions"]["unit"] == "mm"
+
+
+def test_local_scan_block(user_dir: Path):
+    run = _bash(_block(MARKERS["local scan"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stderr
+    for folder in ("out/box", "out/sample/scan"):
+        report = json.loads((user_dir / folder / "report.json").read_text())
+        assert report["dimensions"]["unit"] == "mm"
+        assert (user_dir / folder / "cloud.ply").stat().st_size > 0
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory) -> Iterator[dict[str, str]]:
+    """The README's serve block, run as written (setup included) in the background."""
+    from prism_cli.stack import free_port
+
+    data = tmp_path_factory.mktemp("prism-serve")
+    port = free_port()
+    env = {**os.environ, "PRISM_SERVE_PORT": str(port), "PRISM_SERVE_DATA_DIR": str(data / ".prism"),
+           "COLUMNS": "300"}
+    env.pop("PRISM_API_KEYS", None)
+    log = (data / "serve.out").open("w")
+    proc = subprocess.Popen(["bash", "-euo", "pipefail", "-c", _block(MARKERS["serve"])], cwd=ROOT,
+                            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while "ready: API" not in (data / "serve.out").read_text():
+            assert proc.poll() is None, (data / "serve.out").read_text()
+            assert time.monotonic() < deadline, (data / "serve.out").read_text()
+            time.sleep(0.5)
+        key = json.loads((data / ".prism" / "credentials.json").read_text())["api_key"]
+        yield {"port": str(port), "key": key, "log": str(data / "serve.out")}
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        log.close()
+
+
+def _client_env(served: dict[str, str]) -> dict[str, str]:
+    return {**os.environ, "PRISM_API_URL": f"http://127.0.0.1:{served['port']}",
+            "PRISM_API_KEY": served["key"]}
+
+
+def _as_user(block: str, served: dict[str, str]) -> str:
+    return block.replace("k-...", served["key"]).replace("127.0.0.1:8000", f"127.0.0.1:{served['port']}")
+
+
+def test_serve_prints_ready_and_a_one_line_hint(served):
+    out = Path(served["log"]).read_text()
+    hint = [line for line in out.splitlines() if "try:" in line]
+    assert len(hint) == 1 and "--wait" in hint[0], out
+
+
+def test_client_block_submits_with_each_scale_waits_and_downloads(served, user_dir: Path):
+    run = _bash(_as_user(_block(MARKERS["client"]), served), cwd=user_dir, env=_client_env(served),
+                timeout=600)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout.count("succeeded") >= 4, run.stdout
+    reports = list((user_dir / "out" / "job").glob("item-0/report.json"))
+    assert reports, run.stdout
+    dims = json.loads(reports[0].read_text())["dimensions"]
+    assert dims["unit"] == "mm" and dims["height"] == pytest.approx(86, rel=1e-3)
+
+
+def test_curl_block_uploads_submits_and_polls(served, user_dir: Path):
+    run = _bash(_as_user(_block(MARKERS["curl"]), served), cwd=user_dir, env=_client_env(served),
+                timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    job = json.loads(run.stdout)
+    assert job["state"] in {"queued", "running", "succeeded"}
+    assert job["item_count"] == 1
+
+
+def test_serve_refuses_a_taken_port_in_one_line(served):
+    run = subprocess.run([str(ROOT / ".venv" / "bin" / "prism"), "serve", "--port", served["port"]],
+                         capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert run.returncode == 2
+    assert run.stderr.strip().count("\n") == 0 and "taken" in run.stderr, run.stderr
+    assert "ready" not in run.stdout
