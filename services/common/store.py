@@ -323,5 +323,19 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
             setattr(job, name, datetime.fromisoformat(fields[name]))
     job.error = fields.get("error") or None
     total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
-    job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
+    if job.state == State.cancelled:
+        # Progress counts finished work only, and what had not finished never will: its items
+        # and frames read as cancelled (the worker's tasks stop at their next step).
+        job.progress = min(100, int(100 * done / max(total, 1)))
+        for item in job.items:
+            _cancel_unfinished(item)
+            for frame in item.frames:
+                _cancel_unfinished(frame)
+    else:
+        job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
     return job
+
+
+def _cancel_unfinished(record: ItemRecord | FrameRecord) -> None:
+    if record.state in (State.queued, State.running):
+        record.state = State.cancelled

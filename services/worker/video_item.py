@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from prism_common.queue import TASK_SCAN_FRAME
-from prism_common.records import ItemView
+from prism_common.records import ItemView, State
 
 from prismcore import InputError
 from prismcore.video import iter_frames, probe_video, select_frames
@@ -77,6 +77,8 @@ def split_video(view: ItemView) -> list[int]:
         objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
         count_plan(job_id, item, len(frames))  # progress counts frames from here on
         for index, rgb in iter_frames(path, frames):
+            if store.state(job_id) != State.running:
+                break  # cancelled (or ended) meanwhile: the remaining frames are not wanted
             objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
             app.send_task(TASK_SCAN_FRAME, (job_id, item, index))
     return frames

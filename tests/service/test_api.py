@@ -427,7 +427,9 @@ def test_cancel(client, store):
     job_id = submit(client, [item(upload(client))]).json()["id"]
     first = client.post(f"/v1/jobs/{job_id}/cancel", headers=ACME)
     assert first.status_code == 200, first.text
-    assert first.json()["state"] == "cancelled" and first.json()["progress"] == 100
+    # Nothing had finished: progress counts finished work only, and the item reads cancelled.
+    assert first.json()["state"] == "cancelled" and first.json()["progress"] == 0
+    assert [i["state"] for i in first.json()["items"]] == ["cancelled"]
     assert first.json()["finished_at"] is not None
     again = client.post(f"/v1/jobs/{job_id}/cancel", headers=ACME)
     assert again.status_code == 200 and again.json() == first.json()

@@ -146,15 +146,29 @@ def test_failing_item_beside_a_good_one(stack, scene):
     assert good["state"] == "succeeded" and good["downloads"]
 
 
-def test_cancel_stops_a_job(stack, scene):
+def test_cancel_stops_a_job_and_tells_the_truth(stack, scene):
     ref = stack.upload(_jpeg(scene.image))
-    r = stack.submit([_item(ref, scene) for _ in range(12)])
-    cancelled = stack.http.post(f"/v1/jobs/{r.json()['id']}/cancel", headers=ACME)
+    job_id = stack.submit([_item(ref, scene) for _ in range(12)]).json()["id"]
+    deadline = time.monotonic() + 60
+    while not any(i["state"] == "succeeded" for i in stack.http.get(
+            f"/v1/jobs/{job_id}", headers=ACME).json()["items"]):
+        assert time.monotonic() < deadline
+        time.sleep(0.1)
+    cancelled = stack.http.post(f"/v1/jobs/{job_id}/cancel", headers=ACME)
     assert cancelled.status_code == 200 and cancelled.json()["state"] == "cancelled"
-    time.sleep(3)
-    job = stack.http.get(f"/v1/jobs/{r.json()['id']}", headers=ACME).json()
+    time.sleep(3)  # tasks in flight reach their next step
+    job = stack.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
+    states = [item["state"] for item in job["items"]]
     assert job["state"] == "cancelled"
-    assert sum(item["state"] == "succeeded" for item in job["items"]) < 12
+    assert set(states) <= {"succeeded", "cancelled"}, states
+    done = states.count("succeeded")
+    assert 1 <= done < 12
+    # Progress counts finished work only: never 100 for a job that stopped part way.
+    assert job["progress"] < 100
+    time.sleep(3)
+    later = stack.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
+    assert [item["state"] for item in later["items"]] == states  # nothing runs on after the cancel
+    assert later["progress"] == job["progress"]
 
 
 def test_keys_are_isolated(stack, scene):
