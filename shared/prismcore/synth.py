@@ -28,10 +28,21 @@ Its coverage of each output pixel is computed analytically (the exact area of th
 square on the inner side of each projected edge), so edges are anti-aliased and sub-pixel
 exact: the 50% crossing of a face's edge is where the projection puts it. The faces'
 coverages of a shared edge add up to one, so no background leaks through the seams.
+
+Photos that look like a phone's (opt in: ``realism=Realism(...)``)
+-------------------------------------------------------------------
+The ideal pinhole photo (its box's edges rounded when asked) is rendered on a canvas large
+enough for the lens, then warped so that every point lands where OpenCV's distortion model
+puts it (``Scene.points`` are those distorted positions, ``Scene.pinhole_points`` the ideal
+ones), darkened toward the corners, blurred, given read and shot noise and encoded as a JPEG by
+Pillow, EXIF included (``Scene.jpeg``). `photo_like_scene` draws whole such scenes (box, pose,
+camera, lens, clicks, known edge) from one seed for the real-cameras benchmark. Without
+`realism` every render is exactly what it was before the option existed.
 """
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,14 +51,25 @@ import cv2
 import numpy as np
 from PIL import Image
 
+from .errors import InputError
+
 __all__ = [
     "Box",
+    "CameraExif",
+    "PhotoLikeScene",
+    "Realism",
     "Scene",
     "Style",
+    "decode_jpeg",
+    "distort_points",
+    "encode_jpeg",
+    "focal_35mm_equivalent",
+    "photo_like_scene",
     "render_front_view",
     "render_oblique_view",
     "render_side_view",
     "save_image",
+    "vignetting_gain",
 ]
 
 _SUPERSAMPLE = 3  # face textures are warped at this many samples per output pixel per axis
@@ -132,6 +154,67 @@ class Style:
 DEFAULT_STYLE = Style()
 
 
+@dataclass(frozen=True)
+class CameraExif:
+    """What a phone writes into its photos' EXIF besides the focal length."""
+
+    make: str = "Synthphone"
+    model: str = "SP-1"
+
+
+@dataclass(frozen=True)
+class Realism:
+    """Opt-in imperfections of real photos, on top of a `Style` (all off by default).
+
+    The ideal pinhole photo is rendered first (with rounded edges when asked), then warped by
+    the lens distortion, darkened toward the corners, blurred (``Style.blur_sigma``), given
+    sensor noise (``Style.noise_sigma`` plus shot noise) and encoded as a JPEG at
+    ``Style.jpeg_quality`` by Pillow (with EXIF when `exif` is set); the scene's image is that
+    JPEG decoded and ``Scene.jpeg`` its bytes.
+
+    Attributes
+    ----------
+    k1, k2 : float
+        OpenCV radial distortion coefficients (normalised coordinates): a point the pinhole
+        puts at normalised (x, y) lands at (x, y) * (1 + k1 r^2 + k2 r^4), r^2 = x^2 + y^2.
+        Negative k1 is barrel distortion (phones: about -0.15 to 0.10).
+    edge_radius_mm : float
+        Radius of the box's rounded edges, mm; the box keeps its outer size, so the silhouette
+        lies inside the sharp box's outline and the faces' shading turns along every edge.
+    vignetting : float
+        Fraction by which the image's corner pixels are darkened, 0 <= v < 1; the gain falls
+        as ``1 - v * rho^2``, rho the distance from the image centre over the corners' distance.
+    shot_noise : float
+        Signal-dependent sensor noise: standard deviation at full white (255), 0-255 units;
+        it scales with the square root of the pixel value.
+    exif : CameraExif or None
+        Write EXIF into the JPEG: make, model, pixel dimensions and FocalLengthIn35mmFilm
+        (from the scene's focal length). Needs ``Style.jpeg_quality``.
+    """
+
+    k1: float = 0.0
+    k2: float = 0.0
+    edge_radius_mm: float = 0.0
+    vignetting: float = 0.0
+    shot_noise: float = 0.0
+    exif: CameraExif | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("k1", "k2"):
+            if not math.isfinite(getattr(self, name)):
+                raise InputError(f"Realism.{name} must be finite, got {getattr(self, name)!r}")
+        for name in ("edge_radius_mm", "shot_noise"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise InputError(f"Realism.{name} must be >= 0, got {value!r}")
+        if not (math.isfinite(self.vignetting) and 0 <= self.vignetting < 1):
+            raise InputError(f"Realism.vignetting must be in [0, 1), got {self.vignetting!r}")
+
+    def distortion(self) -> np.ndarray:
+        """(5,) float64 OpenCV distortion coefficients (k1, k2, p1, p2, k3)."""
+        return np.array([self.k1, self.k2, 0.0, 0.0, 0.0])
+
+
 class _Points(dict):
     """Point name -> (x, y) px. Keys are the engine's ("p1".."p7"); lookups ignore case."""
 
@@ -176,6 +259,15 @@ class Scene:
         (3, 3) float64 world-to-camera rotation R.
     translation : np.ndarray
         (3,) float64 world-to-camera translation t, mm: ``X_cam = R @ X_world + t``.
+    distortion : np.ndarray or None
+        (5,) float64 OpenCV distortion (k1, k2, p1, p2, k3) the photo was taken with (a
+        `Realism` render); None for a pinhole render. With distortion, `points` are where the
+        lens puts the corners (OpenCV's forward model of `pinhole_points`).
+    pinhole_points : dict of str to (float, float) or None
+        A `Realism` render: where an ideal pinhole camera (K, R, t) projects the points, px.
+    jpeg : bytes or None
+        A `Realism` render with a JPEG quality: the JPEG file (with EXIF when asked for);
+        `image` is its decoding.
     """
 
     image: np.ndarray
@@ -188,6 +280,9 @@ class Scene:
     camera_matrix: np.ndarray
     rotation: np.ndarray
     translation: np.ndarray
+    distortion: np.ndarray | None = None
+    pinhole_points: dict[str, tuple[float, float]] | None = None
+    jpeg: bytes | None = None
 
 
 # --------------------------------------------------------------------------- geometry
@@ -627,12 +722,115 @@ def _draw_label(rng: np.random.Generator, albedo: np.ndarray, texture: float) ->
     albedo[y0:y0 + lh, x0:x0 + lw] = region
 
 
+# --------------------------------------------------------------------------- rounded edges
+
+
+_ARC_SAMPLES = 2001  # samples of a rounded edge's quarter circle
+
+
+@dataclass(frozen=True)
+class _RoundedFace:
+    """A face of a box whose edges are quarter cylinders of radius r (the box keeps its outer size).
+
+    Per edge of the face, in the face's texture order (v = 0, u = U, v = V, u = 0): the in-face
+    distance ``s`` (mm) from the sharp edge at which the silhouette lies (0 for a fold edge,
+    whose neighbour face is visible too), and the table ``s -> shade ratio`` of the strip
+    ``s < r``, where the camera sees the rounded surface instead of the face's plane.
+    """
+
+    face: _Face
+    silhouette_mm: tuple[float, float, float, float]
+    strips: tuple[tuple[np.ndarray, np.ndarray], ...]  # per edge: increasing s (mm), shade ratio
+    radius_mm: float
+
+    def silhouette_corners(self) -> np.ndarray:
+        """(4, 3) world corners of the face's visible outline (edges moved in to the silhouette)."""
+        f = self.face
+        top, right, bottom, left = self.silhouette_mm
+        u0, u1, v0, v1 = left, f.size_u - right, top, f.size_v - bottom
+        corners = ((u0, v0), (u1, v0), (u1, v1), (u0, v1))
+        return np.array([f.origin + u * f.e_u + v * f.e_v for u, v in corners])
+
+    def shade_ratio(self, K: np.ndarray, R: np.ndarray, t: np.ndarray, x0: int, y0: int, w: int,
+                    h: int) -> np.ndarray:
+        """(h, w) float32 factor on the flat face's colour for pixels [x0, x0+w) x [y0, y0+h)."""
+        f = self.face
+        Hmat = K @ np.column_stack([R @ f.e_u, R @ f.e_v, R @ f.origin + t])  # face (u, v) mm -> px
+        xs, ys = np.meshgrid(np.arange(x0, x0 + w, dtype=np.float64), np.arange(y0, y0 + h, dtype=np.float64))
+        uvw = np.linalg.solve(Hmat, np.stack([xs.ravel(), ys.ravel(), np.ones(xs.size)]))
+        u, v = (uvw[:2] / uvw[2]).reshape(2, h, w)
+        ratio = np.ones((h, w))
+        for s, (s_tab, r_tab) in zip((v, f.size_u - u, f.size_v - v, u), self.strips, strict=True):
+            near = s < self.radius_mm
+            # Where two strips meet (near a box corner) their shades multiply: a smooth stand-in
+            # for the spherical corner.
+            ratio[near] *= np.interp(s[near], s_tab, r_tab)
+        return ratio.astype(np.float32)
+
+
+def _rounded_edges(face: _Face, faces: list[_Face], visible: set[str], camera_centre: np.ndarray,
+                   radius_mm: float, light: np.ndarray) -> _RoundedFace:
+    """How `face` looks when the box's edges are rounded with `radius_mm`.
+
+    Each edge is worked in its cross-section (2-D, exact: every ray that meets one generator
+    line of the cylinder lies in a plane through the camera centre and that line, which cuts the
+    face's plane along a line parallel to the edge). Coordinates (m, n): m along the face toward
+    the neighbour, n along the face's normal, origin at the sharp edge; the face is n = 0, m < 0
+    and the cylinder's axis is at (-r, -r). The arc point at angle a (0: tangent to the face,
+    90 degrees: tangent to the neighbour) has normal (sin a, cos a).
+    """
+    r = radius_mm
+    n1 = face.normal
+    edges = ((face.origin, -face.e_v), (face.origin + face.size_u * face.e_u, face.e_u),
+             (face.origin + face.size_v * face.e_v, face.e_v), (face.origin, -face.e_u))
+    a = np.linspace(0.0, math.pi / 2, _ARC_SAMPLES)
+    qm, qn = -r + r * np.sin(a), -r + r * np.cos(a)
+    silhouette, strips = [], []
+    for point, m in edges:
+        neighbour = next(g for g in faces if float(np.dot(g.normal, m)) > 0.5)
+        cm, cn = float(np.dot(camera_centre - point, m)), float(np.dot(camera_centre - point, n1))
+        seen = np.sin(a) * (cm - qm) + np.cos(a) * (cn - qn) > 0
+        s = -(cm + cn / (cn - qn) * (qm - cm))  # where the ray through the arc point meets the plane
+        if neighbour.name in visible:
+            end = int(np.argmax(s < 0)) if np.any(s < 0) else a.size  # the rest is the neighbour's
+            s_sil = 0.0
+        else:
+            end = int(np.argmax(~seen)) if np.any(~seen) else a.size
+            s_sil = float(max(s[max(end - 1, 0)], 0.0))
+        end = max(end, 2)
+        shade = 0.42 + 0.58 * np.maximum(0.0, np.cos(a[:end]) * float(np.dot(n1, light))
+                                          + np.sin(a[:end]) * float(np.dot(m, light)))  # as _lambert
+        ratio = shade / _lambert(n1, light)
+        order = np.argsort(s[:end])
+        strips.append((s[:end][order], ratio[order]))
+        silhouette.append(s_sil)
+    return _RoundedFace(face, tuple(silhouette), tuple(strips), r)  # type: ignore[arg-type]
+
+
 # --------------------------------------------------------------------------- rendering
 
 
 def _render(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
             style: Style, seed: int, photographed: str) -> np.ndarray:
     """The photo (H, W, 3) uint8 RGB of the box seen by camera (K, R, t)."""
+    img, rng_noise = _render_linear(box, K, R, t, image_size, style, seed, photographed)
+    if style.blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), style.blur_sigma, borderType=cv2.BORDER_REFLECT)
+    if style.noise_sigma > 0:
+        img += rng_noise.standard_normal(img.shape, dtype=np.float32) * np.float32(style.noise_sigma)
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if style.jpeg_quality is not None:
+        out = _jpeg_round_trip(out, style.jpeg_quality)
+    return out
+
+
+def _render_linear(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                   style: Style, seed: int, photographed: str, edge_radius_mm: float = 0.0
+                   ) -> tuple[np.ndarray, np.random.Generator]:
+    """The noiseless, unblurred photo (H, W, 3) float32 RGB 0-255, and the noise generator.
+
+    `edge_radius_mm` > 0 rounds the box's edges (see `_rounded_edges`).
+    """
     w, h = int(image_size[0]), int(image_size[1])
     if w < 8 or h < 8:
         raise ValueError(f"image_size must be at least 8x8 px, got {image_size!r}")
@@ -663,6 +861,10 @@ def _render(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: t
         if face.name not in visible:
             continue
         corners_w = face.corners()
+        rounding = None
+        if edge_radius_mm > 0:
+            rounding = _rounded_edges(face, faces, visible, centre, edge_radius_mm, light)
+            corners_w = rounding.silhouette_corners()
         poly = _project(K, R, t, corners_w)
         x0 = max(math.floor(poly[:, 0].min()) - 1, 0)
         y0 = max(math.floor(poly[:, 1].min()) - 1, 0)
@@ -690,6 +892,8 @@ def _render(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: t
         big = cv2.warpPerspective(tex, Hmat, ((x1 - x0) * S, (y1 - y0) * S), flags=cv2.INTER_LINEAR,
                                   borderMode=cv2.BORDER_REPLICATE)
         colour = cv2.resize(big, (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA)
+        if rounding is not None:
+            colour *= rounding.shade_ratio(K, R, t, x0, y0, x1 - x0, y1 - y0)[..., None]
         m = _polygon_coverage(poly, x0, y0, x1 - x0, y1 - y0).astype(np.float32)
         acc[y0:y1, x0:x1] += colour * m[..., None]
         cover[y0:y1, x0:x1] += m
@@ -700,15 +904,7 @@ def _render(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: t
     if style.lighting > 0:
         bg = _cast_shadow(bg, cover, R @ light, style.lighting)
     img = bg * (1.0 - cover[..., None]) + acc
-
-    if style.blur_sigma > 0:
-        img = cv2.GaussianBlur(img, (0, 0), style.blur_sigma, borderType=cv2.BORDER_REFLECT)
-    if style.noise_sigma > 0:
-        img += rng_noise.standard_normal(img.shape, dtype=np.float32) * np.float32(style.noise_sigma)
-    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
-    if style.jpeg_quality is not None:
-        out = _jpeg_round_trip(out, style.jpeg_quality)
-    return out
+    return img, rng_noise
 
 
 def _cast_shadow(bg: np.ndarray, cover: np.ndarray, light_cam: np.ndarray, lighting: float) -> np.ndarray:
@@ -740,17 +936,184 @@ def _jpeg_round_trip(rgb: np.ndarray, quality: int) -> np.ndarray:
 
 def _scene(box: Box, view: str, image_size: tuple[int, int], focal_px: float, distance_mm: float,
            R: np.ndarray, t: np.ndarray, style: Style, seed: int, names: tuple[str, ...],
-           photographed: str, mm_per_px: float | None, side_view: bool = False) -> Scene:
+           photographed: str, mm_per_px: float | None, side_view: bool = False,
+           realism: Realism | None = None) -> Scene:
     K = _camera_matrix(focal_px, _principal(image_size))
     corners = _corners(box)
     if side_view:
         corners["p3"] = np.array([box.width_mm, box.height_mm, 0.0])  # side lower-left: same corner
-    pts = _project(K, R, t, np.array([corners[n] for n in names]))
+    world = np.array([corners[n] for n in names])
+    pts = _project(K, R, t, world)
     points = _Points({n: (float(p[0]), float(p[1])) for n, p in zip(names, pts, strict=True)})
-    image = _render(box, K, R, t, image_size, style, seed, photographed)
-    return Scene(image=image, points=points, box=box, focal_px=float(focal_px),
-                 distance_mm=float(distance_mm), mm_per_px=mm_per_px, view=view, camera_matrix=K,
-                 rotation=R, translation=t)
+    if realism is None:
+        image = _render(box, K, R, t, image_size, style, seed, photographed)
+        return Scene(image=image, points=points, box=box, focal_px=float(focal_px),
+                     distance_mm=float(distance_mm), mm_per_px=mm_per_px, view=view, camera_matrix=K,
+                     rotation=R, translation=t)
+    dist = realism.distortion()
+    seen = distort_points(pts, K, dist)
+    image, jpeg = _render_realistic(box, K, R, t, image_size, style, seed, photographed, realism)
+    observed = _Points({n: (float(p[0]), float(p[1])) for n, p in zip(names, seen, strict=True)})
+    return Scene(image=image, points=observed,
+                 box=box, focal_px=float(focal_px), distance_mm=float(distance_mm), mm_per_px=mm_per_px,
+                 view=view, camera_matrix=K, rotation=R, translation=t, distortion=dist,
+                 pinhole_points=points, jpeg=jpeg)
+
+
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-13)
+
+
+def distort_points(points: np.ndarray, camera_matrix: np.ndarray, distortion: np.ndarray) -> np.ndarray:
+    """Where a lens with OpenCV `distortion` puts the points an ideal pinhole (same K) puts at `points`.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Pinhole image positions (x, y), px.
+    camera_matrix : np.ndarray
+        (3, 3) K.
+    distortion : np.ndarray
+        OpenCV coefficients (k1, k2, p1, p2[, k3...]).
+
+    Returns
+    -------
+    np.ndarray
+        (N, 2) float64 distorted positions, px: OpenCV's forward model (``cv2.projectPoints``).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    K = np.asarray(camera_matrix, dtype=np.float64)
+    # Back to normalised rays at unit depth, then projected by OpenCV with the distortion.
+    rays = np.column_stack([(pts - K[:2, 2]) @ np.linalg.inv(K[:2, :2]).T, np.ones(len(pts))])
+    out, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K,
+                               np.asarray(distortion, np.float64))
+    return out.reshape(-1, 2)
+
+
+def _undistort_grid(K: np.ndarray, dist: np.ndarray, w: int, h: int) -> np.ndarray:
+    """(h, w, 2) float64: the pinhole position of every output pixel centre (OpenCV's inverse
+    distortion, iterated to convergence), refusing a distortion that folds the picture."""
+    xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    grid = np.stack([xs, ys], axis=-1).reshape(-1, 1, 2)
+    und = cv2.undistortPoints(grid, K, dist, R=None, P=K, criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+    # The fixed-point iteration fails silently where the model is not invertible: check the corners.
+    corner = np.array([0, w - 1, (h - 1) * w, h * w - 1])
+    back = distort_points(und[corner], K, dist)
+    miss = float(np.abs(back - grid.reshape(-1, 2)[corner]).max())
+    if not (math.isfinite(miss) and miss < 1e-4):
+        raise InputError(f"distortion {dist.tolist()!r} is not invertible over a {w}x{h} image "
+                         f"(the corners come back {miss:.3g} px away)")
+    return und.reshape(h, w, 2)
+
+
+def _render_realistic(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                      style: Style, seed: int, photographed: str, realism: Realism
+                      ) -> tuple[np.ndarray, bytes | None]:
+    """The `Realism` photo (H, W, 3) uint8 RGB and its JPEG bytes (None without a JPEG quality)."""
+    w, h = int(image_size[0]), int(image_size[1])
+    if realism.exif is not None and style.jpeg_quality is None:
+        raise InputError("Realism.exif needs a JPEG: Style.jpeg_quality is None")
+    r = realism.edge_radius_mm
+    if r > 0 and 2 * r >= min(box.width_mm, box.height_mm, box.depth_mm):
+        raise InputError(f"Realism.edge_radius_mm {r!r} must be less than half the box's smallest "
+                         f"side ({box})")
+    dist = realism.distortion()
+    distorted = bool(np.any(dist != 0))
+    ox = oy = 0
+    canvas = (w, h)
+    if distorted:
+        und = _undistort_grid(K, dist, w, h)
+        # Barrel distortion shows the pinhole picture beyond the frame: render a canvas that holds it.
+        ox = max(0, -math.floor(und[..., 0].min()) + 2)
+        oy = max(0, -math.floor(und[..., 1].min()) + 2)
+        canvas = (max(w, math.ceil(und[..., 0].max()) + 3) + ox,
+                  max(h, math.ceil(und[..., 1].max()) + 3) + oy)
+    K_canvas = K.copy()
+    K_canvas[0, 2] += ox
+    K_canvas[1, 2] += oy
+    img, rng_noise = _render_linear(box, K_canvas, R, t, canvas, style, seed, photographed, r)
+    if distorted:
+        img = cv2.remap(img, (und[..., 0] + ox).astype(np.float32), (und[..., 1] + oy).astype(np.float32),
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    if realism.vignetting > 0:
+        img *= vignetting_gain((w, h), realism.vignetting)[..., None]
+    if style.blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), style.blur_sigma, borderType=cv2.BORDER_REFLECT)
+    if style.noise_sigma > 0 or realism.shot_noise > 0:
+        sigma = np.sqrt(np.float32(style.noise_sigma) ** 2
+                        + np.float32(realism.shot_noise) ** 2 * np.clip(img, 0, 255) / np.float32(255))
+        img += rng_noise.standard_normal(img.shape, dtype=np.float32) * sigma
+    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if style.jpeg_quality is None:
+        return out, None
+    exif = realism.exif
+    data = encode_jpeg(out, style.jpeg_quality, focal_px=float(K[0, 0]) if exif else None,
+                       make=exif.make if exif else None, model=exif.model if exif else None)
+    return decode_jpeg(data), data
+
+
+def vignetting_gain(image_size: tuple[int, int], amount: float) -> np.ndarray:
+    """(H, W) float32 gain ``1 - amount * rho^2``: 1 at the image centre, ``1 - amount`` at its corners."""
+    w, h = int(image_size[0]), int(image_size[1])
+    cx, cy = _principal((w, h))
+    xs = (np.arange(w, dtype=np.float64) - cx) ** 2
+    ys = (np.arange(h, dtype=np.float64) - cy) ** 2
+    rho2 = (ys[:, None] + xs[None, :]) / (cx * cx + cy * cy)
+    return (1.0 - amount * rho2).astype(np.float32)
+
+
+_FULL_FRAME_DIAGONAL_MM = 43.2667  # a 36 x 24 mm frame's diagonal: the "35 mm equivalent" reference
+
+
+def focal_35mm_equivalent(focal_px: float, width: int, height: int) -> float:
+    """The 35 mm equivalent focal length, mm, of a focal length in px on a `width` x `height` photo
+    (diagonal to diagonal: ``f_px / diagonal_px * 43.2667``)."""
+    return float(focal_px) / math.hypot(width, height) * _FULL_FRAME_DIAGONAL_MM
+
+
+_EXIF_IFD = 0x8769
+_TAG_MAKE, _TAG_MODEL, _TAG_ORIENTATION = 0x010F, 0x0110, 0x0112
+_TAG_PIXEL_X, _TAG_PIXEL_Y, _TAG_FOCAL_35 = 0xA002, 0xA003, 0xA405
+
+
+def encode_jpeg(image: np.ndarray, quality: int = 90, *, focal_px: float | None = None,
+                make: str | None = None, model: str | None = None) -> bytes:
+    """A JPEG file of an (H, W, 3) uint8 RGB image, with the EXIF a phone writes.
+
+    EXIF (written when any of `focal_px`, `make`, `model` is given): Make, Model, Orientation 1,
+    PixelXDimension/PixelYDimension (the image's size) and, with `focal_px`,
+    FocalLengthIn35mmFilm = round(`focal_35mm_equivalent`) (EXIF stores whole millimetres).
+    """
+    rgb = np.asarray(image)
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise InputError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.dtype} {rgb.shape}")
+    if not 1 <= int(quality) <= 100:
+        raise InputError(f"JPEG quality must be 1-100, got {quality!r}")
+    pil = Image.fromarray(np.ascontiguousarray(rgb))
+    options: dict[str, object] = {"quality": int(quality)}
+    if focal_px is not None or make is not None or model is not None:
+        exif = Image.Exif()
+        if make is not None:
+            exif[_TAG_MAKE] = make
+        if model is not None:
+            exif[_TAG_MODEL] = model
+        exif[_TAG_ORIENTATION] = 1
+        sub = exif.get_ifd(_EXIF_IFD)
+        sub[_TAG_PIXEL_X] = rgb.shape[1]
+        sub[_TAG_PIXEL_Y] = rgb.shape[0]
+        if focal_px is not None:
+            if not (math.isfinite(focal_px) and focal_px > 0):
+                raise InputError(f"focal_px must be positive, got {focal_px!r}")
+            sub[_TAG_FOCAL_35] = round(focal_35mm_equivalent(focal_px, rgb.shape[1], rgb.shape[0]))
+        options["exif"] = exif.tobytes()
+    buf = io.BytesIO()
+    pil.save(buf, format="JPEG", **options)
+    return buf.getvalue()
+
+
+def decode_jpeg(data: bytes) -> np.ndarray:
+    """(H, W, 3) uint8 RGB pixels of JPEG bytes (Pillow's decoder, as `encode_jpeg`'s)."""
+    with Image.open(io.BytesIO(data)) as pil:
+        return np.asarray(pil.convert("RGB")).copy()
 
 
 def _check_camera(image_size: tuple[int, int], focal_px: float, distance_mm: float | None) -> None:
@@ -764,7 +1127,7 @@ def _check_camera(image_size: tuple[int, int], focal_px: float, distance_mm: flo
 
 def _render_square(box: Box, view: str, image_size: tuple[int, int], focal_px: float,
                    distance_mm: float | None, offset_px: tuple[float, float], style: Style,
-                   seed: int) -> Scene:
+                   seed: int, realism: Realism | None = None) -> Scene:
     _check_camera(image_size, focal_px, distance_mm)
     face_w = box.width_mm if view == "front" else box.depth_mm
     if distance_mm is None:
@@ -774,12 +1137,12 @@ def _render_square(box: Box, view: str, image_size: tuple[int, int], focal_px: f
     names = ("p1", "p2", "p3", "p6") if view == "front" else ("p4", "p5", "p7", "p3")
     return _scene(box, view, image_size, focal_px, distance_mm, R, t, style, seed, names,
                   "front" if view == "front" else "right", distance_mm / focal_px,
-                  side_view=view == "side")
+                  side_view=view == "side", realism=realism)
 
 
 def render_front_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), focal_px: float = 1400.0,
                       distance_mm: float | None = None, offset_px: tuple[float, float] = (0.0, 0.0),
-                      style: Style = DEFAULT_STYLE, seed: int = 0) -> Scene:
+                      style: Style = DEFAULT_STYLE, seed: int = 0, realism: Realism | None = None) -> Scene:
     """A square photo of the front face (z = 0): its plane is parallel to the image plane.
 
     Parameters
@@ -799,18 +1162,21 @@ def render_front_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), f
         Realism settings.
     seed : int
         Seed of all the randomness (colours, textures, label, clutter, noise).
+    realism : Realism or None
+        Imperfections of real photos (lens distortion, rounded edges, vignetting, shot noise,
+        JPEG with EXIF); None renders exactly as before.
 
     Returns
     -------
     Scene
         ``view="front"``, points p1, p2, p3, p6, ``mm_per_px = distance_mm / focal_px``.
     """
-    return _render_square(box, "front", image_size, focal_px, distance_mm, offset_px, style, seed)
+    return _render_square(box, "front", image_size, focal_px, distance_mm, offset_px, style, seed, realism)
 
 
 def render_side_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), focal_px: float = 1400.0,
                      distance_mm: float | None = None, offset_px: tuple[float, float] = (0.0, 0.0),
-                     style: Style = DEFAULT_STYLE, seed: int = 0) -> Scene:
+                     style: Style = DEFAULT_STYLE, seed: int = 0, realism: Realism | None = None) -> Scene:
     """A square photo of the side face (x = W), camera at +X looking toward -X.
 
     Image right is world +Z and image down world +Y, so P4 (z = 0) is on the left and P5
@@ -822,12 +1188,12 @@ def render_side_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), fo
         ``view="side"``, points p4 (W,0,0), p5 (W,0,D), p7 (W,H,D) and p3 (W,H,0), the side
         face's lower-left corner; ``mm_per_px = distance_mm / focal_px``.
     """
-    return _render_square(box, "side", image_size, focal_px, distance_mm, offset_px, style, seed)
+    return _render_square(box, "side", image_size, focal_px, distance_mm, offset_px, style, seed, realism)
 
 
 def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), focal_px: float = 1400.0,
                         distance_mm: float | None = None, yaw_deg: float = 30.0, pitch_deg: float = 15.0,
-                        style: Style = DEFAULT_STYLE, seed: int = 0) -> Scene:
+                        style: Style = DEFAULT_STYLE, seed: int = 0, realism: Realism | None = None) -> Scene:
     """One photo from the front-right and above: the front, right and top faces are visible.
 
     The camera is aimed at the front face's centre, which projects to the principal point.
@@ -853,6 +1219,8 @@ def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024),
         Realism settings.
     seed : int
         Seed of all the randomness.
+    realism : Realism or None
+        Imperfections of real photos; None renders exactly as before.
 
     Returns
     -------
@@ -866,7 +1234,7 @@ def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024),
     R, t = _oblique_pose(box, distance_mm, yaw_deg, pitch_deg)
     names = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
     return _scene(box, "oblique", image_size, focal_px, distance_mm, R, t, style, seed, names,
-                  "front", None)
+                  "front", None, realism=realism)
 
 
 def save_image(scene_or_array: Scene | np.ndarray, path: str | Path) -> None:
@@ -889,3 +1257,166 @@ def save_image(scene_or_array: Scene | np.ndarray, path: str | Path) -> None:
         raise ValueError(f"unsupported image extension {path.suffix!r}: use one of {sorted(_SAVE_FORMATS)}")
     options = {"JPEG": {"quality": 95}, "WEBP": {"lossless": True}}.get(fmt, {})
     Image.fromarray(np.ascontiguousarray(image)).save(path, format=fmt, **options)
+
+
+# --------------------------------------------------------------------------- photo-like scenes
+
+
+_PHONES = (("Apple", "iPhone 12"), ("samsung", "SM-G991B"), ("Google", "Pixel 7"), ("Xiaomi", "M2101K6G"),
+           ("OnePlus", "LE2123"))
+_POINT_ORDER = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+_CLICK_RADIUS_PX = 3.0
+_FACE_ANGLES_DEG = (20.0, 60.0)  # front and side normals this far from the direction to the camera
+_FRAME_MARGIN = 0.03  # every box corner at least this fraction of the width inside the picture
+
+
+@dataclass(frozen=True, eq=False)
+class PhotoLikeScene:
+    """A rendered oblique photo made to look like a phone's, with what a user would give the engine.
+
+    Attributes
+    ----------
+    scene : Scene
+        The render: ``scene.image`` (H, W, 3) uint8 RGB decoded from ``scene.jpeg``; ``scene.points``
+        the true corners where the lens put them, ``scene.camera_matrix`` and ``scene.distortion``
+        the true camera.
+    clicks : dict of str to (float, float)
+        p1..p7 as a user clicks them: the true (distorted) corners moved by up to 3 px, uniformly
+        over a disc, px.
+    known_edge : str
+        The edge whose true length the user gives: "width", "height" or "depth".
+    has_exif : bool
+        Whether the JPEG carries EXIF (make, model, FocalLengthIn35mmFilm, pixel dimensions).
+    style : Style
+    realism : Realism
+    face_angles_deg : (float, float)
+        Angle between the front (then the side) face's normal and the direction from its centre
+        to the camera, degrees.
+    """
+
+    scene: Scene
+    clicks: dict[str, tuple[float, float]]
+    known_edge: str
+    has_exif: bool
+    style: Style
+    realism: Realism
+    face_angles_deg: tuple[float, float]
+
+    @property
+    def image(self) -> np.ndarray:
+        return self.scene.image
+
+    @property
+    def jpeg(self) -> bytes:
+        assert self.scene.jpeg is not None  # photo-like scenes are always JPEGs
+        return self.scene.jpeg
+
+    @property
+    def box(self) -> Box:
+        return self.scene.box
+
+    @property
+    def camera_matrix(self) -> np.ndarray:
+        return self.scene.camera_matrix
+
+    @property
+    def distortion(self) -> np.ndarray:
+        assert self.scene.distortion is not None
+        return self.scene.distortion
+
+    @property
+    def known_length_mm(self) -> float:
+        return float(getattr(self.box, f"{self.known_edge}_mm"))
+
+    def click_list(self) -> list[tuple[float, float]]:
+        """The clicks in the engine's order p1..p7."""
+        return [self.clicks[n] for n in _POINT_ORDER]
+
+
+def _rotation(axis: int, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    rot = np.eye(3)
+    rot[i, i], rot[i, j], rot[j, i], rot[j, j] = c, -s, s, c
+    return rot
+
+
+def _face_angles(box: Box, camera_centre: np.ndarray) -> tuple[float, float]:
+    W, H, D = box.width_mm, box.height_mm, box.depth_mm
+    out = []
+    for centre, normal in (((W / 2, H / 2, 0.0), (0.0, 0.0, -1.0)), ((W, H / 2, D / 2), (1.0, 0.0, 0.0))):
+        to_cam = camera_centre - np.asarray(centre)
+        out.append(math.degrees(math.acos(float(np.dot(normal, to_cam)) / float(np.linalg.norm(to_cam)))))
+    return out[0], out[1]
+
+
+def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960)) -> PhotoLikeScene:
+    """A random oblique photo of a random box, as a phone would take it and a user would click it.
+
+    Drawn from `seed` alone: box sides 40-300 x 30-220 x 25-180 mm; a pose that shows the
+    front, right and top faces with the front's and the side's normals 20-60 degrees from the
+    view, the camera rolled up to 8 degrees and the box off-centre; a focal length of 0.7-1.2
+    times the image width (phones' range); distortion k1 uniform in [-0.15, 0.10] and k2 in
+    [-0.03, 0.03]; rounded edges 0.5-2.5 mm; vignetting 0.1-0.4; read and shot noise; blur;
+    JPEG quality 70-95, with EXIF for even seeds (half of any run of seeds); the clicks 0-3 px
+    off (uniform over a disc); one known edge.
+
+    Parameters
+    ----------
+    seed : int
+        Everything follows from it (same seed, same bytes).
+    image_size : (int, int)
+        (width, height) px.
+
+    Returns
+    -------
+    PhotoLikeScene
+    """
+    w, h = int(image_size[0]), int(image_size[1])
+    if min(w, h) < 64:
+        raise InputError(f"image_size must be at least 64x64 px, got {image_size!r}")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
+    box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
+    focal = float(rng.uniform(0.7, 1.2) * w)
+    realism = Realism(k1=float(rng.uniform(-0.15, 0.10)), k2=float(rng.uniform(-0.03, 0.03)),
+                      edge_radius_mm=float(min(rng.uniform(0.5, 2.5),
+                                               0.2 * min(box.width_mm, box.height_mm, box.depth_mm))),
+                      vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
+                      exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
+    style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
+                  noise_sigma=float(rng.uniform(1.0, 3.0)), blur_sigma=float(rng.uniform(0.5, 1.2)),
+                  jpeg_quality=int(rng.integers(70, 96)), background_close=bool(rng.random() < 0.3))
+    K = _camera_matrix(focal, _principal((w, h)))
+    verts = _box_vertices(box)
+    lo, hi = _FACE_ANGLES_DEG
+    for _ in range(1000):
+        yaw, pitch = float(rng.uniform(10.0, 80.0)), float(rng.uniform(5.0, 45.0))
+        fill = float(rng.uniform(0.35, 0.6))
+        roll = math.radians(rng.uniform(-8.0, 8.0))
+        shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
+        d = _auto_distance(box, (w, h), focal, lambda d, y=yaw, p=pitch: _oblique_pose(box, d, y, p))
+        R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
+        angles = _face_angles(box, -R.T @ t)
+        if not all(lo <= a <= hi for a in angles):
+            continue
+        # Turn the camera about its own centre: the box lands off-centre and the horizon tilts.
+        turn = (_rotation(2, roll) @ _rotation(1, -math.atan2(shift[0], focal))
+                @ _rotation(0, math.atan2(shift[1], focal)))
+        R, t = turn @ R, turn @ t
+        if np.min((verts @ R.T + t)[:, 2]) <= 0:
+            continue
+        seen = distort_points(_project(K, R, t, verts), K, realism.distortion())
+        margin = _FRAME_MARGIN * w
+        if np.all((seen >= margin) & (seen <= np.array([w - 1, h - 1]) - margin)):
+            break
+    else:  # pragma: no cover - the ranges above leave plenty of poses
+        raise RuntimeError(f"no photo-like pose found for seed {seed}")
+    front_centre = R @ np.array([box.width_mm / 2, box.height_mm / 2, 0.0]) + t
+    scene = _scene(box, "oblique", (w, h), focal, float(front_centre[2]), R, t, style,
+                   int(rng.integers(1 << 31)), _POINT_ORDER, "front", None, realism=realism)
+    radius = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
+    angle = rng.uniform(0.0, 2 * math.pi, 7)
+    clicks = {n: (scene.points[n][0] + float(r * math.cos(a)), scene.points[n][1] + float(r * math.sin(a)))
+              for n, r, a in zip(_POINT_ORDER, radius, angle, strict=True)}
+    known = str(rng.choice(["width", "height", "depth"]))
+    return PhotoLikeScene(scene, clicks, known, realism.exif is not None, style, realism, angles)
