@@ -12,7 +12,7 @@ from celery import Celery
 from .settings import Settings
 
 __all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
-           "WORKER_QUEUES", "make_celery", "queue_depth", "queue_lists"]
+           "WORKER_QUEUES", "make_celery", "queue_depth", "queue_lists", "time_limits"]
 
 TASK_RUN_JOB = "prism.run_job"
 TASK_PLAN_ITEM = "prism.plan_item"
@@ -48,6 +48,22 @@ def queue_depth(client: redis.Redis, queue: str) -> int:
         return sum(pipe.execute())
 
 
+# Tasks that only start others or post a webhook are short whatever the input: a tight limit.
+_SHORT_TASK_S = {TASK_RUN_JOB: 60.0, TASK_DELIVER_WEBHOOK: 60.0}
+_ITEM_TASKS = (TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME, TASK_EXTRACT_FRAME)
+
+
+def time_limits(settings: Settings) -> dict[str, dict[str, float]]:
+    """Soft and hard time limits (s) of every task, as Celery's task annotations.
+
+    At the soft limit the task gets SoftTimeLimitExceeded, which fails its item with the reason
+    (the task's on_failure); the hard limit, a margin later, kills a task that ignored it.
+    """
+    soft = {name: settings.task_time_limit_s for name in _ITEM_TASKS} | _SHORT_TASK_S
+    return {name: {"soft_time_limit": s, "time_limit": s + settings.task_hard_margin_s}
+            for name, s in soft.items()}
+
+
 def make_celery(settings: Settings) -> Celery:
     """A Celery app on the settings' Redis, configured for at-least-once delivery."""
     app = Celery("prism", broker=settings.redis_url, backend=settings.redis_url)
@@ -69,5 +85,6 @@ def make_celery(settings: Settings) -> Celery:
         accept_content=["json"],
         broker_connection_retry_on_startup=True,
         worker_hijack_root_logger=False,
+        task_annotations=time_limits(settings),
     )
     return app

@@ -52,6 +52,12 @@ class Settings(BaseSettings):
     tiles_per_face: int = 4
     items_in_flight_per_job: int = 4  # a big batch cannot starve the jobs queued after it
     visibility_timeout_s: int = 300  # a task not acked by then is redelivered (worker lost)
+    # A task about an item (plan, tile, finish, frame, frame extraction) that runs this long
+    # stops and fails its item (or frame) with the reason; TASK_HARD_MARGIN_S later its process
+    # is killed. Keep limit + margin below the visibility timeout, or a slow task is handed out
+    # twice before it is stopped.
+    task_time_limit_s: float = Field(default=240.0, gt=0)
+    task_hard_margin_s: float = Field(default=30.0, gt=0)
     public_base_url: str | None = None  # for Location headers behind a proxy
 
     @field_validator("fetch_allowed_hosts", "webhook_allowed_hosts")

@@ -6,13 +6,20 @@ Exception messages are not quoted: they may name internal hosts, buckets or keys
 from __future__ import annotations
 
 import redis
+from billiard.exceptions import SoftTimeLimitExceeded, TimeLimitExceeded
 from botocore.exceptions import ClientError, ConnectionError, HTTPClientError
 
 __all__ = ["failure_reason"]
 
 
-def failure_reason(exc: BaseException, retries: int) -> str:
-    """One line: what failed, and how many retries were spent on it."""
+def failure_reason(exc: BaseException, retries: int, time_limit_s: float | None = None) -> str:
+    """One line: what failed, and how many retries were spent on it. `time_limit_s`: the
+    task's soft time limit, named when that is what stopped it."""
+    if isinstance(exc, SoftTimeLimitExceeded | TimeLimitExceeded):
+        of = f" of {time_limit_s:g} s" if time_limit_s else ""
+        return (f"took longer than the worker's time limit{of}: the input may be too large for "
+                "one task (fewer frames, a smaller photo), or the operator can raise "
+                "PRISM_TASK_TIME_LIMIT_S")
     if isinstance(exc, ConnectionError | HTTPClientError):  # refused, timed out, reset
         what = "the object store was unreachable"
     elif isinstance(exc, ClientError):

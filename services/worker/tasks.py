@@ -107,7 +107,7 @@ class ItemTask(Task):
     def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
         job_id, item = args[self.job_arg], args[self.job_arg + 1]
         tile = tile_id(*args[2:5]) if self.name == TASK_SCAN_TILE else None
-        message = reasons.failure_reason(exc, self.request.retries)
+        message = reasons.failure_reason(exc, self.request.retries, self.soft_time_limit)
         log.error("item %s/%s failed for good in %s: %r", job_id, item, self.name, exc)
         try:
             fanout.fail_item(job_id, item, message, tile=tile)
@@ -119,8 +119,8 @@ class ItemTask(Task):
 class JobTask(Task):
     def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
         try:
-            context.store().transition(args[0], State.failed,
-                                       error=reasons.failure_reason(exc, self.request.retries))
+            reason = reasons.failure_reason(exc, self.request.retries, self.soft_time_limit)
+            context.store().transition(args[0], State.failed, error=reason)
         except Exception:
             log.exception("could not record the failure of job %s", args[0])
 
@@ -199,7 +199,8 @@ class FrameTask(Task):
         job_id, item, frame = args[:3]
         log.error("frame %s of item %s/%s failed for good: %r", frame, job_id, item, exc)
         try:
-            frame_scan.frame_failed(job_id, item, frame, f"internal error: {type(exc).__name__}")
+            frame_scan.frame_failed(job_id, item, frame,
+                                    reasons.failure_reason(exc, self.request.retries, self.soft_time_limit))
             frame_scan.frame_finished(job_id, item, frame, maybe_repeat=True)
         except Exception:
             log.exception("could not record the failure of frame %s of %s/%s", frame, job_id, item)

@@ -1,0 +1,69 @@
+"""Every task has a soft and a hard time limit; a task that hits one fails its item with the
+reason, and the worker goes on with other work (a real worker with a 1 s limit)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from prism_common.queue import (
+    TASK_DELIVER_WEBHOOK,
+    TASK_EXTRACT_FRAME,
+    TASK_FINISH_ITEM,
+    TASK_PLAN_ITEM,
+    TASK_RUN_JOB,
+    TASK_SCAN_FRAME,
+    TASK_SCAN_TILE,
+    make_celery,
+    time_limits,
+)
+from prism_common.records import State
+from prism_common.settings import Settings
+
+from prismcore.synth import Box, render_oblique_view
+
+from .conftest import API_KEYS, WEBHOOK_SECRET
+from .worker_env import Env, encode, spec_for, worker_env
+
+ALL_TASKS = (TASK_RUN_JOB, TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME,
+             TASK_DELIVER_WEBHOOK, TASK_EXTRACT_FRAME)
+
+
+def test_every_task_has_a_soft_limit_below_its_hard_limit():
+    settings = Settings(api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET, task_time_limit_s=100,
+                        task_hard_margin_s=20)
+    limits = time_limits(settings)
+    assert set(limits) == set(ALL_TASKS)
+    for name, limit in limits.items():
+        assert 0 < limit["soft_time_limit"] < limit["time_limit"], name
+    assert limits[TASK_SCAN_TILE] == {"soft_time_limit": 100, "time_limit": 120}
+    # The worker's app carries them (Celery applies annotations to the registered tasks).
+    assert make_celery(settings).conf.task_annotations == limits
+
+
+@pytest.fixture(scope="module")
+def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
+    with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=11,
+                    bucket="t-limits", tiles_per_face=1, items_in_flight=2,
+                    extra_env={"TASK_TIME_LIMIT_S": "1", "TASK_HARD_MARGIN_S": "5"}) as made:
+        yield made
+
+
+def test_an_item_over_the_time_limit_fails_with_the_reason_and_the_next_one_runs(env):
+    small = render_oblique_view(Box(120.0, 80.0, 60.0), seed=1)
+    # A photo 4x the size each way, points scaled with it: ~20 M pixels, a whole-item scan
+    # with its cloud written out takes several seconds on any machine, well past 1 s.
+    big = np.kron(small.image, np.ones((4, 4, 1), dtype=np.uint8))
+    big_points = [[4 * c + 1.5 for c in small.points[n]] for n in ("p1", "p2", "p3", "p4", "p5", "p6", "p7")]
+    spec_big = spec_for(env.upload(encode(big, ".jpg"), "big.jpg"), small).model_copy(
+        update={"points": spec_for("x", small).points.model_validate(big_points),
+                "focal_px": 4 * small.focal_px})
+    job_id = env.submit([spec_big])
+    job = env.wait(job_id, timeout=120)
+    assert job.state == State.failed or job.items[0].state == State.failed, job
+    error = job.items[0].error or ""
+    assert "time limit of 1 s" in error, error
+    # The worker is not held: a small photo right after succeeds.
+    ok = env.wait(env.submit([spec_for(env.upload(encode(small.image)), small)]), timeout=60)
+    assert ok.items[0].state == State.succeeded, ok.items[0].error
