@@ -14,8 +14,8 @@ import numpy as np
 from .errors import InputError
 from .spec import ReferencePoints
 
-__all__ = ["FaceQuads", "clicked_quads", "paper_rectangles", "quad_area", "validate_points",
-           "validate_quad"]
+__all__ = ["FaceQuads", "clicked_quads", "paper_rectangles", "quad_area", "quad_labels",
+           "validate_points", "validate_quad"]
 
 MIN_FACE_PX = 4.0
 
@@ -79,8 +79,16 @@ def paper_rectangles(points: ReferencePoints, *, two_photo: bool = False) -> Fac
     return FaceQuads(front, side, front_complete=False, side_complete=False)
 
 
-def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...]) -> None:
+def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...], *,
+                  labels: tuple[str | None, ...] | None = None) -> None:
     """Check that a quad lies in the image, is convex, clockwise (in order) and not degenerate.
+
+    Parameters
+    ----------
+    labels : tuple of 4 (str or None), optional
+        The point each corner was clicked as ("p1", ...), None for a corner the clicks only
+        imply (5-point mode): the message then names the clicked points, and an implied corner
+        may fall outside the photo (the face runs past its border, which scanning clips).
 
     Raises
     ------
@@ -88,7 +96,13 @@ def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...]) -> 
         Quoting the quad's corners when the points are outside, out of order or collinear.
     """
     height, width = image_shape[:2]
-    corners = ", ".join(f"({x:g},{y:g})" for x, y in quad)
+    if labels is None:
+        corners = ", ".join(f"({x:g},{y:g})" for x, y in quad)
+        clicked = np.ones(4, dtype=bool)
+    else:
+        corners = ", ".join(f"{n.upper()} ({x:g},{y:g})" if n else f"the corner they imply ({x:.0f},{y:.0f})"
+                            for n, (x, y) in zip(labels, quad, strict=True))
+        clicked = np.array([n is not None for n in labels])
     edges = np.roll(quad, -1, axis=0) - quad
     lengths = np.linalg.norm(edges, axis=1)
     if (lengths < MIN_FACE_PX).any():
@@ -104,8 +118,20 @@ def validate_quad(quad: np.ndarray, name: str, image_shape: tuple[int, ...]) -> 
         )
     outside = (quad[:, 0] < -0.5) | (quad[:, 0] > width - 0.5)
     outside |= (quad[:, 1] < -0.5) | (quad[:, 1] > height - 0.5)
-    if outside.any():
+    if (outside & clicked).any():
         raise InputError(f"{name} corners {corners} fall outside the {width}x{height} image")
+
+
+Labels = tuple[str | None, ...]
+
+
+def quad_labels(quads: FaceQuads) -> tuple[Labels, Labels]:
+    """Which clicked point each corner of the front and side quads is (None: implied).
+
+    The side face's lower-left corner is always implied (by P3, or by P7 in a side photo).
+    """
+    front = ("p1", "p2", "p3", "p6" if quads.front_complete else None)
+    return front, ("p4", "p5", "p7" if quads.side_complete else None, None)
 
 
 def validate_points(points: ReferencePoints, front_shape: tuple[int, ...],

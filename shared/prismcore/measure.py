@@ -4,25 +4,46 @@ Two models:
 
 * affine (the paper's): each face is taken as photographed squarely, so its size is its
   pixel size times a millimetres-per-pixel scale;
-* perspective (needs the focal length and all four corners of each face): the box's pose and
-  proportions are fitted to the corners through a pinhole camera, and the scale fixes its size.
+* perspective (needs all four corners of each face; in one photo the focal length may be
+  fitted): the box's pose and proportions are fitted to the corners through a pinhole camera,
+  and the scale fixes its size.
+
+Each dimension carries a 1-sigma uncertainty: from the fit's covariance under click and edge
+noise (perspective), or from the click noise and the obliqueness the square-on model ignores
+(affine).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
-from .perspective import FaceEvidence, fit_box, fit_rectangle
+from .perspective import (
+    NOISE_CLICK_PX,
+    NOISE_LINE_PX,
+    BoxFit,
+    FaceEvidence,
+    centre_depth,
+    fit_box,
+    fit_rectangle,
+)
 from .spec import KnownEdge, MmPerPx, Pinhole, Scale
 
-__all__ = ["Dimensions", "camera_matrix", "measure_affine", "measure_perspective", "quad_size_px"]
+__all__ = ["Dimensions", "Obliqueness", "camera_matrix", "measure_affine", "measure_perspective",
+           "obliqueness", "quad_size_px"]
+
+_MC_DRAWS = 256  # Monte Carlo draws of the click noise through the affine model
+
 
 @dataclass(frozen=True)
 class Dimensions:
-    """Width (X), height (Y) and depth (Z) of the prism, in `unit` ("mm" or "px")."""
+    """Width (X), height (Y) and depth (Z) of the prism, in `unit` ("mm" or "px").
+
+    uncertainty : (sigma_width, sigma_height, sigma_depth) in `unit`, one standard deviation,
+    or None when not estimated.
+    """
 
     width: float
     height: float
@@ -30,6 +51,21 @@ class Dimensions:
     unit: str
     perspective: bool
     notes: tuple[str, ...] = field(default=())
+    uncertainty: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Obliqueness:
+    """How far a single photo's faces are from square-on, read from the quads (affine camera).
+
+    front_deg, side_deg : angle between each face's normal and the viewing direction, degrees
+    foreshortening : (3,) float64, cos of the angle between the image plane and the X, Y, Z
+        edges: the square-on model reads each edge this much short
+    """
+
+    front_deg: float
+    side_deg: float
+    foreshortening: np.ndarray
 
 
 def quad_size_px(quad: np.ndarray) -> tuple[float, float]:
@@ -41,6 +77,57 @@ def quad_size_px(quad: np.ndarray) -> tuple[float, float]:
 def camera_matrix(focal_px: float, principal: tuple[float, float]) -> np.ndarray:
     """Pinhole intrinsics K, shape (3, 3), for square pixels."""
     return np.array([[focal_px, 0, principal[0]], [0, focal_px, principal[1]], [0, 0, 1.0]])
+
+
+def obliqueness(front: np.ndarray, side: np.ndarray) -> Obliqueness | None:
+    """The view direction of a single photo of a box, from its front and side quads.
+
+    Under an affine camera the images a, b, c of the box's X, Y and Z edges satisfy
+    a a^T / W^2 + b b^T / H^2 + c c^T / D^2 = s^2 I (the camera's rows are orthonormal): three
+    equations for 1/W^2, 1/H^2, 1/D^2 up to s, hence the camera's rows and its viewing
+    direction r3 = r1 x r2 in the box's frame.
+
+    Parameters
+    ----------
+    front, side : ndarray, shape (4, 2)
+        TL, TR, BR, BL image (x, y) px; the side face lies right of the front.
+
+    Returns
+    -------
+    Obliqueness or None
+        None when the quads are not consistent with any view of a box (strong perspective or
+        bad points).
+    """
+    a = (front[1] - front[0] + front[2] - front[3]) / 2
+    b = (front[3] - front[0] + front[2] - front[1]) / 2
+    c = (side[1] - side[0] + side[2] - side[3]) / 2
+    A = np.array([[a[0] ** 2, b[0] ** 2, c[0] ** 2],
+                  [a[0] * a[1], b[0] * b[1], c[0] * c[1]],
+                  [a[1] ** 2, b[1] ** 2, c[1] ** 2]])
+    try:
+        uvw = np.linalg.solve(A, [1.0, 0.0, 1.0])
+    except np.linalg.LinAlgError:
+        return None
+    if not (np.isfinite(uvw).all() and (uvw > 0).all()):
+        return None
+    M = np.stack([a, b, c], axis=1) * np.sqrt(uvw)  # (2, 3), rows orthonormal up to noise
+    r3 = np.cross(M[0], M[1])
+    n = np.abs(r3) / np.linalg.norm(r3)
+    return Obliqueness(math.degrees(math.acos(min(1.0, n[2]))), math.degrees(math.acos(min(1.0, n[0]))),
+                       np.sqrt(np.clip(1 - n**2, 0.0, 1.0)))
+
+
+def square_on_cost(view: Obliqueness, scale: Scale | None) -> np.ndarray:
+    """Relative error (3,) of width, height, depth that the square-on model makes in this view.
+
+    A known edge absorbs its own foreshortening (the others are off by the ratio); any other
+    scale is taken in the face's plane, so each edge reads short by its foreshortening.
+    """
+    f = view.foreshortening
+    if isinstance(scale, KnownEdge):
+        ref = f[("width", "height", "depth").index(scale.edge)]
+        return np.abs(f / ref - 1)
+    return np.abs(f - 1)
 
 
 def _scales_affine(scale: Scale | None, sizes: dict[str, float], focal: float | None,
@@ -67,9 +154,8 @@ def _scales_affine(scale: Scale | None, sizes: dict[str, float], focal: float | 
     return front, side, unit
 
 
-def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
-                   focal_px: float | None, two_photo: bool) -> Dimensions:
-    """Dimensions with each face assumed square to the camera (the paper's model)."""
+def _affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, focal_px: float | None,
+            two_photo: bool) -> tuple[np.ndarray, str, list[str]]:
     w_px, h_px = quad_size_px(front)
     d_px, hs_px = quad_size_px(side)
     s_front, s_side, unit = _scales_affine(scale, {"w": w_px, "h": h_px, "d": d_px},
@@ -83,12 +169,95 @@ def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
         s_side = s_front * h_px / hs_px
         notes.append("side scale derived from the front photo through the shared height")
     assert s_front is not None and s_side is not None
-    return Dimensions(w_px * s_front, h_px * s_front, d_px * s_side, unit, False, tuple(notes))
+    return np.array([w_px * s_front, h_px * s_front, d_px * s_side]), unit, notes
 
 
-def _centre_depth(rvec: np.ndarray, tvec: np.ndarray, width: float) -> float:
-    R = cv2.Rodrigues(rvec)[0]
-    return float((R @ np.array([width / 2, 0.5, 0.0]) + tvec)[2])
+def _noise_sigma(fn, front: np.ndarray, side: np.ndarray, noise_px: float) -> np.ndarray:
+    """Standard deviation (3,) of fn(front, side) under independent corner noise (Monte Carlo,
+    fixed seed: the same input gives the same sigma)."""
+    rng = np.random.default_rng(0)
+    draws = [fn(front + rng.normal(0, noise_px, front.shape), side + rng.normal(0, noise_px, side.shape))
+             for _ in range(_MC_DRAWS)]
+    return np.std(np.array(draws), axis=0)
+
+
+def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
+                   focal_px: float | None, two_photo: bool, corner_noise_px: float = NOISE_CLICK_PX,
+                   view: Obliqueness | None = None) -> Dimensions:
+    """Dimensions with each face assumed square to the camera (the paper's model).
+
+    Parameters
+    ----------
+    front, side : ndarray, shape (4, 2)
+        Face quads, image (x, y) px.
+    corner_noise_px : float
+        1-sigma error of a corner, px, for the uncertainty.
+    view : Obliqueness, optional
+        The photo's estimated obliqueness (single photo): what the square-on model ignores,
+        added to the uncertainty.
+    """
+    dims, unit, notes = _affine(front, side, scale, focal_px, two_photo)
+    sigma = _noise_sigma(lambda f, s: _affine(f, s, scale, focal_px, two_photo)[0], front, side,
+                         corner_noise_px)
+    if view is not None:
+        sigma = np.hypot(sigma, square_on_cost(view, scale) * dims)
+    return Dimensions(*map(float, dims), unit, False, tuple(notes),
+                      tuple(float(s) for s in sigma))  # type: ignore[arg-type]
+
+
+def _scale_factor(scale: Scale | None, width: float, depth: float, z: float,
+                  focal: float) -> tuple[float, str]:
+    """Millimetres (or px at the front centre's depth) per model unit (the box's height)."""
+    if isinstance(scale, Pinhole):
+        return scale.distance_mm / z, "mm"
+    if isinstance(scale, MmPerPx):
+        return scale.front * focal / z, "mm"
+    if isinstance(scale, KnownEdge):
+        return scale.length_mm / {"width": width, "height": 1.0, "depth": depth}[scale.edge], "mm"
+    return focal / z, "px"  # pixels at the front face centre's depth
+
+
+def _box_dims(scale: Scale | None, v: np.ndarray) -> np.ndarray:
+    width, depth, z, focal = v
+    k = _scale_factor(scale, width, depth, z, focal)[0]
+    return np.array([width * k, k, depth * k])
+
+
+def _box_sigma(scale: Scale | None, fit: BoxFit) -> np.ndarray:
+    v = np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px])
+    G = np.zeros((3, 4))
+    for k in range(4):
+        h = 1e-6 * max(1.0, abs(v[k]))
+        e = np.zeros(4)
+        e[k] = h
+        G[:, k] = (_box_dims(scale, v + e) - _box_dims(scale, v - e)) / (2 * h)
+    return np.sqrt(np.clip(np.diag(G @ fit.shape_cov @ G.T), 0.0, None))
+
+
+def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *, K: np.ndarray,
+                free_focal: bool = False) -> tuple[Dimensions, BoxFit]:
+    """Dimensions of a box whose front and side share one photo, through a pinhole camera.
+
+    The shooting distance (or mm-per-pixel, read as distance / focal) is the depth of the front
+    face's centre along the optical axis.
+
+    Parameters
+    ----------
+    K : ndarray, shape (3, 3)
+        Intrinsics; with `free_focal` only the principal point is used and the focal is fitted.
+
+    Returns
+    -------
+    dimensions : Dimensions
+        With the uncertainty from the fit's covariance.
+    fit : BoxFit
+    """
+    fit = fit_box(K, front, side, free_focal=free_focal)
+    dims = _box_dims(scale, np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px]))
+    unit = _scale_factor(scale, fit.width, fit.depth, fit.centre_depth, fit.focal_px)[1]
+    sigma = _box_sigma(scale, fit)
+    return Dimensions(*map(float, dims), unit, True, (),  # type: ignore[arg-type]
+                      tuple(float(s) for s in sigma)), fit  # type: ignore[arg-type]
 
 
 def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
@@ -105,20 +274,26 @@ def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | 
     front_quad, side_quad : ndarray, shape (4, 2)
         The faces' corners as the fitted model projects them.
     """
-    if two_photo:
-        width, rvec, tvec, front_quad = fit_rectangle(K_front, front)
-        depth, _, _, side_quad = fit_rectangle(K_side, side)
-    else:
-        width, depth, rvec, tvec, front_quad, side_quad = fit_box(K_front, front, side)
-    z = _centre_depth(rvec, tvec, width)
+    if not two_photo:
+        dims, fit = measure_box(front, side, scale, K=K_front)
+        return dims, fit.front_quad, fit.side_quad
+
+    def two_rectangles(f_corners: np.ndarray, s_corners: np.ndarray):
+        f_ev = FaceEvidence(f_corners, front.clicked, front.lines)
+        s_ev = FaceEvidence(s_corners, side.clicked, side.lines)
+        width, rvec, tvec, front_quad = fit_rectangle(K_front, f_ev)
+        depth, _, _, side_quad = fit_rectangle(K_side, s_ev)
+        z = centre_depth(rvec, tvec, width)
+        return _box_dims(scale, np.array([width, depth, z, float(K_front[0, 0])])), front_quad, side_quad
+
+    dims, front_quad, side_quad = two_rectangles(front.corners, side.corners)
+    unit = "px" if scale is None else "mm"
+    # Two independent rectangle fits: their relative noise is that of the side lengths the
+    # fitted lines give, which the affine model's Monte Carlo measures.
     focal = float(K_front[0, 0])
-    unit = "mm"
-    if isinstance(scale, Pinhole):
-        k = scale.distance_mm / z
-    elif isinstance(scale, MmPerPx):
-        k = scale.front * focal / z
-    elif isinstance(scale, KnownEdge):
-        k = scale.length_mm / {"width": width, "height": 1.0, "depth": depth}[scale.edge]
-    else:
-        k, unit = focal / z, "px"  # pixels at the front face centre's depth
-    return Dimensions(width * k, k, depth * k, unit, True), front_quad, side_quad
+    flat = _affine(front.corners, side.corners, scale, focal, True)[0]
+    rel = _noise_sigma(lambda f, s: _affine(f, s, scale, focal, True)[0], front.corners,
+                       side.corners, NOISE_LINE_PX) / np.maximum(flat, 1e-12)
+    return (Dimensions(*map(float, dims), unit, True, (),  # type: ignore[arg-type]
+                       tuple(float(s) for s in rel * dims)),  # type: ignore[arg-type]
+            front_quad, side_quad)

@@ -6,6 +6,12 @@ model edge's projected end points must lie on its fitted line (sigma 0.3 px), an
 corner is pulled weakly towards its click (sigma 5 px), which only decides what the lines leave
 open. Sides where no edge was found contribute through the clicks alone; a side fitted to the
 wrong edge is outvoted by the others through a robust (Cauchy) loss.
+
+A box (front and side face in one photo) shows three mutually orthogonal edge directions, which
+over-determine the focal length: when none is known it is a free parameter of the box fit,
+started from the vanishing points' closed form. Every fit is started several times (focal
+candidates, poses from either face) and the lowest cost wins, so that neighbouring inputs land
+in the same minimum.
 """
 
 from __future__ import annotations
@@ -15,13 +21,31 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
-__all__ = ["FaceEvidence", "fit_box", "fit_rectangle", "project"]
+__all__ = [
+    "NOISE_CLICK_PX",
+    "NOISE_LINE_PX",
+    "BoxFit",
+    "FaceEvidence",
+    "centre_depth",
+    "fit_box",
+    "fit_rectangle",
+    "focal_from_vanishing_points",
+    "project",
+]
 
 SIGMA_LINE_PX = 0.3
 SIGMA_CLICK_PX = 5.0
+NOISE_CLICK_PX = 1.5
+"""Assumed 1-sigma error of a click (px, per axis), for the fit's covariance."""
+NOISE_LINE_PX = 0.5
+"""Assumed 1-sigma error of a fitted edge line at a model corner (px), for the covariance."""
 _UNIT_SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
+_F_SCALE = 3.0
+# Multi-start focal candidates, as multiples of the image's larger side (phones: ~0.7-1.0).
+_FOCAL_STARTS = (0.6, 0.9, 1.3, 2.0, 3.5)
+_FOCAL_BOUNDS = (0.05, 50.0)  # plausible focal range, multiples of the larger side
 
 
 @dataclass(frozen=True)
@@ -38,11 +62,56 @@ class FaceEvidence:
     lines: tuple[np.ndarray | None, ...]
 
 
+@dataclass(frozen=True)
+class BoxFit:
+    """A box fitted to a front and a side face in one photo (height 1).
+
+    width, depth : float
+        In units of the height.
+    rvec, tvec : ndarray, shape (3,)
+        World-to-camera pose (Rodrigues vector; translation in units of the height).
+    focal_px : float
+        The focal length used (fitted when `focal_std_px` is not None).
+    focal_std_px : float or None
+        1-sigma error of a fitted focal length, px; None when it was given.
+    front_quad, side_quad : ndarray, shape (4, 2)
+        The fitted model's projected face corners (TL, TR, BR, BL).
+    shape_cov : ndarray, shape (4, 4)
+        Covariance of (width, depth, z, focal_px), z the depth of the front face's centre
+        along the optical axis (height units), under click noise NOISE_CLICK_PX and edge-line
+        noise NOISE_LINE_PX. The focal row and column are zero when it was given.
+    line_rms_px : float
+        RMS distance (px) of the model's edge end points from the fitted edge lines.
+    """
+
+    width: float
+    depth: float
+    rvec: np.ndarray
+    tvec: np.ndarray
+    focal_px: float
+    focal_std_px: float | None
+    front_quad: np.ndarray
+    side_quad: np.ndarray
+    shape_cov: np.ndarray
+    line_rms_px: float
+
+    @property
+    def centre_depth(self) -> float:
+        """Depth along the optical axis of the front face's centre (height units)."""
+        return centre_depth(self.rvec, self.tvec, self.width)
+
+
 def project(K: np.ndarray, rvec: np.ndarray, tvec: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Project world points (N, 3) to image (x, y) px, shape (N, 2)."""
     cam = pts @ cv2.Rodrigues(rvec)[0].T + tvec
     uv = cam @ K.T
     return uv[:, :2] / uv[:, 2:3]
+
+
+def centre_depth(rvec: np.ndarray, tvec: np.ndarray, width: float) -> float:
+    """Depth along the optical axis of the front face's centre (height units), given a pose."""
+    R = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64))[0]
+    return float((R @ np.array([width / 2, 0.5, 0.0]) + tvec)[2])
 
 
 def _closed_form(K: np.ndarray, quad: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -58,29 +127,72 @@ def _closed_form(K: np.ndarray, quad: np.ndarray) -> tuple[float, np.ndarray, np
     return float(np.linalg.norm(a1) / lam), cv2.Rodrigues(U @ Vt)[0].ravel(), a3 / lam
 
 
-def _solve(K: np.ndarray, corners_of: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
-           faces: list[tuple[FaceEvidence, tuple[int, ...], tuple[int, ...]]]) -> np.ndarray:
-    """Least squares over pose (rvec, tvec) and shape parameters x0[6:].
+def _camera(focal: float, principal: np.ndarray) -> np.ndarray:
+    return np.array([[focal, 0, principal[0]], [0, focal, principal[1]], [0, 0, 1.0]])
+
+
+FaceTerms = list[tuple[FaceEvidence, tuple[int, ...], tuple[int, ...]]]
+
+
+def _residual_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Callable[[np.ndarray], np.ndarray],
+                 n_shape: int, faces: FaceTerms) -> Callable[[np.ndarray], np.ndarray]:
+    """Whitened residuals: line terms (sigma SIGMA_LINE_PX) then click terms (SIGMA_CLICK_PX).
 
     faces: (evidence, model corner index of TL, TR, BR, BL, sides of the face to use).
+    x = rvec (3), tvec (3), shape (n_shape), then whatever K_of reads (e.g. log focal).
     """
     def residual(x: np.ndarray) -> np.ndarray:
-        pts = project(K, x[:3], x[3:6], corners_of(x[6:]))
-        out = []
+        pts = project(K_of(x), x[:3], x[3:6], corners_of(x[6:6 + n_shape]))
+        lines, clicks = [], []
         for face, idx, sides in faces:
             quad = pts[list(idx)]
             for s in sides:
                 line = face.lines[s]
                 if line is not None:
                     ends = quad[[s, (s + 1) % 4]]
-                    out.append((ends @ line[:2] + line[2]) / SIGMA_LINE_PX)
-            out.append(((quad - face.clicked) / SIGMA_CLICK_PX).ravel())
-        return np.concatenate(out)
+                    lines.append((ends @ line[:2] + line[2]) / SIGMA_LINE_PX)
+            clicks.append(((quad - face.clicked) / SIGMA_CLICK_PX).ravel())
+        return np.concatenate(lines + clicks)
 
+    return residual
+
+
+def _n_line_terms(faces: FaceTerms) -> int:
+    return sum(2 for face, _, sides in faces for s in sides if face.lines[s] is not None)
+
+
+def _solve(residual: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
+           bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimizeResult:
     # A robust loss: one side fitted to the wrong edge (it happens on a face seen nearly
     # edge-on) must not drag the box, which the other sides and the clicks hold in place.
+    kw = {} if bounds is None else {"bounds": bounds}
     return least_squares(residual, x0, method="trf", x_scale="jac", loss="cauchy",
-                         f_scale=3.0).x
+                         f_scale=_F_SCALE, **kw)
+
+
+def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
+    """Parameter covariance under the assumed click and line noise (sandwich estimator).
+
+    The solver's sigmas weigh the terms (clicks only decide what the lines leave open); the
+    data's noise is NOISE_*: with whitened Jacobian J and robust weights w,
+    cov = A^-1 J^T W N W J A^-1, A = J^T W J, N the data noise over the solver's sigma squared.
+    """
+    J = np.asarray(res.jac, dtype=np.float64)
+    z = (res.fun / _F_SCALE) ** 2
+    w = 1.0 / (1.0 + z)  # Cauchy IRLS weights
+    noise = np.full(J.shape[0], (NOISE_CLICK_PX / SIGMA_CLICK_PX) ** 2)
+    noise[:n_lines] = (NOISE_LINE_PX / SIGMA_LINE_PX) ** 2
+    Jw = J * w[:, None]
+    A = J.T @ Jw
+    A_inv = np.linalg.pinv(A, rcond=1e-12)
+    B = Jw.T @ (Jw * noise[:, None])
+    return A_inv @ B @ A_inv
+
+
+def _line_rms(res: OptimizeResult, n_lines: int) -> float:
+    if n_lines == 0:
+        return 0.0
+    return float(np.sqrt(np.mean((res.fun[:n_lines] * SIGMA_LINE_PX) ** 2)))
 
 
 def fit_rectangle(K: np.ndarray, face: FaceEvidence):
@@ -98,34 +210,152 @@ def fit_rectangle(K: np.ndarray, face: FaceEvidence):
     def corners_of(p: np.ndarray) -> np.ndarray:
         return np.array([[0, 0, 0], [p[0], 0, 0], [p[0], 1, 0], [0, 1, 0]], dtype=np.float64)
 
-    x = _solve(K, corners_of, np.concatenate([rvec, tvec, [aspect]]),
-               [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
+    residual = _residual_fn(lambda _: K, corners_of, 1, [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
+    x = _solve(residual, np.concatenate([rvec, tvec, [aspect]])).x
     return float(x[6]), x[:3], x[3:6], project(K, x[:3], x[3:6], corners_of(x[6:]))
 
 
-def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence):
+def _box_corners(p: np.ndarray) -> np.ndarray:
+    W, D = p[0], p[1]
+    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [W, 0, D], [W, 1, D]],
+                    dtype=np.float64)
+
+
+_FRONT_IDX, _SIDE_IDX = (0, 1, 2, 3), (1, 4, 5, 2)
+# World (X, Y, Z) -> the side rectangle's own frame (u along Z, v along Y, w = W - X).
+_SIDE_AXES = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def _vanishing_point(segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Homogeneous least-squares intersection (3,) of the lines through the segments."""
+    rows = []
+    for p, q in segments:
+        line = np.cross(np.append(p, 1.0), np.append(q, 1.0))
+        rows.append(line / np.hypot(line[0], line[1]))
+    # Conditioning: image coordinates are ~1e3, so scale them before the SVD.
+    s = 1e-3
+    L = np.array(rows) * np.array([1.0, 1.0, s])
+    v = np.linalg.svd(L)[2][-1]
+    return v * np.array([1 / s, 1 / s, 1.0])
+
+
+def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: np.ndarray,
+                                 max_focal: float) -> list[float]:
+    """Focal lengths (px) from the box's three orthogonal vanishing points.
+
+    For vanishing points v_i, v_j of orthogonal directions and principal point c,
+    f^2 = -(v_i - c).(v_j - c). Pairs with a vanishing point (near) infinity, or giving no
+    positive f^2 or one above `max_focal`, are skipped.
+
+    Parameters
+    ----------
+    front, side : ndarray, shape (4, 2)
+        TL, TR, BR, BL image (x, y) px of the front face and of the side face.
+    principal : ndarray, shape (2,)
+    max_focal : float
+
+    Returns
+    -------
+    list of float
+        Zero to three estimates, px.
+    """
+    vps = [
+        _vanishing_point([(front[0], front[1]), (front[3], front[2])]),  # X
+        _vanishing_point([(front[0], front[3]), (front[1], front[2]), (side[1], side[2])]),  # Y
+        _vanishing_point([(side[0], side[1]), (side[3], side[2])]),  # Z
+    ]
+    out = []
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        vi, vj = vps[i], vps[j]
+        if min(abs(vi[2]), abs(vj[2])) < 1e-12:
+            continue
+        f2 = -float((vi[:2] / vi[2] - principal) @ (vj[:2] / vj[2] - principal))
+        if 0 < f2 < max_focal**2:
+            out.append(float(np.sqrt(f2)))
+    return out
+
+
+def _box_starts(K: np.ndarray, front: FaceEvidence, side: FaceEvidence) -> list[np.ndarray]:
+    """Initial [rvec, tvec, W, D] from the front's homography and from the side's."""
+    width, rvec, tvec = _closed_form(K, front.corners)
+    depth, rvec_s, tvec_s = _closed_form(K, side.corners)
+    starts = [np.concatenate([rvec, tvec, [width, depth]])]
+    R_s = cv2.Rodrigues(rvec_s)[0]
+    R = R_s @ _SIDE_AXES
+    t = R_s[:, 2] * width + tvec_s
+    if np.isfinite(R).all() and np.isfinite(t).all():
+        starts.append(np.concatenate([cv2.Rodrigues(R)[0].ravel(), t, [width, depth]]))
+    return starts
+
+
+def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
+            free_focal: bool = False) -> BoxFit:
     """Width and depth (height = 1) and pose of a box whose front and right side share a photo.
 
     Model corners: P1 (0,0,0), P2 (W,0,0), P3 (W,1,0), P6 (0,1,0), P5 (W,0,D), P7 (W,1,D)
     (X right, Y down, Z into the object). The side's left side is the front's right side, so
     it is used once.
 
+    Parameters
+    ----------
+    K : ndarray, shape (3, 3)
+        Intrinsics; with `free_focal` only its principal point is used.
+    front, side : FaceEvidence
+    free_focal : bool
+        Fit the focal length too, started from the vanishing points' closed form and from a
+        range of typical focal lengths.
+
     Returns
     -------
-    width, depth : float
-    rvec, tvec : ndarray, shape (3,)
-    front_quad, side_quad : ndarray, shape (4, 2)
+    BoxFit
     """
-    width, rvec, tvec = _closed_form(K, front.corners)
-    depth = _closed_form(K, side.corners)[0]
+    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, _SIDE_IDX, (0, 1, 2))]
+    n_lines = _n_line_terms(faces)
+    principal = K[:2, 2].astype(np.float64)
+    best: OptimizeResult | None = None
+    if free_focal:
+        size = 2 * float(np.abs(np.concatenate([front.clicked, side.clicked]) - principal).max())
+        size = max(size, 2 * float(principal.max()) + 1)
+        lo, hi = (b * size for b in _FOCAL_BOUNDS)
+        guesses = focal_from_vanishing_points(front.corners, side.corners, principal, hi)
+        guesses += [m * size for m in _FOCAL_STARTS]
+        residual = _residual_fn(lambda x: _camera(float(np.exp(x[8])), principal), _box_corners,
+                                2, faces)
+        bounds = (np.r_[np.full(8, -np.inf), np.log(lo)], np.r_[np.full(8, np.inf), np.log(hi)])
+        for f in guesses:
+            for x0 in _box_starts(_camera(f, principal), front, side):
+                if not np.isfinite(x0).all():
+                    continue
+                res = _solve(residual, np.r_[x0, np.log(np.clip(f, lo * 1.001, hi * 0.999))], bounds)
+                if best is None or res.cost < best.cost - 1e-9:
+                    best = res
+    else:
+        residual = _residual_fn(lambda _: K, _box_corners, 2, faces)
+        for x0 in _box_starts(K, front, side):
+            if not np.isfinite(x0).all():
+                continue
+            res = _solve(residual, x0)
+            if best is None or res.cost < best.cost - 1e-9:
+                best = res
+    if best is None:
+        raise ValueError("no finite start for the box fit")
+    x = best.x
+    focal = float(np.exp(x[8])) if free_focal else float(K[0, 0])
+    Kx = _camera(focal, principal) if free_focal else K
+    pts = project(Kx, x[:3], x[3:6], _box_corners(x[6:8]))
+    cov = _covariance(best, n_lines)
+    # (W, D, z, f) as functions of x: gradient by central differences (z is nonlinear in rvec).
+    def shape(v: np.ndarray) -> np.ndarray:
+        f = float(np.exp(v[8])) if free_focal else focal
+        return np.array([v[6], v[7], centre_depth(v[:3], v[3:6], v[6]), f])
 
-    def corners_of(p: np.ndarray) -> np.ndarray:
-        W, D = p
-        return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [W, 0, D], [W, 1, D]],
-                        dtype=np.float64)
-
-    front_idx, side_idx = (0, 1, 2, 3), (1, 4, 5, 2)
-    x = _solve(K, corners_of, np.concatenate([rvec, tvec, [width, depth]]),
-               [(front, front_idx, (0, 1, 2, 3)), (side, side_idx, (0, 1, 2))])
-    pts = project(K, x[:3], x[3:6], corners_of(x[6:]))
-    return float(x[6]), float(x[7]), x[:3], x[3:6], pts[list(front_idx)], pts[list(side_idx)]
+    G = np.zeros((4, x.size))
+    for k in range(x.size):
+        h = 1e-6 * max(1.0, abs(x[k]))
+        e = np.zeros_like(x)
+        e[k] = h
+        G[:, k] = (shape(x + e) - shape(x - e)) / (2 * h)
+    shape_cov = G @ cov @ G.T
+    focal_std = float(np.sqrt(max(shape_cov[3, 3], 0.0))) if free_focal else None
+    return BoxFit(float(x[6]), float(x[7]), x[:3].copy(), x[3:6].copy(), focal, focal_std,
+                  pts[list(_FRONT_IDX)], pts[list(_SIDE_IDX)], shape_cov, _line_rms(best, n_lines))

@@ -18,13 +18,44 @@ from . import __version__
 from .cloud import Cloud, assemble, face_points
 from .edges import EdgeFit, inward, line_through, refine_quad
 from .errors import InputError
-from .faces import FaceQuads, clicked_quads, paper_rectangles, validate_points, validate_quad
-from .measure import Dimensions, camera_matrix, measure_affine, measure_perspective
-from .perspective import FaceEvidence
+from .faces import (
+    FaceQuads,
+    clicked_quads,
+    paper_rectangles,
+    quad_labels,
+    validate_points,
+    validate_quad,
+)
+from .measure import (
+    Dimensions,
+    camera_matrix,
+    measure_affine,
+    measure_box,
+    measure_perspective,
+    obliqueness,
+    square_on_cost,
+)
+from .perspective import NOISE_CLICK_PX, NOISE_LINE_PX, FaceEvidence
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
-from .spec import MmPerPx, Pinhole, ScanSpec
+from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
 
-__all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "run_scan", "scan_face"]
+__all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images", "run_scan",
+           "scan_face"]
+
+FIT_WARN_PX = 3.0  # a click this far from the fitted model's corner is worth a look
+FIT_FAIL_PX = 25.0  # ... and this far (or 5 % of the face's size) means the fit is wrong
+FIT_FAIL_FRACTION = 0.05
+FOCAL_MAX_REL_STD = 0.25  # a fitted focal less sure than this is "not determined"
+OBLIQUE_WARN = 0.01  # warn when the square-on model costs more than 1 % on some dimension
+_POINT_ROLES = {
+    "p1": "the front face's upper-left corner",
+    "p2": "the front face's upper-right corner",
+    "p3": "the front face's lower-right corner",
+    "p4": "the side face's upper-left corner",
+    "p5": "the side face's upper-right corner",
+    "p6": "the front face's lower-left corner",
+    "p7": "the side face's lower-right corner",
+}
 
 SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
 SAME_SCALE_ASSUMED = ("two photos, no P7 and a scale for only one of them: the other is taken to be "
@@ -43,6 +74,8 @@ class ScanPlan:
     image_sizes: list[tuple[int, int]]
     warnings: list[str] = field(default_factory=list)
     timings_ms: dict[str, float] = field(default_factory=dict)
+    camera: dict = field(default_factory=dict)  # report.json's "camera" (JSON-ready)
+    fit: dict = field(default_factory=dict)  # report.json's "fit" (JSON-ready)
 
 
 @dataclass(frozen=True)
@@ -116,28 +149,169 @@ def _side_height_guess(spec: ScanSpec) -> float | None:
     return None
 
 
+@dataclass(frozen=True)
+class _Focal:
+    """The focal length and principal point the fit starts from, and where they came from."""
+
+    focal_px: float | None
+    source: str  # given | camera | exif | none (fitted is decided by the fit)
+    principal: list[tuple[float, float]]  # per image
+
+
+def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list | None,
+                   exif_focal_px: float | None) -> _Focal:
+    """Order of trust: given > camera profile > EXIF > (fitted later)."""
+    centres = [((img.shape[1] - 1) / 2, (img.shape[0] - 1) / 2) for img in images]
+    if cameras is not None:
+        centres = [(c.cx, c.cy) for c in cameras]
+    if spec.principal_point is not None:
+        centres = [tuple(spec.principal_point)] * len(images)  # type: ignore[list-item]
+    if spec.focal_px is not None:
+        return _Focal(float(spec.focal_px), "given", centres)
+    if cameras is not None:
+        return _Focal(float(np.sqrt(cameras[0].fx * cameras[0].fy)), "camera", centres)
+    if exif_focal_px is not None:
+        return _Focal(float(exif_focal_px), "exif", centres)
+    return _Focal(None, "none", centres)
+
+
+def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warnings: list[str]) -> None:
+    """Say how oblique a single photo measured with the square-on model is, and what it costs."""
+    view = obliqueness(quads.front, quads.side)
+    if view is None:
+        return
+    cost = square_on_cost(view, spec.scale)
+    if cost.max() <= OBLIQUE_WARN:
+        return
+    worst = ("width", "height", "depth")[int(np.argmax(cost))]
+    model = "the paper's method" if spec.method == "paper" else "the square-on model"
+    fix = "" if spec.method == "paper" else "; mark P6 and P7 to have perspective corrected"
+    warnings.append(f"oblique photo measured with {model}: the front face is seen {view.front_deg:.0f}° "
+                    f"and the side face {view.side_deg:.0f}° off square-on, which costs about "
+                    f"{cost.max():.0%} on the {worst}{fix}")
+
+
 def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
-             images: list[np.ndarray], warnings: list[str]) -> tuple[Dimensions, FaceQuads]:
-    """The prism's dimensions, and the face quads to scan (the fitted model's, in perspective)."""
+             images: list[np.ndarray], focal: _Focal, warnings: list[str]
+             ) -> tuple[Dimensions, FaceQuads, dict]:
+    """The prism's dimensions, the face quads to scan (the fitted model's, in perspective) and
+    the report's "camera" fields."""
     complete = quads.front_complete and quads.side_complete
-    if spec.method == "default" and spec.focal_px is not None and complete:
-        Ks = [camera_matrix(spec.focal_px, spec.principal_point or
-                            ((img.shape[1] - 1) / 2, (img.shape[0] - 1) / 2)) for img in images]
+    camera = {"focal_px": focal.focal_px, "focal_source": focal.source,
+              "principal_point": [round(float(v), 3) for v in focal.principal[0]]}
+    if spec.method == "default" and complete and (focal.focal_px is not None or not spec.two_photo):
         evidence = [FaceEvidence(getattr(quads, n), getattr(marked, n),
                                  tuple(f.line if f.fitted else None for f in fits[n]))
                     for n in ("front", "side")]
-        dims, front, side = measure_perspective(*evidence, spec.scale, K_front=Ks[0],
-                                                K_side=Ks[-1], two_photo=spec.two_photo)
-        return dims, FaceQuads(front, side, True, True)
-    if spec.method == "default" and spec.focal_px is not None:
+        if spec.two_photo:
+            assert focal.focal_px is not None
+            Ks = [camera_matrix(focal.focal_px, c) for c in focal.principal]
+            dims, front, side = measure_perspective(*evidence, spec.scale, K_front=Ks[0],
+                                                    K_side=Ks[-1], two_photo=True)
+            return dims, FaceQuads(front, side, True, True), camera
+        free = focal.focal_px is None
+        K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
+        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free)
+        if free:
+            assert fit.focal_std_px is not None
+            camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
+                          focal_std_px=round(fit.focal_std_px, 3))
+            if not fit.focal_std_px < FOCAL_MAX_REL_STD * fit.focal_px:
+                note = (f"the view shows too little perspective to fit the focal length "
+                        f"({fit.focal_px:.0f} ± {fit.focal_std_px:.0f} px): measured as a nearly "
+                        "square-on (weak-perspective) view; give the focal length or a camera to be sure")
+                dims = replace(dims, notes=(*dims.notes, note))
+        return dims, FaceQuads(fit.front_quad, fit.side_quad, True, True), camera
+    if spec.method == "default" and focal.source != "none":
         warnings.append("perspective not corrected: it needs p6 and p7 besides the focal length")
-    dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=spec.focal_px,
-                          two_photo=spec.two_photo)
-    return dims, quads
+    camera["focal_source"] = "none" if focal.source == "none" else focal.source
+    # The paper's rectangles are axis-aligned by design: the view is read from the clicks.
+    assert spec.points is not None
+    shape = clicked_quads(spec.points, two_photo=False) if spec.method == "paper" else quads
+    view = None if spec.two_photo else obliqueness(shape.front, shape.side)
+    # A Pinhole scale's mm-per-pixel reads the focal length (given, camera or EXIF).
+    dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=focal.focal_px,
+                          two_photo=spec.two_photo, view=view,
+                          corner_noise_px=NOISE_LINE_PX if fits else NOISE_CLICK_PX)
+    if not spec.two_photo:
+        _oblique_warning(spec, shape, dims, warnings)
+    return dims, quads, camera
 
 
-def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None) -> ScanPlan:
+def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: bool,
+           warnings: list[str]) -> dict:
+    """Distances between each click and the model's corner; warn, or refuse a clearly wrong fit.
+
+    Only a fitted pinhole model is refused: the square-on model's corners are the refined
+    clicks themselves, and the paper's rectangles ignore part of the clicks by design.
+    """
+    residuals: dict[str, float] = {}
+    limits: dict[str, float] = {}
+    for face in ("front", "side"):
+        clicks, corners = getattr(marked, face), getattr(model, face)
+        size = float(np.linalg.norm(clicks[2] - clicks[0]))
+        for label, click, corner in zip(quad_labels(marked)[face == "side"], clicks, corners,
+                                        strict=True):
+            if label is None:
+                continue
+            residuals[label] = float(np.linalg.norm(corner - click))
+            limits[label] = max(FIT_FAIL_PX, FIT_FAIL_FRACTION * size)
+    order = sorted(residuals)
+    rms = float(np.sqrt(np.mean([residuals[n] ** 2 for n in order]))) if order else 0.0
+    if spec.method == "default":
+        worst = max(order, key=lambda n: residuals[n] / limits[n])
+        if perspective and residuals[worst] > limits[worst]:
+            raise InputError(f"the fitted box sits {residuals[worst]:.0f} px from {worst.upper()}: "
+                             f"check that {worst.upper()} is {_POINT_ROLES[worst]}")
+        far = [n for n in order if residuals[n] > FIT_WARN_PX]
+        if far:
+            what = "fitted box's corners" if perspective else "refined face corners"
+            listed = ", ".join(f"{n.upper()} ({residuals[n]:.1f} px)" for n in far)
+            warnings.append(f"the {what} lie more than {FIT_WARN_PX:g} px from {listed}: "
+                            "check those clicks")
+    return {"rms_px": round(rms, 3), "point_residuals_px": {n: round(residuals[n], 3) for n in order}}
+
+
+def _undistorted_points(spec: ScanSpec, cameras: list) -> ReferencePoints:
+    from .camera import undistort_points
+
+    assert spec.points is not None
+    moved = {}
+    for name, xy in spec.points.as_dict().items():
+        cam = cameras[1 if spec.two_photo and name in ("p4", "p5", "p7") else 0]
+        moved[name] = tuple(float(v) for v in undistort_points(np.array([xy]), cam)[0])
+    return ReferencePoints.model_validate(moved)
+
+
+def _cameras(spec: ScanSpec, images: list[np.ndarray]) -> list | None:
+    """The spec's camera model for each image's size, or None."""
+    if spec.camera is None:
+        return None
+    return [spec.camera.for_size(img.shape[1], img.shape[0]) for img in images]
+
+
+def prepare_images(spec: ScanSpec, images: list[np.ndarray]) -> list[np.ndarray]:
+    """The images the plan's coordinates refer to: undistorted when the spec's camera has lens
+    distortion, else the images themselves. Scan the tiles and finish on these.
+
+    images : list of (H, W, 3) RGB arrays, front first.
+    """
+    cameras = _cameras(spec, images)
+    if cameras is None or not cameras[0].has_distortion:
+        return images
+    from .camera import undistort_image
+
+    return [undistort_image(img, cam) for img, cam in zip(images, cameras, strict=True)]
+
+
+def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
+              exif_focal_px: float | None = None) -> ScanPlan:
     """Validate the points, locate the faces and measure the prism.
+
+    The focal length is, in this order of trust: the spec's `focal_px`, its `camera`,
+    `exif_focal_px` (read from the photo by the caller, in pixels of the decoded image), or
+    fitted from the box itself (one photo, seven points). A camera with lens distortion has it
+    removed from the images and the points first (see `prepare_images`).
 
     Raises
     ------
@@ -157,20 +331,41 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
     warnings: list[str] = []
     side_index = 1 if spec.two_photo else 0
     validate_points(spec.points, front.shape, images[side_index].shape)
+    if exif_focal_px is not None and not (math.isfinite(exif_focal_px) and exif_focal_px > 0):
+        raise InputError(f"the EXIF focal length must be a positive number of pixels, got {exif_focal_px!r}")
+    cameras = _cameras(spec, images)
+    points = spec.points
+    undistorted = bool(cameras is not None and cameras[0].has_distortion)
+    if undistorted:
+        assert cameras is not None
+        images = prepare_images(spec, images)
+        front = images[0]
+        points = _undistorted_points(spec, cameras)
+    work = spec.model_copy(update={"points": points})
     with _timed(timings, "refine"):
         if spec.method == "paper":
-            quads = paper_rectangles(spec.points, two_photo=spec.two_photo)
+            quads = paper_rectangles(points, two_photo=spec.two_photo)
             marked = quads
+            labels: tuple = (None, None)
         else:
-            marked = clicked_quads(spec.points, two_photo=spec.two_photo,
-                                   side_height_px=_side_height_guess(spec))
-        validate_quad(marked.front, "front face", front.shape)
-        validate_quad(marked.side, "side face", images[side_index].shape)
+            marked = clicked_quads(points, two_photo=spec.two_photo,
+                                   side_height_px=_side_height_guess(work))
+            labels = quad_labels(marked)
+        validate_quad(marked.front, "front face", front.shape, labels=labels[0])
+        validate_quad(marked.side, "side face", images[side_index].shape, labels=labels[1])
         fits: dict[str, list[EdgeFit]] = {}
         if spec.method == "default":
             quads, fits = _refine(spec, images, marked, warnings)
     with _timed(timings, "measure"):
-        dims, quads = _measure(spec, quads, marked, fits, images, warnings)
+        focal = _resolve_focal(spec, images, cameras, exif_focal_px)
+        if isinstance(spec.scale, Pinhole) and focal.focal_px is None and not (
+                spec.method == "default" and quads.front_complete and quads.side_complete
+                and not spec.two_photo):
+            raise InputError("a shooting distance needs the focal length: give focal_px, a camera, or "
+                             "P6 and P7 in one photo (the focal length is then fitted)")
+        dims, quads, camera = _measure(work, quads, marked, fits, images, focal, warnings)
+        camera["undistorted"] = undistorted
+        fit = _guard(spec, marked, quads, dims.perspective, warnings)
     if spec.two_photo and spec.points.p7 is None and _side_height_guess(spec) is None:
         # Nothing ties the side photo's scale to the front's: it is assumed, and said so
         # (instead of the note that the height carried it across, which would read as measured).
@@ -194,7 +389,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None)
         window = window_for([region, mark], images[index].shape)
         faces.append(FacePlan(name, index, region, mark, window, spec.method, seed, spec.tolerance))
     return ScanPlan(spec, (faces[0], faces[1]), dims, fits,
-                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings)
+                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings, camera, fit)
 
 
 def scan_face(image: np.ndarray, face: FacePlan, tiles: int = 1) -> FaceScan:
@@ -239,6 +434,11 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:
         "points": int(cloud.points.shape[0]),
         "dimensions": {"width": round(dims.width, 4), "height": round(dims.height, 4),
                        "depth": round(dims.depth, 4), "unit": dims.unit},
+        "uncertainty": (None if dims.uncertainty is None else
+                        dict(zip(("width", "height", "depth"),
+                                 (round(u, 4) for u in dims.uncertainty), strict=True))),
+        "camera": plan.camera,
+        "fit": plan.fit,
         "point_loss": round(rejected / marked, 6) if marked else 0.0,
         "method": plan.spec.method,
         "cloud": plan.spec.cloud,
@@ -253,10 +453,10 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:
 
 
 def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
-             tiles: int = 1) -> ScanResult:
+             tiles: int = 1, exif_focal_px: float | None = None) -> ScanResult:
     """Plan, scan every face in `tiles` row bands and assemble, in this process."""
-    plan = plan_scan(spec, front, side)
-    images = [front] + ([side] if spec.two_photo and side is not None else [])
+    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px)
+    images = prepare_images(spec, [front] + ([side] if spec.two_photo and side is not None else []))
     with _timed(plan.timings_ms, "scan"):
         scans = [scan_face(images[f.image], f, tiles) for f in plan.faces]
     return finish_scan(plan, images, scans)

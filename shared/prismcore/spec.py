@@ -10,15 +10,17 @@ from __future__ import annotations
 
 import re
 from collections import Counter
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     FiniteFloat,
     NonNegativeInt,
     PositiveFloat,
+    WithJsonSchema,
     model_validator,
 )
 
@@ -170,6 +172,26 @@ class FrameSelection(_Strict):
         return self
 
 
+def _camera_model(value: object) -> object:
+    # prismcore.camera loads numpy and OpenCV: imported only when a spec carries a camera, so
+    # that validating any other spec stays pydantic-only (the API's rule).
+    if value is None:
+        return None
+    from .camera import CameraModel
+
+    return CameraModel.model_validate(value)
+
+
+_CAMERA_SCHEMA = {
+    "type": "object",
+    "description": "A calibrated camera (prismcore.camera.CameraModel: fx, fy, cx, cy, dist, "
+                   "image_width, image_height): its focal length and principal point are used, "
+                   "and its lens distortion is removed from the photo and the points first.",
+    "required": ["fx", "fy", "cx", "cy", "image_width", "image_height"],
+}
+CameraField = Annotated[Any, BeforeValidator(_camera_model), WithJsonSchema(_CAMERA_SCHEMA)]
+
+
 class ScanSpec(_Strict):
     """Everything needed to turn one photo (or a front and a side photo) into a point cloud."""
 
@@ -202,6 +224,10 @@ class ScanSpec(_Strict):
     principal_point: Point | None = Field(
         default=None, description="Optical centre (x, y) in pixels; the image centre if omitted."
     )
+    camera: CameraField = Field(
+        default=None, description="Calibrated camera; trusted after focal_px, before EXIF and "
+        "before the focal length fitted from the box."
+    )
     cloud: Literal["surface", "volume"] = "surface"
     formats: list[Literal["csv", "ply"]] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
     csv: CsvOptions = CsvOptions()
@@ -228,8 +254,10 @@ class ScanSpec(_Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> ScanSpec:
-        if isinstance(self.scale, Pinhole) and self.focal_px is None:
-            raise ValueError("a shooting distance needs focal_px (the focal length in pixels)")
+        if isinstance(self.scale, Pinhole) and self.focal_px is None and self.camera is None \
+                and not self._focal_fittable():
+            raise ValueError("a shooting distance needs focal_px (the focal length in pixels), "
+                             "a camera, or p6 and p7 in one photo (the focal length is fitted)")
         if self.frame_points is not None:
             if self.points is not None:
                 raise ValueError("give points (the same for every frame) or frame_points "
@@ -245,6 +273,13 @@ class ScanSpec(_Strict):
             raise ValueError(f"a video is measured in single-photo mode: side_image "
                              f"{self.side_image!r} cannot be used with frames")
         return self
+
+    def _focal_fittable(self) -> bool:
+        """One photo with all seven points: the box fit finds the focal length itself."""
+        if self.two_photo:
+            return False
+        marks = [self.points] if self.points is not None else list((self.frame_points or {}).values())
+        return bool(marks) and all(p.p6 is not None and p.p7 is not None for p in marks)
 
     def _frames_text(self) -> str:
         return "null" if self.frames is None else self.frames.model_dump_json(exclude_none=True)
