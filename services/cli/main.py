@@ -12,6 +12,7 @@ from typer.exceptions import TyperException
 
 from prismcore import InputError
 
+from .calibrate_command import calibrate
 from .client import ApiError
 from .client_commands import download, status, submit, wait
 from .sample_command import sample
@@ -24,6 +25,7 @@ __all__ = ["app", "main"]
 cli = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="PrismCloud: measured 3D point clouds of box-shaped parts from photos.")
 cli.command()(scan)
+cli.command()(calibrate)
 cli.command()(sample)
 cli.command()(schema)
 cli.command()(submit)
