@@ -141,6 +141,8 @@ def test_client_block_submits_with_each_scale_waits_and_downloads(served, user_d
                 timeout=600)
     assert run.returncode == 0, run.stdout + run.stderr
     assert run.stdout.count("succeeded") >= 4, run.stdout
+    # The batch was cancelled at once: it says so, with the 40 items counted.
+    assert re.search(r"job \w+: cancelled \d+% \(\d+ of 40 items\)", run.stdout), run.stdout
     reports = list((user_dir / "out" / "job").glob("item-0/report.json"))
     assert reports, run.stdout
     dims = json.loads(reports[0].read_text())["dimensions"]

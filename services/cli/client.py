@@ -1,68 +1,200 @@
-"""A small HTTP client of the job API (httpx), used by `prism submit/status/wait/download`."""
+"""A small typed client of the job API (httpx), the one `prism submit/status/wait/...` use.
+
+For integrators::
+
+    from prism_cli.client import ApiClient
+
+    with ApiClient("http://127.0.0.1:8000", api_key) as api:
+        ref = api.upload(Path("box.jpg"))
+        job = api.submit({"items": [{"image": ref, "points": [...], "scale": {...}}]})
+        job = api.wait(job.id, timeout=600, on_update=lambda j: print(j.progress))
+        api.download(job, Path("out"))
+
+Answers are the API's own pydantic models (`JobPublic`, `JobList`). A 429 or 503 is retried
+after the `Retry-After` the API gives (a few times); a submit always carries an
+Idempotency-Key (one is made when none is given), so retrying it cannot make a second job.
+"""
 
 from __future__ import annotations
 
+import email.utils
+import math
 import time
-from collections.abc import Callable
+import uuid
+from collections.abc import Callable, Iterator
+from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import httpx
+from prism_common.public import JobPublic
+from pydantic import BaseModel, Field
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
-__all__ = ["FINAL_STATES", "ApiClient", "ApiError"]
+__all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "format_eta", "remaining_s"]
 
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled"})
+_RETRY_STATUSES = frozenset({429, 503})
 
 
 class ApiError(Exception):
-    """The API refused a request (4xx/5xx) or could not be reached; the message says why."""
+    """The API refused a request (4xx/5xx) or could not be reached; the message says why.
+
+    status : the HTTP status, None when the API could not be reached
+    problem : the RFC 9457 problem document the API answered with (empty if none)
+    """
+
+    def __init__(self, message: str, *, status: int | None = None,
+                 problem: dict[str, Any] | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+        self.problem = problem or {}
+
+
+class JobList(BaseModel):
+    """One page of `GET /v1/jobs`."""
+
+    jobs: list[JobPublic]
+    next_cursor: str | None = Field(default=None)
+
+
+def remaining_s(job: JobPublic, now: datetime | None = None) -> float | None:
+    """Seconds left, estimated from the progress made since the job started; None until the
+    job has made some progress (or after it ended)."""
+    if job.state in FINAL_STATES or job.started_at is None or job.progress <= 0:
+        return None
+    elapsed = ((now or datetime.now(UTC)) - job.started_at).total_seconds()
+    return max(0.0, elapsed * (100 - job.progress) / job.progress)
+
+
+def _retry_after_s(response: httpx.Response, default: float) -> float:
+    value = response.headers.get("Retry-After")
+    if value is None:
+        return default
+    try:
+        return max(0.0, float(value))
+    except ValueError:  # an HTTP date
+        when = email.utils.parsedate_to_datetime(value)
+        return max(0.0, (when - datetime.now(UTC)).total_seconds())
+
+
+def _message(response: httpx.Response) -> tuple[str, dict[str, Any]]:
+    """One line from an error answer: the problem's detail (and its field errors), else text."""
+    try:
+        body = response.json()
+    except ValueError:
+        return " ".join(response.text.split())[:300] or response.reason_phrase, {}
+    if not isinstance(body, dict):
+        return str(body)[:300], {}
+    detail = body.get("detail")
+    if isinstance(detail, list):  # FastAPI's own shape, from an older API
+        detail = "; ".join(str(e.get("msg", e)) if isinstance(e, dict) else str(e) for e in detail)
+    text = str(detail or body.get("title") or response.reason_phrase)
+    errors = body.get("errors")
+    if isinstance(errors, list) and errors:
+        named = [f"{e.get('pointer') or e.get('parameter') or e.get('header') or '?'}: {e.get('detail')}"
+                 for e in errors[:5] if isinstance(e, dict)]
+        if named and not all(n.split(": ", 1)[1] in text for n in named):
+            text += " (" + "; ".join(named) + ")"
+    return " ".join(text.split()), body
 
 
 class ApiClient:
-    """Talks to one API with one key. Pass `transport` to test without a network."""
+    """Talks to one API with one key.
+
+    Seams for tests: `transport` (an httpx transport), `sleep` (the waits between polls and
+    before retries) and `retries` (how often a 429/503 is retried).
+    """
 
     def __init__(self, base_url: str, api_key: str, *, timeout: float = 30.0,
-                 transport: httpx.BaseTransport | None = None) -> None:
+                 transport: httpx.BaseTransport | None = None, retries: int = 5,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
         self._http = httpx.Client(base_url=base_url.rstrip("/"), timeout=timeout,
                                   headers={"X-API-Key": api_key}, transport=transport)
+        self._retries, self._sleep = retries, sleep
+        self._uploaded: dict[tuple[str, int, int], str] = {}
+
+    def __enter__(self) -> ApiClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def close(self) -> None:
         self._http.close()
 
-    def _call(self, method: str, url: str, **kwargs) -> httpx.Response:
-        try:
-            response = self._http.request(method, url, **kwargs)
-        except httpx.HTTPError as exc:
-            raise ApiError(f"cannot reach the API at {self._http.base_url}: {exc}") from None
-        if response.status_code >= 400:
+    def _call(self, method: str, url: str, **kwargs: Any) -> httpx.Response:
+        for attempt in range(self._retries + 1):
             try:
-                detail = response.json().get("detail", response.text)
-            except ValueError:
-                detail = response.text
-            raise ApiError(f"HTTP {response.status_code}: {detail}")
-        return response
+                response = self._http.request(method, url, **kwargs)
+            except httpx.HTTPError as exc:
+                raise ApiError(f"cannot reach the API at {self._http.base_url}: {exc}") from None
+            if response.status_code in _RETRY_STATUSES and attempt < self._retries:
+                self._sleep(min(300.0, _retry_after_s(response, default=2.0 ** attempt)))
+                self._rewind(kwargs)
+                continue
+            if response.status_code >= 400:
+                text, problem = _message(response)
+                raise ApiError(f"HTTP {response.status_code}: {text}", status=response.status_code,
+                               problem=problem)
+            return response
+        raise AssertionError("unreachable")
 
+    @staticmethod
+    def _rewind(kwargs: dict[str, Any]) -> None:
+        for _, value in (kwargs.get("files") or {}).items():
+            handle = value[1] if isinstance(value, tuple) else value
+            if hasattr(handle, "seek"):
+                handle.seek(0)
+
+    # -- uploads ------------------------------------------------------------------------------
     def upload(self, path: Path) -> str:
-        """Upload a local file; returns its reference (``upload:ID``)."""
-        with path.open("rb") as fh:
-            response = self._call("POST", "/v1/uploads", files={"file": (path.name, fh)})
-        return response.json()["reference"]
+        """Upload a local file; returns its reference (``upload:ID``). A file this client
+        already uploaded (same path, size and modification time) is not sent again."""
+        stat = path.stat()
+        key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+        if key not in self._uploaded:
+            with path.open("rb") as fh:
+                response = self._call("POST", "/v1/uploads", files={"file": (path.name, fh)})
+            self._uploaded[key] = response.json()["reference"]
+        return self._uploaded[key]
 
-    def submit(self, body: dict, *, idempotency_key: str | None = None) -> dict:
-        headers = {"Idempotency-Key": idempotency_key} if idempotency_key else {}
-        return self._call("POST", "/v1/jobs", json=body, headers=headers).json()
+    # -- jobs ---------------------------------------------------------------------------------
+    def submit(self, body: dict[str, Any], *, idempotency_key: str | None = None) -> JobPublic:
+        """Submit a job (`JobCreate`'s shape); 202's job. Retried safely: the same key each time."""
+        key = idempotency_key or f"prism-client-{uuid.uuid4().hex}"
+        response = self._call("POST", "/v1/jobs", json=body, headers={"Idempotency-Key": key})
+        return JobPublic.model_validate(response.json())
 
-    def job(self, job_id: str, *, items: bool = True) -> dict:
+    def job(self, job_id: str, *, items: bool = True) -> JobPublic:
         """The job; without its items (state and progress only) when `items` is False."""
         params = {} if items else {"item_limit": 0}
-        return self._call("GET", f"/v1/jobs/{job_id}", params=params).json()
+        return JobPublic.model_validate(self._call("GET", f"/v1/jobs/{job_id}", params=params).json())
 
-    def cancel(self, job_id: str) -> dict:
-        return self._call("POST", f"/v1/jobs/{job_id}/cancel").json()
+    def jobs(self, *, state: str | None = None, limit: int = 50, cursor: str | None = None) -> JobList:
+        """One page of the key's jobs, newest first, without their items."""
+        params: dict[str, Any] = {"limit": limit, "items": "false"}
+        if state:
+            params["state"] = state
+        if cursor:
+            params["cursor"] = cursor
+        return JobList.model_validate(self._call("GET", "/v1/jobs", params=params).json())
+
+    def iter_jobs(self, *, state: str | None = None, page: int = 100) -> Iterator[JobPublic]:
+        cursor = None
+        while True:
+            listing = self.jobs(state=state, limit=page, cursor=cursor)
+            yield from listing.jobs
+            if not listing.next_cursor:
+                return
+            cursor = listing.next_cursor
+
+    def cancel(self, job_id: str) -> JobPublic:
+        return JobPublic.model_validate(self._call("POST", f"/v1/jobs/{job_id}/cancel").json())
 
     def wait(self, job_id: str, *, timeout: float, poll_s: float = 0.5,
-             on_update: Callable[[dict], None] | None = None) -> dict:
+             on_update: Callable[[JobPublic], None] | None = None) -> JobPublic:
         """Poll until the job is final, then return it whole; ApiError if `timeout` seconds pass
         first. The polls leave out the items: a big job's would be megabytes each time."""
         deadline = time.monotonic() + timeout
@@ -70,24 +202,24 @@ class ApiClient:
             job = self.job(job_id, items=False)
             if on_update:
                 on_update(job)
-            if job["state"] in FINAL_STATES:
+            if job.state in FINAL_STATES:
                 return self.job(job_id)
             if time.monotonic() > deadline:
-                raise ApiError(f"job {job_id} still {job['state']} after {timeout:g} s")
-            time.sleep(poll_s)
+                raise ApiError(f"job {job_id} still {job.state} after {timeout:g} s")
+            self._sleep(poll_s)
 
-    def download(self, job: dict, out_dir: Path) -> list[Path]:
+    # -- outputs ------------------------------------------------------------------------------
+    def download(self, job: JobPublic, out_dir: Path) -> list[Path]:
         """Save every item's outputs through their presigned URLs, as out_dir/item-N/FILE (a
         video's frames as out_dir/item-N/frame_000123/FILE, beside its summary.json)."""
         saved = []
-        for item in job["items"]:
-            folder = out_dir / f"item-{item['index']}"
-            places = [(folder, item.get("downloads") or {})] + [
-                (folder / frame_folder(f["index"]), f.get("downloads") or {})
-                for f in item.get("frames") or []]
+        for item in job.items:
+            folder = out_dir / f"item-{item.index}"
+            places = [(folder, item.downloads)] + [
+                (folder / frame_folder(f.index), f.downloads) for f in item.frames]
             for where, downloads in places:
                 for kind, url in downloads.items():
-                    saved.append(self._save(url, where / FILE_NAMES[kind]))
+                    saved.append(self._save(url, where / FILE_NAMES.get(kind, kind)))
         return saved
 
     def _save(self, url: str, target: Path) -> Path:
@@ -101,3 +233,14 @@ class ApiClient:
         except httpx.HTTPError as exc:
             raise ApiError(f"download of {target.name} failed: {exc}") from None
         return target
+
+
+def format_eta(seconds: float | None) -> str:
+    """'about 3 min left' style text; empty when unknown."""
+    if seconds is None or not math.isfinite(seconds):
+        return ""
+    if seconds < 60:
+        return f"about {max(1, round(seconds))} s left"
+    if seconds < 3600:
+        return f"about {round(seconds / 60)} min left"
+    return f"about {seconds / 3600:.1f} h left"

@@ -1,4 +1,4 @@
-"""`prism submit`, `prism status`, `prism wait`, `prism download`: the job service from scripts."""
+"""`prism submit`, `status`, `wait`, `download`, `jobs`, `cancel`: the job service from scripts."""
 
 from __future__ import annotations
 
@@ -7,15 +7,16 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from prism_common.public import JobPublic
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from prismcore import InputError
 
-from .client import ApiClient
+from .client import ApiClient, format_eta, remaining_s
 from .scan_command import spec_from_flags
 
-__all__ = ["download", "status", "submit", "wait"]
+__all__ = ["cancel", "download", "jobs", "status", "submit", "wait"]
 
 console = Console()
 ApiUrl = Annotated[str, typer.Option("--api", envvar="PRISM_API_URL", help="API base URL.")]
@@ -41,17 +42,30 @@ def _upload_local(client: ApiClient, item: dict, base: Path) -> dict:
     return item
 
 
-def _print_job(job: dict) -> None:
-    console.print(f"job {job['id']}: [bold]{job['state']}[/] {job['progress']}%")
-    for item in job["items"]:
-        line = f"  item {item['index']}: {item['state']}"
-        if item.get("result"):
-            d = item["result"]["dimensions"]
-            line += (f"  {d['width']:.2f} x {d['height']:.2f} x {d['depth']:.2f} {d['unit']}, "
-                     f"{item['result']['points']:,} points")
-        if item.get("error"):
-            line += f"  error: {item['error']}"
-        console.print(line)
+def _progress_text(job: JobPublic) -> str:
+    """'3 of 10 items, about 40 s left' (the items part only when the job has more than one)."""
+    parts = [f"{job.items_done} of {job.item_count} items"] if job.item_count > 1 else []
+    if eta := format_eta(remaining_s(job)):
+        parts.append(eta)
+    return ", ".join(parts)
+
+
+def _print_job(job: JobPublic) -> None:
+    line = f"job {job.id}: [bold]{job.state.value}[/] {job.progress}%"
+    if job.item_count > 1:
+        line += f" ({job.items_done} of {job.item_count} items)"
+    console.print(line, soft_wrap=True)
+    if job.error:
+        console.print(f"  error: {job.error}", soft_wrap=True, markup=False)
+    for item in job.items:
+        text = f"  item {item.index}: {item.state.value}"
+        if item.result:
+            d = item.result.dimensions
+            text += (f"  {d.width:.2f} x {d.height:.2f} x {d.depth:.2f} {d.unit}, "
+                     f"{item.result.points:,} points")
+        if item.error:
+            text += f"  error: {item.error}"
+        console.print(text, soft_wrap=True, markup=False)
 
 
 def submit(
@@ -86,29 +100,32 @@ def submit(
         # exclude_none, not exclude_defaults: a default that carries meaning (the scale's
         # `kind` tag) must reach the API, or it cannot tell one scale from another.
         items, base = [spec.model_dump(mode="json", exclude_none=True)], Path(".")
+    # The client uploads a file once however many items name it.
     body = {"items": [_upload_local(client, dict(item), base) for item in items],
             "client_reference": reference, "webhook_url": webhook}
     job = client.submit(body, idempotency_key=idempotency_key)
-    console.print(job["id"])
+    console.print(job.id)
     if then_wait:
-        _wait(client, job["id"], timeout=3600)
+        _wait(client, job.id, timeout=3600)
 
 
 def status(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
            as_json: Annotated[bool, typer.Option("--json", help="Print the raw job.")] = False) -> None:
     """Print a job's state, progress and per-item results."""
     job = _client(api, key).job(job_id)
-    console.print_json(json.dumps(job)) if as_json else _print_job(job)
+    console.print_json(job.model_dump_json()) if as_json else _print_job(job)
 
 
-def _wait(client: ApiClient, job_id: str, timeout: float) -> dict:
+def _wait(client: ApiClient, job_id: str, timeout: float) -> JobPublic:
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeElapsedColumn(), console=console, transient=not console.is_terminal) as bar:
-        task = bar.add_task(job_id, total=100)
+                  TextColumn("{task.fields[detail]}"), TimeElapsedColumn(), console=console,
+                  transient=not console.is_terminal) as bar:
+        task = bar.add_task(job_id, total=100, detail="")
         job = client.wait(job_id, timeout=timeout, on_update=lambda j: bar.update(
-            task, completed=j["progress"], description=f"{job_id} {j['state']}"))
+            task, completed=j.progress, description=f"{job_id} {j.state.value}",
+            detail=_progress_text(j)))
     _print_job(job)
-    if job["state"] != "succeeded":
+    if job.state != "succeeded":
         raise typer.Exit(1)
     return job
 
@@ -126,3 +143,29 @@ def download(job_id: str, out: Annotated[Path, typer.Option(help="Folder for the
     for path in client.download(client.job(job_id), out):
         console.print(str(path))
 
+
+
+def jobs(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
+         state: Annotated[str | None, typer.Option(help="Only jobs in this state.")] = None,
+         limit: Annotated[int, typer.Option(help="At most this many, newest first.", min=1)] = 20,
+         as_json: Annotated[bool, typer.Option("--json", help="One JSON object per line.")] = False) -> None:
+    """List your jobs, newest first: id, state, progress, items, when, your reference."""
+    allowed = ("queued", "running", "succeeded", "failed", "cancelled")
+    if state is not None and state not in allowed:
+        raise InputError(f"--state {state!r}: expected one of {', '.join(allowed)}")
+    client = _client(api, key)
+    for shown, job in enumerate(client.iter_jobs(state=state, page=min(limit, 200)), start=1):
+        if as_json:
+            print(job.model_dump_json(exclude={"items"}))
+        else:
+            console.print(f"{job.id}  {job.state.value:<9} {job.progress:>3}%  "
+                          f"{job.items_done}/{job.item_count} items  "
+                          f"{job.created_at:%Y-%m-%d %H:%M:%S}  {job.client_reference or ''}",
+                          soft_wrap=True, markup=False)
+        if shown >= limit:
+            break
+
+
+def cancel(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
+    """Cancel a queued or running job; what had finished stays, the rest reads cancelled."""
+    _print_job(_client(api, key).cancel(job_id))

@@ -63,6 +63,8 @@ class JobPublic(BaseModel):
     id: str
     state: State
     progress: int = Field(ge=0, le=100)
+    items_done: int = Field(default=0, ge=0, description="Items finished (succeeded or failed) "
+                            "so far, of item_count.")
     created_at: datetime
     started_at: datetime | None
     finished_at: datetime | None

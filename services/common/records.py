@@ -75,6 +75,7 @@ class JobRecord(BaseModel):
     tenant: str
     state: State = State.queued
     progress: int = 0
+    items_done: int = 0  # items finished (succeeded or failed), each counted once
     created_at: datetime
     started_at: datetime | None = None
     finished_at: datetime | None = None

@@ -35,7 +35,7 @@ __all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
 _P = "prism:"
 # A job hash's fields other than its items and frames.
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
-               "units_done"]
+               "units_done", "items_done"]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
 
@@ -67,6 +67,16 @@ return 0
 """
 
 
+# The set says which items finished (a redelivered task finds its item there); the job hash's
+# count is what a poll reads without touching the set.
+_ITEM_DONE = """
+if redis.call('SADD', KEYS[2], ARGV[1]) == 1 then
+  redis.call('HINCRBY', KEYS[1], 'items_done', 1)
+end
+return redis.call('SCARD', KEYS[2])
+"""
+
+
 class IdempotencyConflictError(Exception):
     """The idempotency key was used before with a different request body."""
 
@@ -82,6 +92,7 @@ class JobStore(UploadRecords):
         self._r = client
         self._transition = client.register_script(_TRANSITION)
         self._tile_done = client.register_script(_TILE_DONE)
+        self._item_done = client.register_script(_ITEM_DONE)
 
     @classmethod
     def from_url(cls, url: str) -> JobStore:
@@ -252,10 +263,7 @@ class JobStore(UploadRecords):
 
     def item_done(self, job_id: str, item: int) -> int:
         """Mark an item finished (once); returns how many items of the job are finished."""
-        with self._r.pipeline() as pipe:
-            pipe.sadd(f"{_P}job:{job_id}:done", item)
-            pipe.scard(f"{_P}job:{job_id}:done")
-            return int(pipe.execute()[1])
+        return int(self._item_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:done"], args=[item]))
 
     # -- video frames -----------------------------------------------------------------------
     def claim_frames(self, job_id: str, item: int, count: int) -> int:
@@ -322,6 +330,7 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
         if fields.get(name):
             setattr(job, name, datetime.fromisoformat(fields[name]))
     job.error = fields.get("error") or None
+    job.items_done = int(fields.get("items_done", 0))
     total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
     if job.state == State.cancelled:
         # Progress counts finished work only, and what had not finished never will: its items

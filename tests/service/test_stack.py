@@ -20,6 +20,7 @@ import httpx
 import numpy as np
 import pytest
 from plyfile import PlyData
+from prism_common.public import JobPublic
 
 from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, free_port, start_api, start_worker
@@ -242,7 +243,7 @@ def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
 
     client = ApiClient(str(stack.http.base_url), API_KEYS["acme"])
     try:
-        saved = client.download(job, tmp_path / "out")
+        saved = client.download(JobPublic.model_validate(job), tmp_path / "out")
     finally:
         client.close()
     names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
