@@ -1,13 +1,18 @@
-"""Write a scan's cloud files into a folder."""
+"""Write a scan's outputs into a folder: the cloud files and the overlay pictures of the fit."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
-from prismcore import ScanResult, ScanSpec
+import cv2
+import numpy as np
+
+from prismcore import InputError, ScanResult, ScanSpec
+from prismcore.overlay import OVERLAY_NAME, SIDE_OVERLAY_NAME, overlay_from_report
 from prismcore.writers import FILE_NAMES, write_format
 
-__all__ = ["report_path", "write_outputs"]
+__all__ = ["encode_png", "report_path", "write_outputs", "write_overlays"]
 
 
 def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str, Path]:
@@ -22,6 +27,32 @@ def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str
         paths[kind] = out_dir / FILE_NAMES[kind]
         ms = write_format(kind, paths[kind], result.cloud, spec)
         result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)
+    return paths
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """PNG bytes of an (H, W, 3) uint8 RGB picture (OpenCV writes BGR, hence the swap)."""
+    ok, data = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise InputError(f"could not encode a {rgb.shape[1]}x{rgb.shape[0]} picture as PNG")
+    return data.tobytes()
+
+
+def write_overlays(report: dict, front: np.ndarray, side: np.ndarray | None,
+                   out_dir: Path) -> dict[str, Path]:
+    """Draw the fit on the photo (and on the side photo in two-photo mode) and write the PNGs.
+
+    Returns {"overlay": path} plus {"overlay_side": path} with two photos; the time taken goes
+    into the report's `timings_ms["write_overlay"]`.
+    """
+    started = time.perf_counter()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {"overlay": out_dir / OVERLAY_NAME}
+    paths["overlay"].write_bytes(encode_png(overlay_from_report(front, report, photo="front")))
+    if side is not None and report["inputs"].get("side_image"):
+        paths["overlay_side"] = out_dir / SIDE_OVERLAY_NAME
+        paths["overlay_side"].write_bytes(encode_png(overlay_from_report(side, report, photo="side")))
+    report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
     return paths
 
 

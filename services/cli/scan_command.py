@@ -15,7 +15,7 @@ from prismcore import InputError, ScanSpec, parse_points, run_scan
 from prismcore.images import load_image
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
-from .outputs import report_path, write_outputs
+from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
 __all__ = ["scan", "spec_from_flags"]
@@ -83,7 +83,7 @@ def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
 
 
 def scan(
-    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply and report.json "
+    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply, report.json and overlay.png "
                                            "(a video: one folder per frame and summary.json).")],
     image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo), or a video.")] = None,
     points: Annotated[str | None, typer.Option(
@@ -142,6 +142,7 @@ def scan(
         raise InputError(_one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
     paths = write_outputs(result, spec, out)
+    paths.update(write_overlays(result.report, front, side_img, out))
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
@@ -151,5 +152,6 @@ def scan(
                   f"  point loss {result.report['point_loss']:.1%}")
     for warning in result.report["warnings"]:
         console.print(f"[yellow]warning:[/] {warning}")
+    wide = max(map(len, paths))
     for kind, path in paths.items():
-        console.print(f"{kind:>6}: {path}")
+        console.print(f"{kind:>{wide}}: {path}")

@@ -1,7 +1,8 @@
 """`prism scan VIDEO`: measure the selected frames of a video, one output folder per frame.
 
 Each frame is measured as a photo (`frame_spec` + `run_scan`) and written to `frame_NNNNNN/`
-like a photo's outputs; `summary.json` beside them says how repeatable each dimension is.
+like a photo's outputs (overlay.png included); `summary.json` beside them says how repeatable
+each dimension is.
 A frame that cannot be measured is reported and the others go on.
 """
 
@@ -20,7 +21,7 @@ from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.summary import DIMENSIONS, frame_info, summarize
 from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
 
-from .outputs import report_path, write_outputs
+from .outputs import report_path, write_outputs, write_overlays
 
 __all__ = ["scan_video", "selection_from_flags"]
 
@@ -48,6 +49,7 @@ def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tile
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
     write_outputs(result, one, folder)
+    write_overlays(result.report, frame, None, folder)
     report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
     return result.report
 
