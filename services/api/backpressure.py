@@ -9,9 +9,10 @@ clients when to come back, instead of accepting work that would wait for hours.
 from __future__ import annotations
 
 import redis
-from fastapi import HTTPException, status
 from prism_common.queue import QUEUE_SCANS, queue_depth
 from prism_common.settings import Settings
+
+from .problems import Problem
 
 __all__ = ["check_queue_depth"]
 
@@ -23,7 +24,7 @@ def check_queue_depth(client: redis.Redis, settings: Settings) -> None:
         return
     depth = queue_depth(client, QUEUE_SCANS)
     if depth >= limit:
-        raise HTTPException(
-            status.HTTP_503_SERVICE_UNAVAILABLE,
+        raise Problem(
+            "at-capacity",
             f"the service is at capacity ({depth} tasks waiting, limit {limit}); no job was created",
             headers={"Retry-After": str(settings.queue_retry_after_s)})

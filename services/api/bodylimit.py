@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from fastapi import HTTPException, status
 from prism_common.settings import get_settings
-from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from .problems import instance_of, problem_response
 
 __all__ = ["BodyLimit"]
 
@@ -41,8 +42,8 @@ class BodyLimit:
         limit = scope["app"].dependency_overrides.get(get_settings, get_settings)().request_max_bytes
         length = dict(scope["headers"]).get(b"content-length", b"")
         if length.isdigit() and int(length) > limit:
-            response = JSONResponse({"detail": _too_large(limit)}, headers={"Connection": "close"},
-                                    status_code=status.HTTP_413_CONTENT_TOO_LARGE)
+            response = problem_response(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit),
+                                        instance=instance_of(scope), headers={"Connection": "close"})
             await response(scope, receive, send)
             return
         seen = 0

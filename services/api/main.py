@@ -5,18 +5,18 @@ from __future__ import annotations
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 import anyio
 import redis
 from boto3.exceptions import S3UploadFailedError
 from botocore.exceptions import BotoCoreError
-from fastapi import APIRouter, FastAPI, Request, status
-from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi import APIRouter, FastAPI
 from prism_common.settings import get_settings
 
 from .bodylimit import BodyLimit
 from .deps import get_objects
+from .problems import declare_problems, install_handlers
 from .routes import health, jobs, previews, upload_video, uploads
 from .webapp import mount_web
 
@@ -33,20 +33,6 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     yield
 
 
-async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
-    # Location, message and type only: FastAPI's default also echoes the input, which can hold
-    # NaN (not JSON, so a 500) or a whole uploaded spec back at the client.
-    detail = [{"loc": list(e.get("loc", ())), "msg": str(e.get("msg", "invalid")),
-               "type": str(e.get("type", "value_error"))} for e in exc.errors()]
-    return JSONResponse({"detail": detail}, status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
-
-
-async def _backend_down(request: Request, exc: Exception) -> JSONResponse:
-    log.error("backend unavailable on %s %s: %r", request.method, request.url.path, exc)
-    return JSONResponse({"detail": "a storage backend is unavailable; try again shortly"},
-                        status_code=status.HTTP_503_SERVICE_UNAVAILABLE)
-
-
 _RETRY_AFTER = {"Retry-After": {"description": "Seconds to wait before trying again.",
                                 "schema": {"type": "integer"}}}
 _V1_RESPONSES: dict[int | str, dict] = {
@@ -54,7 +40,8 @@ _V1_RESPONSES: dict[int | str, dict] = {
     401: {"description": "Missing or invalid X-API-Key"},
     429: {"description": "Rate limit of this key, or of refused keys from this address, exceeded",
           "headers": _RETRY_AFTER},
-    503: {"description": "At capacity (Retry-After) or a backend is unavailable"},
+    413: {"description": "Body over PRISM_REQUEST_MAX_BYTES (uploads: PRISM_UPLOAD_MAX_BYTES)"},
+    503: {"description": "At capacity or a backend is unavailable", "headers": _RETRY_AFTER},
 }
 
 
@@ -70,9 +57,15 @@ def create_app() -> FastAPI:
     app.include_router(health.router)
     mount_web(app)
     app.add_middleware(BodyLimit)
-    app.add_exception_handler(RequestValidationError, _invalid)
-    for error in (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError):
-        app.add_exception_handler(error, _backend_down)
+    install_handlers(app, (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError))
+
+    def openapi() -> dict[str, Any]:
+        # Built once, as FastAPI does, then every error answer declared as a problem document.
+        if app.openapi_schema is None:
+            app.openapi_schema = declare_problems(FastAPI.openapi(app))
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
     return app
 
 

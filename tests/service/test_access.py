@@ -21,6 +21,7 @@ from prism_api import deps
 from prism_api.main import create_app
 
 from .conftest import API_KEYS
+from .test_api import photo
 
 with warnings.catch_warnings():
     warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
@@ -56,7 +57,7 @@ def make(settings, objects):
 
 
 def _acme_job(client: TestClient) -> tuple[str, str]:
-    r = client.post("/v1/uploads", files={"file": ("a.jpg", b"\xff\xd8 jpeg")}, headers=ACME)
+    r = client.post("/v1/uploads", files={"file": ("a.png", photo())}, headers=ACME)
     ref = r.json()["reference"]
     job = client.post("/v1/jobs", json={"items": [{"image": ref, "points": POINTS}]}, headers=ACME)
     return job.json()["id"], ref
@@ -73,7 +74,8 @@ def test_every_route_that_reads_or_changes_a_job_is_guarded(make, figures):
         upload_id = ref.removeprefix("upload:")
         url = path.format(job_id=job_id, index=0, frame=0, upload_id=upload_id)
         kwargs = ({"json": {"items": [{"image": ref, "points": POINTS}]}} if path == "/v1/jobs" and
-                  method == "POST" else {"files": {"file": ("b.jpg", b"x")}} if path == "/v1/uploads" else {})
+                  method == "POST" else {"files": {"file": ("b.png", photo())}}
+                  if path == "/v1/uploads" else {})
         for headers in WRONG_KEYS:
             r = client.request(method, url, headers=headers, **kwargs)
             assert r.status_code == 401, (method, url, headers, r.text)
@@ -82,7 +84,9 @@ def test_every_route_that_reads_or_changes_a_job_is_guarded(make, figures):
         assert r.status_code == theirs, (method, url, r.text)
         if theirs == 404:  # the answer an unknown id gets: nothing of the job or upload
             unknown = f"no upload {upload_id!r}" if "{upload_id}" in path else f"no job {job_id!r}"
-            assert r.json() == {"detail": unknown}, r.text
+            assert r.json() == {"type": "https://prismcloud.dev/problems/not-found",
+                                "title": "No such resource", "status": 404, "detail": unknown,
+                                "instance": url}, r.text
         else:
             assert job_id not in r.text, r.text
         if method == "GET" and path == "/v1/jobs":

@@ -18,6 +18,7 @@ from pydantic import SecretStr
 from prism_api.main import create_app
 
 from .conftest import API_KEYS
+from .test_api import photo
 
 with warnings.catch_warnings():
     warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
@@ -46,7 +47,7 @@ def apps(settings, objects) -> Iterator:
 
 
 def _upload(client: TestClient, headers: dict) -> str:
-    r = client.post("/v1/uploads", files={"file": ("a.jpg", b"\xff\xd8 jpeg")}, headers=headers)
+    r = client.post("/v1/uploads", files={"file": ("a.png", photo())}, headers=headers)
     assert r.status_code == 201, r.text
     return r.json()["reference"]
 

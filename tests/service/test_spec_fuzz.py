@@ -23,6 +23,7 @@ from prismcore import InputError, ScanSpec, run_scan
 
 from .conftest import API_KEYS
 from .faultstack import item, tiny_scene
+from .test_api import photo
 
 with warnings.catch_warnings():
     warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
@@ -102,7 +103,7 @@ def client(settings, objects):
 @pytest.fixture
 def reference(client) -> str:
     """A real upload of the tenant's, so that bodies get past the reference check to the rest."""
-    r = client.post("/v1/uploads", files={"file": ("box.png", b"\x89PNG not checked here")},
+    r = client.post("/v1/uploads", files={"file": ("box.png", photo())},
                     headers={"X-API-Key": API_KEYS["acme"]})
     assert r.status_code == 201, r.text
     return r.json()["reference"]
@@ -126,5 +127,5 @@ def test_any_job_body_is_202_or_a_readable_422(client, reference, data, figures)
     figures["5xx seen"] += r.status_code >= 500
     assert r.status_code in (202, 422), r.text
     if r.status_code == 422:
-        detail = r.json()["detail"]
-        assert detail and all(e["msg"] and isinstance(e["loc"], list) for e in detail), detail
+        errors = r.json()["errors"]
+        assert errors and all(e["detail"] and isinstance(e["pointer"], str) for e in errors), errors

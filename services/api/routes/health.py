@@ -8,12 +8,13 @@ import anyio
 import httpx
 import redis.asyncio as aioredis
 from botocore.exceptions import BotoCoreError
-from fastapi import APIRouter, Response, status
+from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import JSONResponse
 from prometheus_client import CONTENT_TYPE_LATEST
 
 from ..collector import render_metrics
 from ..deps import ObjectsDep, RedisDep, SettingsDep, StoreDep
+from ..problems import problem_response
 
 router = APIRouter(tags=["health"])
 log = logging.getLogger(__name__)
@@ -57,7 +58,7 @@ async def _object_store_ok(objects: ObjectsDep) -> bool:
 
 
 @router.get("/readyz", responses={503: {"description": "A backend is down"}})
-async def readyz(settings: SettingsDep, objects: ObjectsDep) -> JSONResponse:
+async def readyz(request: Request, settings: SettingsDep, objects: ObjectsDep) -> JSONResponse:
     """Redis and the object store answer: 200, or 503 naming which does not."""
     checks = {"redis": False, "object_store": False}
 
@@ -69,8 +70,11 @@ async def readyz(settings: SettingsDep, objects: ObjectsDep) -> JSONResponse:
         group.start_soon(run, "redis", lambda: _redis_ok(settings.redis_url))
         group.start_soon(run, "object_store", lambda: _object_store_ok(objects))
     body = {name: "ok" if ok else "down" for name, ok in checks.items()}
-    code = status.HTTP_200_OK if all(checks.values()) else status.HTTP_503_SERVICE_UNAVAILABLE
-    return JSONResponse(body, status_code=code)
+    if all(checks.values()):
+        return JSONResponse(body, status_code=status.HTTP_200_OK)
+    down = " and ".join(name.replace("_", " ") for name, ok in checks.items() if not ok)
+    return problem_response(status.HTTP_503_SERVICE_UNAVAILABLE, f"{down} not answering",
+                            instance=request.url.path, kind="backend-unavailable", checks=body)
 
 
 @router.get("/metrics", response_class=Response,
