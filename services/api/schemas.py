@@ -6,7 +6,7 @@ worker's webhook sends the very same document."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 from prism_common.public import DimensionsPublic, ItemPublic, JobPublic, ResultPublic
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from prismcore.spec import ScanSpec
 
 __all__ = ["DimensionsPublic", "ItemPublic", "JobCreate", "JobList", "JobPublic", "ResultPublic",
-           "UploadPublic", "VideoPublic"]
+           "UploadProbe", "UploadPublic", "VideoPublic"]
 
 
 def _first_non_finite(value: Any, path: str = "") -> str | None:
@@ -58,11 +58,28 @@ class JobList(BaseModel):
     next_cursor: str | None = Field(description="Pass as `cursor` for the next page; null at the end.")
 
 
+class UploadProbe(BaseModel):
+    """What the file was found to be when it was stored (the engine's own header readers)."""
+
+    kind: Literal["image", "video"]
+    format: str = Field(description='"BMP", "PNG", "JPEG", "TIFF", "WEBP"; for videos "AVI", '
+                        '"MP4", "MOV" or "MKV".')
+    width: int | None = Field(default=None, description="Pixels, as the engine sees the photo "
+                              "(after EXIF orientation) or the video's frames; null if unread.")
+    height: int | None = None
+    frame_count: int | None = Field(default=None, description="Videos: frames that decode.")
+    fps: float | None = None
+    codec: str | None = None
+    error: str | None = Field(default=None, description="Why the size could not be read: the "
+                              "file is damaged (a job naming it fails with this reason).")
+
+
 class UploadPublic(BaseModel):
     id: str
     reference: str = Field(description="Use as an item's image: `upload:ID`.")
     size: int
     name: str
+    probe: UploadProbe | None = None
 
 
 class VideoPublic(BaseModel):

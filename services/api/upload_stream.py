@@ -7,6 +7,9 @@ the limit is refused as soon as the limit is passed, with the rest of the body l
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import IO
+
 from anyio import from_thread
 from anyio.lowlevel import EventLoopToken, current_token
 from fastapi import HTTPException, Request, status
@@ -14,9 +17,10 @@ from python_multipart.exceptions import MultipartParseError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
-__all__ = ["MULTIPART_OVERHEAD", "MultipartFile"]
+__all__ = ["HEAD_KEEP", "MULTIPART_OVERHEAD", "MultipartFile"]
 
 MULTIPART_OVERHEAD = 64 * 1024  # boundaries, part headers and small extra fields beside the file
+HEAD_KEEP = 1 << 20  # the file's first bytes, kept for the probe: a photo's header lies in them
 
 
 def _safe_name(raw: bytes | None) -> str:
@@ -31,10 +35,13 @@ class MultipartFile:
 
     Must be created on the event loop; read() may be called from any thread. A refusal
     (400, 413, 422) is raised from read() and kept in `failure`, since boto3 may wrap what it
-    raises.
+    raises. The file's first `HEAD_KEEP` bytes are kept in `head`; `spool_when`, given the
+    first bytes read, may return a file into which the whole file is then copied as it passes
+    (a video, which can only be probed from a file).
     """
 
-    def __init__(self, request: Request, field: str, limit: int) -> None:
+    def __init__(self, request: Request, field: str, limit: int, *,
+                 spool_when: Callable[[bytes], IO[bytes] | None] | None = None) -> None:
         kind, options = parse_options_header(request.headers.get("content-type", ""))
         if kind != b"multipart/form-data" or not options.get(b"boundary"):
             raise HTTPException(422, "send the file as multipart/form-data, field 'file'",
@@ -48,6 +55,9 @@ class MultipartFile:
         self._header_field = self._header_value = b""
         self._disposition = b""
         self.size, self.name = 0, "upload"
+        self.head = bytearray()
+        self._spool_when = spool_when
+        self.spool: IO[bytes] | None = None
         self.failure: HTTPException | None = None
         self._parser = MultipartParser(options[b"boundary"], callbacks={
             "on_part_begin": self._part_begin, "on_header_field": self._on_field,
@@ -125,4 +135,10 @@ class MultipartFile:
         del self._buf[:want]
         if not out and size != 0 and self.size == 0:
             raise self._refuse(422, "the uploaded file is empty")
+        if out and not self.head and self._spool_when is not None:
+            self.spool = self._spool_when(out)
+        if len(self.head) < HEAD_KEEP:
+            self.head += out[: HEAD_KEEP - len(self.head)]
+        if self.spool is not None and out:
+            self.spool.write(out)
         return out

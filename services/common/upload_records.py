@@ -1,6 +1,8 @@
 """Upload records in Redis, beside the jobs (JobStore inherits these methods).
 
-* ``upload:{id}`` hash: tenant, object key, size, file name, made at.
+* ``upload:{id}`` hash: tenant, object key, size, file name, made at, and ``probe``: what the
+  API found the file to be when it was stored (JSON: kind "image" or "video", format, width and
+  height as the engine sees them, a video's frame_count, fps and codec; see `prism_api.probe`).
 * ``uploads`` sorted set: upload id -> when its lifetime counts from (made, or last named by a
   submitted job), s since the epoch: the sweep deletes those past ``upload_ttl_s``.
 * ``upload:{id}:extract:{n}`` (expiring): frame n of that video was asked of a worker.
@@ -8,13 +10,29 @@
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping
 from datetime import UTC, datetime
+from typing import Any
 
 import redis
 
-__all__ = ["UploadRecords"]
+__all__ = ["UploadRecords", "upload_probe"]
 
 _P = "prism:"
+
+
+def upload_probe(record: Mapping[str, str] | None) -> dict[str, Any] | None:
+    """The probe recorded with an upload (`get_upload`'s record), or None (none recorded: an
+    upload stored before uploads were probed)."""
+    text = record.get("probe") if record else None
+    if not text:
+        return None
+    try:
+        found = json.loads(text)
+    except ValueError:
+        return None
+    return found if isinstance(found, dict) else None
 _UPLOADS = f"{_P}uploads"
 
 
@@ -23,12 +41,15 @@ class UploadRecords:
 
     _r: redis.Redis
 
-    def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str) -> None:
+    def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str,
+                   probe: Mapping[str, Any] | None = None) -> None:
         now = datetime.now(UTC)
+        fields: dict[str, str | int] = {"tenant": tenant, "key": key, "size": size, "name": name,
+                                        "created_at": now.isoformat()}
+        if probe is not None:
+            fields["probe"] = json.dumps(dict(probe))
         with self._r.pipeline() as pipe:
-            pipe.hset(f"{_P}upload:{upload_id}", mapping={
-                "tenant": tenant, "key": key, "size": size, "name": name,
-                "created_at": now.isoformat()})
+            pipe.hset(f"{_P}upload:{upload_id}", mapping=fields)
             pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
             pipe.execute()
 

@@ -50,13 +50,28 @@ CASES = {
     "png-header-only": ("head.png", GOOD[:40], "'head.png'"),
     "corrupt-middle": ("bits.png", GOOD[:200] + bytes(b ^ 0x5A for b in GOOD[200:400]) + GOOD[400:],
                        "'bits.png'"),
-    "random-bytes": ("noise.jpg", bytes(range(256)) * 20, "'noise.jpg'"),
-    "text-as-png": ("notes.png", b"these are not pixels\n" * 40, "'notes.png'"),
-    "gif": ("anim.png", b"GIF89a\x01\x00\x01\x00\x00\x00\x00;" * 3, "'anim.png'"),
-    "svg": ("vector.png", b'<svg xmlns="http://www.w3.org/2000/svg" width="9" height="9"/>', "'vector.png'"),
     "decompression-bomb": ("bomb.png", _bomb(), "'bomb.png'"),
     "over-pixel-limit": ("big.png", BIG, "'big.png'"),
 }
+
+
+# name -> (file name, bytes, what the refusal must call it): neither a photo nor a video, so
+# refused at upload (415) and not stored.
+REFUSED = {
+    "random-bytes": ("noise.jpg", bytes(range(256)) * 20, "application/octet-stream"),
+    "text-as-png": ("notes.png", b"these are not pixels\n" * 40, "text/plain"),
+    "gif": ("anim.png", b"GIF89a\x01\x00\x01\x00\x00\x00\x00;" * 3, "image/gif"),
+    "svg": ("vector.png", b'<svg xmlns="http://www.w3.org/2000/svg" width="9" height="9"/>', "image/svg+xml"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(REFUSED))
+def test_not_a_photo_is_refused_at_upload(stack, case, figures):
+    name, data, expected = REFUSED[case]
+    r = stack.call("POST", "/v1/uploads", files={"file": (name, data)})
+    figures["inputs tried"] += 1
+    assert r.status_code == 415 and r.headers["content-type"] == "application/problem+json", r.text
+    assert f"{name!r} is " in r.json()["detail"] and expected in r.json()["detail"], r.text
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

@@ -1,8 +1,14 @@
-"""POST /v1/uploads: a photo streamed into object storage, to be named by jobs as upload:ID."""
+"""POST /v1/uploads: a photo or video streamed into object storage, to be named by jobs as upload:ID.
+
+Each upload is probed as it is stored (`prism_api.probe`): a file that is neither a photo the
+engine reads nor a video is refused (415) and deleted; what the others are (format, pixel size,
+a video's frames) is recorded with the upload, so a job naming it is checked at submit.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+import tempfile
+from typing import IO, Any
 from uuid import uuid4
 
 import anyio
@@ -11,8 +17,10 @@ from fastapi.concurrency import run_in_threadpool
 from prism_common.upload_keys import upload_key
 
 from ..deps import ObjectsDep, SettingsDep, StoreDep, TenantDep
-from ..schemas import UploadPublic
-from ..upload_stream import MULTIPART_OVERHEAD, MultipartFile
+from ..probe import Unsupported, is_video_head, probe_image_head, probe_video_file
+from ..problems import Problem
+from ..schemas import UploadProbe, UploadPublic
+from ..upload_stream import HEAD_KEEP, MULTIPART_OVERHEAD, MultipartFile
 
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 
@@ -20,31 +28,60 @@ router = APIRouter(prefix="/uploads", tags=["uploads"])
 _BODY: dict[str, Any] = {"requestBody": {"required": True, "content": {"multipart/form-data": {
     "schema": {"type": "object", "required": ["file"],
                "properties": {"file": {"type": "string", "format": "binary"}}}}}}}
+_SUPPORTED = "a photo (BMP, PNG, JPEG, TIFF, WebP) or a video (AVI, MP4, MOV, MKV)"
+
+
+def _spool_videos(first: bytes) -> IO[bytes] | None:
+    # A video is probed by OpenCV, which reads files only: a local copy is kept while it is stored.
+    return tempfile.NamedTemporaryFile(prefix="prism-upload-", suffix=".video") if is_video_head(first) \
+        else None
+
+
+def _probe(upload: MultipartFile) -> dict[str, Any]:
+    """What the stored file is (in a worker thread: OpenCV may decode a whole video)."""
+    head = bytes(upload.head)
+    if upload.spool is not None:
+        upload.spool.flush()
+        return probe_video_file(upload.spool.name, head=head, name=upload.name)
+    return probe_image_head(head, complete=upload.size <= HEAD_KEEP, name=upload.name)
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadPublic,
-             openapi_extra=_BODY, responses={413: {"description": "Larger than the upload limit"},
-                                                422: {"description": "No non-empty multipart `file`"}})
+             openapi_extra=_BODY, responses={
+                 413: {"description": "Larger than the upload limit"},
+                 415: {"description": "Neither a photo nor a video: `detail` names what it is"},
+                 422: {"description": "No non-empty multipart `file`"}})
 async def create_upload(request: Request, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
-    """Stream the multipart field `file` into object storage; refused (413) past the size limit."""
+    """Stream the multipart field `file` into object storage; refused past the size limit (413)
+    and when it is neither a photo nor a video (415). The answer says what the file is."""
     limit = settings.upload_max_bytes
     length = request.headers.get("content-length", "")
     if length.isdigit() and int(length) > limit + MULTIPART_OVERHEAD:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE,  # refused unread
                             f"the upload is larger than {limit} bytes", headers={"Connection": "close"})
-    upload = MultipartFile(request, "file", limit)
+    upload = MultipartFile(request, "file", limit, spool_when=_spool_videos)
     upload_id = uuid4().hex
     key = upload_key(tenant, upload_id)
     try:
-        await anyio.to_thread.run_sync(objects.put_stream, key, upload)
-    except Exception:
-        if upload.failure is not None:  # our own refusal, possibly wrapped by boto3
-            raise upload.failure from None
-        raise
+        try:
+            await anyio.to_thread.run_sync(objects.put_stream, key, upload)
+        except Exception:
+            if upload.failure is not None:  # our own refusal, possibly wrapped by boto3
+                raise upload.failure from None
+            raise
+        finally:
+            await upload.aclose()
+        try:
+            probe = await anyio.to_thread.run_sync(_probe, upload)
+        except Unsupported as exc:
+            await anyio.to_thread.run_sync(objects.delete_keys, [key])
+            raise Problem("unsupported-media-type", f"{upload.name!r} is {exc.detected}, not {_SUPPORTED}",
+                          detected_type=exc.detected) from None
     finally:
-        await upload.aclose()
+        if upload.spool is not None:
+            upload.spool.close()  # deletes the local copy
     await run_in_threadpool(store.put_upload, upload_id, tenant=tenant, key=key, size=upload.size,
-                            name=upload.name)
+                            name=upload.name, probe=probe)
     return UploadPublic(id=upload_id, reference=f"upload:{upload_id}", size=upload.size,
-                        name=upload.name)
+                        name=upload.name, probe=UploadProbe(**probe))
