@@ -37,7 +37,7 @@ export class History {
     const tr = document.createElement("tr");
     tr.dataset.job = job.id;
     const created = new Date(job.created_at).toLocaleString();
-    for (const text of [created, job.id.slice(0, 8), job.state, `${job.progress} %`, String(job.item_count)]) {
+    for (const text of [created, job.id.slice(0, 8), job.state, `${job.progress} %`, `${job.items_done ?? 0} of ${job.item_count}`]) {
       tr.append(Object.assign(document.createElement("td"), { textContent: text }));
     }
     const open = document.createElement("button");

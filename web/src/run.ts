@@ -87,11 +87,20 @@ export class Runner {
     progress.value = job.progress;
     // Progress counts frames for a video: say how many are measured so far.
     const frames = job.items.reduce((n, i) => n + i.frames.length, 0);
-    $("job-percent").textContent = `${job.progress} %` + (frames ? ` (${frames} frames measured)` : "");
+    const parts = [`${job.progress} %`];
+    if (job.item_count > 1) parts.push(`${job.items_done} of ${job.item_count} scans`);
+    if (frames) parts.push(`${frames} frames measured`);
+    const left = remaining(job);
+    if (left) parts.push(left);
+    $("job-percent").textContent = parts.join(" · ");
     if (changed) {
       // The status region is read out: only when the state changes, not at every percent.
       const failed = job.items.filter((i) => i.state === "failed").length;
-      const extra = job.state === "succeeded" && failed ? ` ${failed} of ${job.items.length} scans failed.` : "";
+      const cancelled = job.items.filter((i) => i.state === "cancelled").length;
+      let extra = job.state === "succeeded" && failed ? ` ${failed} of ${job.items.length} scans failed.` : "";
+      if (job.state === "cancelled") {
+        extra = ` ${job.items_done} of ${job.item_count} scans had finished; ${cancelled} were not run.`;
+      }
       $("job-state").textContent = `Job ${job.id.slice(0, 8)}: ${WORDS[job.state]}${extra}` +
         (job.error ? ` ${job.error.charAt(0).toUpperCase()}${job.error.slice(1)}.` : "");
     }
@@ -114,4 +123,15 @@ export class Runner {
   private async cancel(): Promise<void> {
     if (this.job) this.follow(await postJson<Job>(`/v1/jobs/${this.job.id}/cancel`, {}));
   }
+}
+
+/** "about 2 min left", from the progress made since the job started; "" while unknown. */
+export function remaining(job: Job, now: number = Date.now()): string {
+  if (FINAL.includes(job.state) || !job.started_at || job.progress <= 0) return "";
+  const elapsed = (now - Date.parse(job.started_at)) / 1000;
+  const left = Math.max(0, (elapsed * (100 - job.progress)) / job.progress);
+  if (!Number.isFinite(left)) return "";
+  if (left < 60) return `about ${Math.max(1, Math.round(left))} s left`;
+  if (left < 3600) return `about ${Math.round(left / 60)} min left`;
+  return `about ${(left / 3600).toFixed(1)} h left`;
 }

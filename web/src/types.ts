@@ -69,7 +69,10 @@ export interface Job {
   id: string;
   state: State;
   progress: number;
+  /** Items finished (succeeded or failed) so far, of item_count. */
+  items_done: number;
   created_at: string;
+  started_at: string | null;
   finished_at: string | null;
   client_reference: string | null;
   error: string | null;
