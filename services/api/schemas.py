@@ -39,7 +39,9 @@ class JobCreate(BaseModel):
     client_reference: str | None = Field(default=None, max_length=200,
                                          description="Your own id for the batch, echoed back.")
     webhook_url: str | None = Field(default=None, max_length=2000,
-                                    description="POSTed the finished job (allow-listed hosts).")
+                                    description="POSTed the finished job, signed by the Standard "
+                                                "Webhooks spec. https (http only where the "
+                                                "service allows it), on an allow-listed host.")
 
     @field_validator("items", mode="before")
     @classmethod

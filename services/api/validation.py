@@ -7,36 +7,18 @@ client handles both the same way.
 from __future__ import annotations
 
 from typing import Any
-from urllib.parse import urlsplit
 
 from fastapi.exceptions import RequestValidationError
+from prism_common.outbound import check_webhook_url
 from prism_common.references import ReferenceError, check_reference, parse_reference
 from prism_common.settings import Settings
 from prism_common.store import JobStore
 
 from .schemas import JobCreate
 
-__all__ = ["check_job", "webhook_problem"]
+__all__ = ["check_job"]
 
 _MAX_REPORTED = 50  # a 5000-item batch with one bad upload gets a readable answer, not 5000 lines
-
-
-def webhook_problem(url: str, settings: Settings) -> str | None:
-    """Why the service will not POST to `url`, or None if it will."""
-    try:
-        parts = urlsplit(url)
-        parts.port  # noqa: B018 - raises ValueError on a bad port
-    except ValueError as exc:
-        return f"webhook_url is not a valid URL: {exc}"
-    if parts.scheme != "https" and not (parts.scheme == "http" and settings.webhook_allow_private):
-        return "webhook_url must be an https:// URL"
-    if not parts.hostname:
-        return "webhook_url has no host"
-    if parts.username or parts.password:
-        return "credentials in webhook_url are not accepted"
-    if parts.hostname.lower() not in settings.webhook_allowed_hosts:
-        return f"webhook host {parts.hostname!r} is not on the allow-list"
-    return None
 
 
 def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) -> set[str]:
@@ -49,8 +31,11 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) 
 
     if len(job.items) > settings.max_items_per_job:
         fail(("items",), f"at most {settings.max_items_per_job} items per job, got {len(job.items)}")
-    if job.webhook_url is not None and (problem := webhook_problem(job.webhook_url, settings)):
-        fail(("webhook_url",), problem)
+    if job.webhook_url is not None:
+        try:  # the worker checks again before each delivery, resolving the host then
+            check_webhook_url(job.webhook_url, settings, resolve=False)
+        except ReferenceError as exc:
+            fail(("webhook_url",), f"webhook_url: {exc}")
     # Explicit frame indices are known now; other selections are counted when the video is read.
     named = sum(len(item.frames.indices) for item in job.items if item.frames and item.frames.indices)
     if named > settings.max_frames_per_job:

@@ -7,6 +7,8 @@ from functools import lru_cache
 from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from .webhook_secret import signing_key
+
 __all__ = ["Settings", "get_settings"]
 
 
@@ -17,11 +19,14 @@ class Settings(BaseSettings):
     without them.
     """
 
-    model_config = SettingsConfigDict(env_prefix="PRISM_", extra="ignore")
+    # Errors never echo the input: it holds the secrets (a malformed whsec_ webhook secret, say).
+    model_config = SettingsConfigDict(env_prefix="PRISM_", extra="ignore", hide_input_in_errors=True)
 
     # Who may call: {"tenant name": "api key"}, e.g. PRISM_API_KEYS='{"acme": "k-..."}'.
     api_keys: dict[str, SecretStr]
-    webhook_secret: SecretStr = Field(description="HMAC-SHA256 key for webhook signatures.")
+    # Standard Webhooks signing key: "whsec_" + base64 (the standard's form), or any other
+    # string, whose UTF-8 bytes are the key (prism_common.webhook_secret).
+    webhook_secret: SecretStr = Field(description="Key for webhook signatures (Standard Webhooks).")
 
     redis_url: str = "redis://127.0.0.1:6379/0"
     s3_endpoint_url: str | None = None  # None: AWS S3
@@ -38,8 +43,10 @@ class Settings(BaseSettings):
     fetch_allow_private: bool = False  # tests only: lets allow-listed hosts resolve to loopback
     fetch_ca_bundle: str | None = None
     fetch_max_bytes: int = 100 * 2**20
+    # Webhook targets (prism_common.outbound.check_webhook_url, applied at submit and delivery).
     webhook_allowed_hosts: list[str] = Field(default_factory=list)
-    webhook_allow_private: bool = False  # tests only
+    webhook_allow_http: bool = False  # http:// targets too (a receiver on a trusted network)
+    webhook_allow_private: bool = False  # allow-listed hosts may resolve to loopback/private addresses
 
     upload_max_bytes: int = 100 * 2**20
     # Any other request body (a job's JSON is read whole before the key is checked); a 5000-item
@@ -59,6 +66,12 @@ class Settings(BaseSettings):
     task_time_limit_s: float = Field(default=240.0, gt=0)
     task_hard_margin_s: float = Field(default=30.0, gt=0)
     public_base_url: str | None = None  # for Location headers behind a proxy
+
+    @field_validator("webhook_secret")
+    @classmethod
+    def _webhook_key(cls, secret: SecretStr) -> SecretStr:
+        signing_key(secret.get_secret_value())  # a malformed whsec_ secret stops the start
+        return secret
 
     @field_validator("fetch_allowed_hosts", "webhook_allowed_hosts")
     @classmethod

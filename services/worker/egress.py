@@ -12,14 +12,11 @@ from __future__ import annotations
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from urllib.parse import urlsplit
 
 import httpx
-from prism_common.references import ReferenceError, resolve_public
+from prism_common.outbound import CheckedURL, check_url
 
-__all__ = ["Target", "check_target", "send_pinned"]
-
-_DEFAULT_PORTS = {"http": 80, "https": 443}
+__all__ = ["Target", "check_target", "pinned", "send_pinned"]
 
 
 @dataclass(frozen=True)
@@ -32,24 +29,15 @@ class Target:
 
 def check_target(url: str, *, schemes: Collection[str],
                  allowed_hosts: Collection[str], allow_private: bool) -> Target:
-    """Parse `url` and apply the rules; ReferenceError (saying which) if it may not be called."""
-    try:
-        parts = urlsplit(url)
-        port = parts.port or _DEFAULT_PORTS.get(parts.scheme, 0)
-    except ValueError:
-        raise ReferenceError(f"{url[:200]!r} is not a valid URL") from None
-    if parts.scheme not in schemes:
-        raise ReferenceError(f"{url[:200]!r}: only {' or '.join(sorted(schemes))} URLs are allowed")
-    host = (parts.hostname or "").lower()
-    if not host:
-        raise ReferenceError(f"{url[:200]!r} names no host")
-    if parts.username or parts.password:
-        raise ReferenceError(f"credentials in URLs are not accepted: {host!r}")
-    if host not in allowed_hosts:
-        raise ReferenceError(f"host {host!r} is not on the allow-list")
-    addresses = resolve_public(host, port, allow_private=allow_private)
-    netloc = host if port == _DEFAULT_PORTS[parts.scheme] else f"{host}:{port}"
-    return Target(httpx.URL(url), host, netloc, addresses)
+    """Parse `url` and apply the rules (`prism_common.outbound.check_url`); ReferenceError
+    (saying which) if it may not be called."""
+    return pinned(check_url(url, schemes=schemes, allowed_hosts=allowed_hosts, allow_private=allow_private))
+
+
+def pinned(checked: CheckedURL) -> Target:
+    """The target of a URL checked with its addresses resolved."""
+    assert checked.addresses, "check the URL with resolve=True"
+    return Target(httpx.URL(checked.url), checked.host, checked.netloc, list(checked.addresses))
 
 
 @contextmanager

@@ -1,22 +1,36 @@
-"""Tell the client's system that a job ended: a signed POST of the job resource.
+"""Tell the client's system that a job ended: a POST of the job resource, signed by the
+Standard Webhooks specification (https://www.standardwebhooks.com/) with the
+`standardwebhooks` package, so a receiver can check it with any of the standard's libraries.
 
-The body is the job as ``GET /v1/jobs/{id}`` shows it (download links included), signed with
-HMAC-SHA256 over the exact bytes sent, so the receiver can check it came from us unaltered.
+The body is the job as ``GET /v1/jobs/{id}`` shows it (download links included). Headers:
+
+* ``webhook-id``: the same for every attempt at one job's event (a retry, a redelivery after a
+  worker died), so a receiver that has seen it can drop the repeat;
+* ``webhook-timestamp``: when this attempt was signed (Unix seconds): each retry is signed
+  afresh, and receivers refuse a delivery more than 5 minutes off their clock (replays);
+* ``webhook-signature``: ``v1,`` + base64 HMAC-SHA256 over ``{id}.{timestamp}.{body}`` with
+  the key of ``PRISM_WEBHOOK_SECRET`` (`prism_common.webhook_secret`).
+
+The target is checked by the webhook policy (`prism_common.outbound.check_webhook_url`, the
+one the API applied at submit) before each attempt, and the request goes to the addresses
+checked.
 """
 
 from __future__ import annotations
 
-import hashlib
-import hmac
+from datetime import UTC, datetime
 
 import httpx
+from prism_common.outbound import check_webhook_url
 from prism_common.public import JobPublic, to_public
 from prism_common.records import JobRecord, State
+from prism_common.webhook_secret import signing_key
+from standardwebhooks import Webhook
 
 from . import context
-from .egress import check_target, send_pinned
+from .egress import pinned, send_pinned
 
-__all__ = ["EVENT", "WebhookError", "deliver", "job_resource", "signature"]
+__all__ = ["EVENT", "WebhookError", "deliver", "job_resource", "message_id", "signed_headers"]
 
 EVENT = "job.finished"
 TIMEOUT = httpx.Timeout(5.0)
@@ -32,13 +46,21 @@ def job_resource(job: JobRecord) -> JobPublic:
     return to_public(job, lambda key, name: objects.presign_get(key, ttl, filename=name))
 
 
-def signature(body: bytes) -> str:
-    secret = context.settings().webhook_secret.get_secret_value().encode()
-    return "sha256=" + hmac.new(secret, body, hashlib.sha256).hexdigest()
+def message_id(job_id: str, event: str = EVENT) -> str:
+    """The ``webhook-id`` of `event` for a job: one per job and event, whatever the attempt."""
+    return f"{event}.{job_id}"
+
+
+def signed_headers(msg_id: str, body: bytes, *, key: bytes, at: datetime) -> dict[str, str]:
+    """The three Standard Webhooks headers for `body` signed with `key` at time `at` (UTC,
+    counted in whole seconds as the header carries it)."""
+    whole = datetime.fromtimestamp(int(at.timestamp()), tz=UTC)
+    return {"webhook-id": msg_id, "webhook-timestamp": str(int(whole.timestamp())),
+            "webhook-signature": Webhook(key).sign(msg_id, whole, body.decode())}
 
 
 def deliver(job_id: str) -> None:
-    """POST the ended job to its webhook_url.
+    """POST the ended job to its webhook_url, signed now.
 
     Raises
     ------
@@ -51,12 +73,12 @@ def deliver(job_id: str) -> None:
     if job is None or not job.webhook_url or job.state not in (State.succeeded, State.failed):
         return
     settings = context.settings()
-    target = check_target(job.webhook_url, schemes={"http", "https"},
-                          allowed_hosts=settings.webhook_allowed_hosts,
-                          allow_private=settings.webhook_allow_private)
+    target = pinned(check_webhook_url(job.webhook_url, settings, resolve=True))
     body = job_resource(job).model_dump_json().encode()
-    headers = {"Content-Type": "application/json", "X-Prism-Signature": signature(body),
-               "X-Prism-Event": EVENT, "User-Agent": "PrismCloud-Webhook/1"}
+    key = signing_key(settings.webhook_secret.get_secret_value())
+    headers = {"Content-Type": "application/json", "User-Agent": "PrismCloud-Webhook/2",
+               "X-Prism-Event": EVENT,
+               **signed_headers(message_id(job.id), body, key=key, at=datetime.now(UTC))}
     with httpx.Client(timeout=TIMEOUT, trust_env=False) as client, \
             send_pinned(client, "POST", target, content=body, headers=headers) as response:
         if not response.is_success:

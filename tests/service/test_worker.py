@@ -4,18 +4,12 @@ Redis and SeaweedFS, fed jobs through the job store and the broker as the API fe
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 import io
 import json
-import threading
 import time
 import uuid
 from collections.abc import Iterator
-from http.server import BaseHTTPRequestHandler, HTTPServer
-from typing import ClassVar
 
-import httpx
 import numpy as np
 import pytest
 from plyfile import PlyData
@@ -31,8 +25,6 @@ from prismcore.scan import merge_bands, row_tiles, scan_band
 from prismcore.synth import Box, render_oblique_view
 from prismcore.writers import write_csv
 
-from .conftest import WEBHOOK_SECRET
-from .servers import free_port
 from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env
 
 TILES_PER_FACE = 4
@@ -179,60 +171,6 @@ def test_cancelled_before_it_runs_produces_nothing(env, scene):
     job = env.store.get(job_id)
     assert job.state == State.cancelled and job.items[0].state == State.queued
     assert env.keys(job_id) == set()
-
-
-class _Receiver(BaseHTTPRequestHandler):
-    received: ClassVar[list[tuple[dict[str, str], bytes]]] = []
-    fail_first = True  # answer 500 once: the delivery must be retried
-
-    def do_POST(self) -> None:
-        body = self.rfile.read(int(self.headers["Content-Length"]))
-        status = 500 if _Receiver.fail_first else 204
-        _Receiver.fail_first = False
-        self.received.append((dict(self.headers), body))
-        self.send_response(status)
-        self.send_header("Content-Length", "0")
-        self.end_headers()
-
-    def log_message(self, *args) -> None:
-        pass
-
-
-def test_webhook_is_delivered_signed_and_retried(env, scene):
-    server = HTTPServer(("127.0.0.1", free_port()), _Receiver)
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    try:
-        url = f"http://127.0.0.1:{server.server_address[1]}/hook"
-        job = env.wait(env.submit([spec_for(env.upload(encode(scene.image)), scene)], webhook_url=url,
-                                  client_reference="order-7"))
-        deadline = time.monotonic() + 30
-        while len(_Receiver.received) < 2:
-            assert time.monotonic() < deadline, (_Receiver.received, env.worker.log[-4000:])
-            time.sleep(0.1)
-    finally:
-        server.shutdown()
-        server.server_close()
-    (_, first), (headers, body) = _Receiver.received[:2]
-
-    def without_links(doc: bytes) -> dict:  # presigned links carry their signing time
-        payload = json.loads(doc)
-        for item in payload["items"]:
-            item.pop("downloads")
-        return payload
-
-    assert without_links(first) == without_links(body)  # the retry sends the same job
-    expected = "sha256=" + hmac.new(WEBHOOK_SECRET.encode(), body, hashlib.sha256).hexdigest()
-    assert hmac.compare_digest(headers["X-Prism-Signature"], expected)
-    assert headers["X-Prism-Event"] == "job.finished"
-    assert headers["Content-Type"] == "application/json"
-    payload = json.loads(body)
-    assert payload["id"] == job.id and payload["state"] == "succeeded" and payload["progress"] == 100
-    assert payload["client_reference"] == "order-7" and payload["finished_at"]
-    item = payload["items"][0]
-    assert item["index"] == 0 and item["state"] == "succeeded" and item["error"] is None
-    assert item["result"]["points"] == job.items[0].result.points
-    csv = httpx.get(item["downloads"]["csv"], timeout=10)  # presigned: no credentials needed
-    assert csv.status_code == 200 and csv.content.count(b"\n") == item["result"]["points"]
 
 
 def test_tasks_run_twice_write_each_object_once(env, scene):
