@@ -7,6 +7,7 @@ Keys and secrets are generated on first start and kept in DATA_DIR/credentials.j
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import secrets
@@ -29,7 +30,9 @@ def _credentials(data_dir: Path) -> dict[str, str]:
     path = data_dir / "credentials.json"
     if path.exists():
         return json.loads(path.read_text())
-    creds = {"api_key": "k-" + secrets.token_urlsafe(24), "webhook_secret": secrets.token_urlsafe(32),
+    creds = {"api_key": "k-" + secrets.token_urlsafe(24),
+             # The Standard Webhooks form, which receivers' verifiers take as it is.
+             "webhook_secret": "whsec_" + base64.b64encode(secrets.token_bytes(32)).decode(),
              "s3_key_id": "prism-" + secrets.token_hex(6), "s3_secret": secrets.token_urlsafe(32)}
     data_dir.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(creds, indent=2))
