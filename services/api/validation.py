@@ -1,11 +1,15 @@
 """Checks of a submitted job that need the settings or the store, beyond its schema.
 
 Failures are reported like schema errors (422, one entry per problem with its location), so a
-client handles both the same way.
+client handles both the same way. Reference points are checked against the photos' pixel sizes
+recorded when they were uploaded (`prism_api.probe`), by the engine's own checks
+(`prismcore.faces`), so a job the engine would refuse for its points is refused here instead.
 """
 
 from __future__ import annotations
 
+import json
+import re
 from typing import Any
 
 from fastapi.exceptions import RequestValidationError
@@ -13,17 +17,62 @@ from prism_common.outbound import check_webhook_url
 from prism_common.references import ReferenceError, check_reference, parse_reference
 from prism_common.settings import Settings
 from prism_common.store import JobStore
+from prism_common.upload_records import upload_probe
+
+from prismcore.spec import ReferencePoints, ScanSpec
 
 from .schemas import JobCreate
 
-__all__ = ["check_job"]
+__all__ = ["check_job", "point_problem"]
+
+_POINT = re.compile(r"\bpoint (p[1-7])\b")
 
 _MAX_REPORTED = 50  # a 5000-item batch with one bad upload gets a readable answer, not 5000 lines
 
 
-def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) -> set[str]:
+def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int],
+                  side: tuple[int, int]) -> tuple[str | None, str] | None:
+    """Why the engine would refuse `points` on photos of `front` and `side` size (height, width
+    px, as the engine sees them), and the point at fault (None: the points as a whole); or None.
+
+    The checks `prismcore.pipeline.plan_scan` makes before it looks at a pixel: every point in
+    its photo, each face's corners in order, convex and apart.
+    """
+    # The engine (numpy) is imported on the first job whose photos have known sizes.
+    from prismcore.errors import InputError
+    from prismcore.faces import clicked_quads, paper_rectangles, quad_labels, validate_points, validate_quad
+    from prismcore.pipeline import _side_height_guess
+
+    try:
+        validate_points(points, front, side)
+        camera = spec.camera
+        if camera is not None and camera.has_distortion:
+            return None  # the engine checks the quads on undistorted points, after decoding
+        if spec.method == "paper":
+            quads, labels = paper_rectangles(points, two_photo=spec.two_photo), (None, None)
+        else:
+            this = spec.model_copy(update={"points": points})
+            quads = clicked_quads(points, two_photo=spec.two_photo, side_height_px=_side_height_guess(this))
+            labels = quad_labels(quads)
+        validate_quad(quads.front, "front face", front, labels=labels[0])
+        validate_quad(quads.side, "side face", side, labels=labels[1])
+    except InputError as exc:
+        named = _POINT.search(str(exc))
+        return (named.group(1) if named else None), str(exc)
+    return None
+
+
+def _size(probe: dict[str, Any] | None) -> tuple[int, int] | None:
+    if probe and isinstance(probe.get("width"), int) and isinstance(probe.get("height"), int):
+        return probe["height"], probe["width"]
+    return None
+
+
+def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
+              raw: bytes | None = None) -> set[str]:
     """Raise RequestValidationError naming every item (and field) the service will not run;
-    else return the ids of the uploads the job reads."""
+    else return the ids of the uploads the job reads. `raw` is the body as sent, for pointers
+    that name its own keys or indices."""
     errors: list[dict[str, Any]] = []
 
     def fail(loc: tuple, msg: str) -> None:
@@ -42,9 +91,11 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) 
         fail(("items",), f"the job's videos name {named} frames, over the cap of "
                          f"{settings.max_frames_per_job} frames per job")
     owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
+    sizes: dict[str, tuple[int, int] | None] = {}
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
+        shapes: dict[str, tuple[int, int] | None] = {}
         for field in ("image", "side_image"):
             text = getattr(item, field)
             if text is None:
@@ -54,9 +105,29 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str) 
                 if ref.kind == "upload" and ref.upload_id not in owners:
                     upload = store.get_upload(ref.upload_id)
                     owners[ref.upload_id] = upload["tenant"] if upload else None
+                    sizes[ref.upload_id] = _size(upload_probe(upload))
                 check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
+                shapes[field] = sizes.get(ref.upload_id) if ref.kind == "upload" else None
             except ReferenceError as exc:
                 fail(("items", i, field), f"item {i} {field}: {exc}")
+                shapes[field] = None
+        front = shapes.get("image")
+        side = shapes.get("side_image") if item.two_photo else front
+        if front is None or side is None:
+            continue  # a URL, or an upload whose size is not known: the worker checks
+        marks = [(("points",), item.points)] if item.points is not None else \
+            [(("frame_points", str(n)), p) for n, p in (item.frame_points or {}).items()]
+        for where, points in marks:
+            if (found := point_problem(item, points, front, side)) is not None:
+                name, message = found
+                fail(("items", i, *where, *([name] if name else [])), f"item {i}: {message}")
+                break
     if errors:
-        raise RequestValidationError(errors[:_MAX_REPORTED])
+        body: Any = None
+        if raw is not None:
+            try:
+                body = json.loads(raw)
+            except ValueError:
+                body = None
+        raise RequestValidationError(errors[:_MAX_REPORTED], body=body)
     return set(owners)

@@ -9,9 +9,11 @@ from __future__ import annotations
 import base64
 import json
 import os
+import struct
 import time
 import uuid
 import warnings
+import zlib
 from collections.abc import Callable, Iterator
 
 import anyio
@@ -73,9 +75,21 @@ def broker(settings) -> redis.Redis:
     return redis.Redis.from_url(settings.redis_url, decode_responses=True)
 
 
-def upload(client: TestClient, data: bytes = b"\xff\xd8 not a real jpeg", name: str = "box.jpg",
+def photo(size: int = 0, width: int = 256, height: int = 128) -> bytes:
+    """A black PNG of width x height px, padded after its end to `size` bytes with random ones
+    (readers stop at IEND; the upload's probe reads the header): uploads must be photos."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    rows = zlib.compress((b"\x00" * (1 + 3 * width)) * height, 9)
+    data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", rows) + chunk(b"IEND", b""))
+    assert size == 0 or size >= len(data), (size, len(data))
+    return data + os.urandom(max(0, size - len(data)))
+
+
+def upload(client: TestClient, data: bytes | None = None, name: str = "box.png",
            headers: dict = ACME) -> str:
-    r = client.post("/v1/uploads", files={"file": (name, data)}, headers=headers)
+    r = client.post("/v1/uploads", files={"file": (name, photo() if data is None else data)}, headers=headers)
     assert r.status_code == 201, r.text
     return r.json()["reference"]
 
@@ -144,12 +158,14 @@ def test_malformed_job_ids_are_unknown(client, job_id):
     ("box.jpg", "box.jpg"), ("../../etc/passwd", "passwd"), ("C:\\photos\\side.png", "side.png"),
     ("", "upload")], ids=["plain", "path", "windows-path", "no-name"])  # ids: bucket-safe
 def test_upload_round_trip(client, store, objects, name, stored_name):
-    data = os.urandom(300_000)
+    data = photo(300_000)
     r = client.post("/v1/uploads", files={"file": (name, data, "image/jpeg")}, headers=ACME)
     assert r.status_code == 201, r.text
     body = r.json()
     assert body == {"id": body["id"], "reference": f"upload:{body['id']}", "size": len(data),
-                    "name": stored_name}
+                    "name": stored_name, "probe": {
+                        "kind": "image", "format": "PNG", "width": 256, "height": 128, "frame_count": None,
+                        "fps": None, "codec": None, "error": None}}
     record = store.get_upload(body["id"])
     assert record["tenant"] == "acme" and int(record["size"]) == len(data)
     assert record["key"].startswith("uploads/") and "acme" not in record["key"]
@@ -160,7 +176,7 @@ def test_upload_round_trip(client, store, objects, name, stored_name):
 def test_upload_size_limit(make_client, objects, size, code):
     # 1001 bytes is caught while counting, 5 MB already by its Content-Length.
     client = make_client(upload_max_bytes=1000)
-    r = client.post("/v1/uploads", files={"file": ("a.jpg", b"x" * size)}, headers=ACME)
+    r = client.post("/v1/uploads", files={"file": ("a.png", photo(size, 16, 8))}, headers=ACME)
     assert r.status_code == code, r.text
     assert len(objects.list_keys("uploads/")) == (code == 201)
     if code == 413:
@@ -319,9 +335,9 @@ def test_bad_references_name_the_item(make_client, broker, reference, reason, fi
     depth = broker.llen("scans")
     r = submit(client, [item(good), {**item(good), field: reference}])
     assert r.status_code == 422, r.text
-    [error] = r.json()["detail"]
-    assert error["loc"] == ["body", "items", 1, field]
-    assert error["msg"].startswith(f"item 1 {field}: ") and reason in error["msg"]
+    [error] = r.json()["errors"]
+    assert error["pointer"] == f"/items/1/{field}"
+    assert error["detail"].startswith(f"item 1 {field}: ") and reason in error["detail"]
     assert broker.llen("scans") == depth
 
 
@@ -329,14 +345,14 @@ def test_another_tenants_upload_is_no_upload(client):
     theirs = upload(client, headers=GLOBEX)
     r = submit(client, [item(theirs)])
     assert r.status_code == 422
-    assert r.json()["detail"][0]["msg"] == f"item 0 image: no upload {theirs.split(':')[1]!r}"
+    assert r.json()["errors"][0]["detail"] == f"item 0 image: no upload {theirs.split(':')[1]!r}"
     assert submit(client, [item(theirs)], headers=GLOBEX).status_code == 202
 
 
 def test_every_bad_item_is_reported(client):
     r = submit(client, [item("nope"), item(upload(client)), item("s3://private/a", side_image="x")])
-    assert [e["loc"] for e in r.json()["detail"]] == [
-        ["body", "items", 0, "image"], ["body", "items", 2, "image"], ["body", "items", 2, "side_image"]]
+    assert [e["pointer"] for e in r.json()["errors"]] == [
+        "/items/0/image", "/items/2/image", "/items/2/side_image"]
 
 
 @pytest.mark.parametrize("reference", ["s3://inputs/line-3/photo.jpg", "https://CDN.example.com/a.jpg"],
@@ -360,7 +376,7 @@ def test_webhook_urls(make_client, url, allow_private, ok):
     r = submit(client, [item(upload(client))], webhook_url=url)
     assert r.status_code == (202 if ok else 422), r.text
     if not ok:
-        assert r.json()["detail"][0]["loc"] == ["body", "webhook_url"]
+        assert r.json()["errors"][0]["pointer"] == "/webhook_url"
 
 
 GOOD = {"image": "upload:" + "0" * 32, "points": POINTS}
@@ -385,13 +401,26 @@ BAD_BODIES = {
 }
 
 
+NOT_JSON = ("truncated", "not-utf8")  # nothing to point into: 400, as the OpenAPI says
+
+
 @pytest.mark.parametrize("body", BAD_BODIES.values(), ids=BAD_BODIES.keys())
-def test_bad_bodies_are_readable_422s(client, body):
+def test_bad_bodies_are_readable_problems(client, body):
     r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": "application/json"})
-    assert r.status_code == 422, r.text
-    detail = r.json()["detail"]
-    assert detail and all(isinstance(e["msg"], str) and e["msg"] for e in detail)
-    assert all(set(e) == {"loc", "msg", "type"} for e in detail)
+    not_json = body in [BAD_BODIES[k] for k in NOT_JSON]
+    assert r.status_code == (400 if not_json else 422), r.text
+    assert r.headers["content-type"] == "application/problem+json"
+    problem = r.json()
+    assert problem["type"] == ("https://prismcloud.dev/problems/bad-request" if not_json
+                               else "https://prismcloud.dev/problems/validation")
+    assert problem["instance"] == "/v1/jobs" and isinstance(problem["detail"], str)
+    if not_json:
+        assert "not valid JSON" in problem["detail"] and "errors" not in problem
+    else:
+        errors = problem["errors"]
+        assert errors and all(isinstance(e["detail"], str) and e["detail"] for e in errors)
+        assert all(set(e) == {"pointer", "detail"} and (e["pointer"] == "" or e["pointer"].startswith("/"))
+                   for e in errors)
 
 
 def test_too_many_items(make_client):
@@ -399,7 +428,7 @@ def test_too_many_items(make_client):
     ref = upload(client)
     assert submit(client, [item(ref)] * 2).status_code == 202
     r = submit(client, [item(ref)] * 3)
-    assert r.status_code == 422 and "at most 2 items" in r.json()["detail"][0]["msg"]
+    assert r.status_code == 422 and "at most 2 items" in r.json()["errors"][0]["detail"]
 
 
 # -- idempotency ------------------------------------------------------------------------------
@@ -443,7 +472,9 @@ def test_cancel_after_the_end_conflicts(client, store, final):
     store.transition(job_id, State.running)
     store.transition(job_id, final)
     r = client.post(f"/v1/jobs/{job_id}/cancel", headers=ACME)
-    assert r.status_code == 409 and r.json() == {"detail": f"job is already {final.value}"}
+    assert r.status_code == 409 and r.json() == {
+        "type": "https://prismcloud.dev/problems/conflict", "title": "Conflict with the resource's state",
+        "status": 409, "detail": f"job is already {final.value}", "instance": f"/v1/jobs/{job_id}/cancel"}
     assert store.state(job_id) == final
 
 
@@ -493,7 +524,7 @@ def test_list_pages_newest_first_with_state_filter(make_client, settings):
 def test_bad_list_parameters_are_422(client, query):
     r = client.get(f"/v1/jobs?{query}", headers=ACME)
     assert r.status_code == 422, r.text
-    assert r.json()["detail"][0]["loc"][0] == "query"
+    assert "parameter" in r.json()["errors"][0], r.text
 
 
 # -- results and downloads --------------------------------------------------------------------
@@ -612,7 +643,9 @@ def test_readyz_names_what_is_down_quickly(make_client, settings, down):
     r = client.get("/readyz")
     assert time.monotonic() - started < 5
     assert r.status_code == 503
-    assert r.json() == {"redis": "ok", "object_store": "ok", down: "down"}
+    assert r.headers["content-type"] == "application/problem+json"
+    assert r.json()["type"] == "https://prismcloud.dev/problems/backend-unavailable"
+    assert r.json()["checks"] == {"redis": "ok", "object_store": "ok", down: "down"}
 
 
 def test_a_dead_redis_is_503_not_500(make_client):
@@ -671,7 +704,7 @@ def test_frames_named_over_the_job_cap_are_refused_at_submit(make_client, indice
     assert r.status_code == (202 if ok else 422), r.text
     if not ok:
         named = sum(map(len, indices))
-        assert r.json()["detail"][0]["msg"].endswith(
+        assert r.json()["errors"][0]["detail"].endswith(
             f"the job's videos name {named} frames, over the cap of 5 frames per job")
     else:
         assert [it["frames"] for it in r.json()["items"]] == [[], []]  # none measured yet
@@ -716,7 +749,7 @@ def test_uploads_are_not_held_to_the_request_cap(settings, objects, root_path):
     app_settings = settings.model_copy(update={"request_max_bytes": 1000})
     app.dependency_overrides[get_settings] = lambda: app_settings
     with TestClient(app, root_path=root_path) as client:
-        r = client.post(f"{root_path}/v1/uploads", files={"file": ("big.bin", b"x" * 50_000)},
+        r = client.post(f"{root_path}/v1/uploads", files={"file": ("big.png", photo(50_000))},
                         headers=ACME)
         assert r.status_code == 201, r.text
         assert client.post(f"{root_path}/v1/jobs", content=b" " * 2000, headers=ACME).status_code == 413
@@ -727,7 +760,7 @@ def test_a_job_body_under_the_cap_is_read_as_usual(settings, objects):
     app = create_app()
     app.dependency_overrides[get_settings] = lambda: settings
     with TestClient(app) as client:
-        ref = client.post("/v1/uploads", files={"file": ("a.png", b"\x89PNG")}, headers=ACME)
+        ref = client.post("/v1/uploads", files={"file": ("a.png", photo())}, headers=ACME)
         item = {"image": ref.json()["reference"], "points": [[10, 10], [110, 12], [108, 80],
                                                               [150, 6], [200, 8]]}
         r = client.post("/v1/jobs", json={"items": [item] * 2000}, headers=ACME)

@@ -98,15 +98,16 @@ def test_mislabelled_but_readable_files_are_read_by_content(stack, figures):
     assert [i["state"] for i in job["items"]] == ["succeeded", "succeeded"], job
 
 
-def test_zero_pixel_region_fails_with_the_reason(stack, figures):
+def test_points_the_engine_would_refuse_are_refused_at_submit(stack, figures):
+    # Five clicks on one pixel: the photo's size is known from its upload, so the job is refused
+    # at once (422 pointing at the points) instead of failing when polled.
     spec = {**item(stack.upload(GOOD), SCENE), "points": [[60, 60]] * 5}
-    job_id = stack.submit([spec])
-    job = stack.wait([job_id], timeout=60)[job_id]
+    r = stack.call("POST", "/v1/jobs", json={"items": [spec]})
     figures["inputs tried"] += 1
-    assert job["state"] == "failed" and job["error"] == "all items failed"
-    error = job["items"][0]["error"]
-    assert error and "\n" not in error, error
-    print(f"\nzero-pixel region: {error}")
+    assert r.status_code == 422 and r.headers["content-type"] == "application/problem+json", r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/points" and "closer than 4 px" in error["detail"], error
+    print(f"\nzero-pixel region: {error['detail']}")
 
 
 def test_empty_file_is_refused_at_upload(stack, figures):

@@ -67,7 +67,7 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
             return to_public(job, presigner)
     except IdempotencyConflictError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
-    uploads = check_job(job_in, settings, store, tenant)
+    uploads = check_job(job_in, settings, store, tenant, raw=body)
     check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
         update={"max_pixels": min(spec.max_pixels, settings.max_pixels)}))
