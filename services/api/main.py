@@ -18,7 +18,7 @@ from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
 from .routes import health, jobs, previews, upload_video, uploads
-from .webapp import mount_web
+from .webapp import mount_docs, mount_web
 
 __all__ = ["app", "create_app"]
 
@@ -46,7 +46,8 @@ _V1_RESPONSES: dict[int | str, dict] = {
 
 
 def create_app() -> FastAPI:
-    app = FastAPI(title="PrismCloud", version="1", lifespan=lifespan,
+    # FastAPI's own /docs and /redoc load their scripts from a CDN: ours are served from the package.
+    app = FastAPI(title="PrismCloud", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Measured 3D point clouds of box-shaped parts from photos.")
     v1 = APIRouter(prefix="/v1", responses=_V1_RESPONSES)
     v1.include_router(uploads.router)
@@ -56,6 +57,7 @@ def create_app() -> FastAPI:
     app.include_router(v1)
     app.include_router(health.router)
     mount_web(app)
+    mount_docs(app)
     app.add_middleware(BodyLimit)
     install_handlers(app, (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError))
 
