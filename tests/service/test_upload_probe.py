@@ -1,0 +1,133 @@
+"""Uploads are probed when stored and jobs are checked against the probe at submit, in process
+on the real Redis and SeaweedFS of the fixtures: what the probe says is checked against the
+files as made here (size written, frames written, EXIF orientation set), and a point outside a
+photo or out of order is refused at submit with a pointer to it."""
+
+# ruff: noqa: F811 - `client` is test_api's fixture, imported to be used as such
+from __future__ import annotations
+
+import io
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from .test_api import ACME, client, make_client, photo  # noqa: F401 (fixtures)
+
+POINTS = {"p1": [10, 10], "p2": [110, 12], "p3": [108, 80], "p4": [150, 6], "p5": [200, 8]}
+
+
+def jpeg(width: int, height: int, orientation: int = 1) -> bytes:
+    out = io.BytesIO()
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    Image.new("RGB", (width, height), (90, 120, 30)).save(out, "JPEG", exif=exif.tobytes())
+    return out.getvalue()
+
+
+def avi(tmp_path, frames: int, size: tuple[int, int]) -> bytes:
+    path = tmp_path / "clip.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, size)
+    for i in range(frames):
+        writer.write(np.full((size[1], size[0], 3), 20 * i, np.uint8))
+    writer.release()
+    return path.read_bytes()
+
+
+def post(client, data: bytes, name: str):
+    return client.post("/v1/uploads", files={"file": (name, data)}, headers=ACME)
+
+
+@pytest.mark.parametrize(("data", "probe"), [
+    (photo(0, 320, 200), {"format": "PNG", "width": 320, "height": 200}),
+    (jpeg(300, 180), {"format": "JPEG", "width": 300, "height": 180}),
+    (jpeg(300, 180, orientation=6), {"format": "JPEG", "width": 180, "height": 300}),  # turned
+], ids=["png", "jpeg", "jpeg-exif-rotated"])
+def test_photos_are_probed_as_the_engine_sees_them(client, store, data, probe):
+    r = post(client, data, "photo.bin")  # the name says nothing: the content decides
+    assert r.status_code == 201, r.text
+    found = {k: v for k, v in r.json()["probe"].items() if v is not None}
+    assert found == {"kind": "image", **probe}
+    assert store.get_upload(r.json()["id"])["probe"]  # recorded with the upload
+
+
+def test_videos_are_probed_with_their_frames(client, tmp_path):
+    r = post(client, avi(tmp_path, 7, (96, 64)), "clip.avi")
+    assert r.status_code == 201, r.text
+    probe = r.json()["probe"]
+    assert probe["kind"] == "video" and probe["format"] == "AVI" and probe["codec"] == "MJPG"
+    assert (probe["frame_count"], probe["width"], probe["height"], probe["fps"]) == (7, 96, 64, 10.0)
+
+
+def test_a_broken_video_is_recorded_not_refused(client):
+    r = post(client, b"RIFF\x10\x00\x00\x00AVI junk" * 50, "junk.avi")
+    assert r.status_code == 201, r.text
+    probe = r.json()["probe"]
+    assert probe["kind"] == "video" and probe["width"] is None and "'junk.avi'" in probe["error"]
+    assert "/tmp" not in probe["error"]
+
+
+@pytest.mark.parametrize(("data", "named"), [
+    (b"just some notes\n" * 20, "text (text/plain)"),
+    (b"%PDF-1.7\n%\xe2\xe3\xcf\xd3\n1 0 obj\n", "a PDF document (application/pdf)"),
+    (b"GIF89a\x01\x00\x01\x00\x00\x00\x00;", "a GIF image (image/gif)"),
+    (b'<?xml version="1.0"?>\n<svg xmlns="http://www.w3.org/2000/svg"/>', "an SVG drawing (image/svg+xml)"),
+    (bytes(range(256)) * 4, "unrecognised binary data (application/octet-stream)"),
+], ids=["text", "pdf", "gif", "svg", "binary"])
+def test_neither_photo_nor_video_is_refused_and_not_kept(client, objects, store, data, named):
+    before = set(objects.list_keys("uploads/"))
+    r = post(client, data, "thing.jpg")
+    assert r.status_code == 415, r.text
+    body = r.json()
+    assert body["type"] == "https://prismcloud.dev/problems/unsupported-media-type"
+    assert body["detail"].startswith(f"'thing.jpg' is {named}") and body["detected_type"].startswith(named)
+    assert set(objects.list_keys("uploads/")) == before  # deleted again
+
+
+def _submit(client, items):
+    return client.post("/v1/jobs", json={"items": items}, headers=ACME)
+
+
+def _ref(client, data: bytes) -> str:
+    r = post(client, data, "p.png")
+    assert r.status_code == 201, r.text
+    return r.json()["reference"]
+
+
+@pytest.mark.parametrize(("points", "pointer", "words"), [
+    ({**POINTS, "p5": [260, 8]}, "/items/1/points/p5", "point p5 (260,8) is outside the 256x128 image"),
+    ({**POINTS, "p3": [108, 127.6]}, "/items/1/points/p3", "is outside the 256x128 image"),
+    ({**POINTS, "p1": POINTS["p2"], "p2": POINTS["p1"]}, "/items/1/points", "not in order"),
+    ([[10, 10], [110, 12], [108, 80], [150, 6], [300, 8]], "/items/1/points/4", "point p5"),  # a list
+], ids=["right-of-photo", "below-photo", "swapped", "list"])
+def test_points_the_engine_would_refuse_are_refused_at_submit(client, points, pointer, words):
+    ref = _ref(client, photo())  # 256 x 128
+    r = _submit(client, [{"image": ref, "points": POINTS}, {"image": ref, "points": points}])
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == pointer and words in error["detail"] and error["detail"].startswith("item 1: ")
+
+
+def test_points_on_the_edge_pass(client):
+    # The engine's limit: a point may lie up to half a pixel past the last pixel's centre.
+    ref = _ref(client, photo())
+    assert _submit(client, [{"image": ref, "points": {**POINTS, "p5": [255.5, 8]}}]).status_code == 202
+
+
+def test_side_points_are_checked_against_the_side_photo(client):
+    front, side = _ref(client, photo()), _ref(client, photo(0, 64, 64))
+    two = {"image": front, "side_image": side, "focal_px": 500}
+    inside = {**POINTS, "p4": [5, 5], "p5": [60, 6]}
+    assert _submit(client, [{**two, "points": inside}]).status_code == 202
+    r = _submit(client, [{**two, "points": {**inside, "p5": [150, 6]}}])  # in the front, not the side
+    assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/items/0/points/p5", r.text
+
+
+def test_video_frame_points_are_checked_against_the_frames(client, tmp_path):
+    ref = _ref(client, avi(tmp_path, 3, (96, 64)))
+    bad = {**POINTS, "p4": [50, 6], "p5": [90, 8], "p2": [40, 12], "p3": [40, 50], "p1": [10, 10]}
+    good = {**bad, "p5": [90, 8]}
+    assert _submit(client, [{"image": ref, "frame_points": {"1": good}}]).status_code == 202
+    r = _submit(client, [{"image": ref, "frame_points": {"0": good, "2": {**bad, "p5": [120, 8]}}}])
+    assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/items/0/frame_points/2/p5", r.text
