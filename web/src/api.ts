@@ -18,24 +18,40 @@ export class ApiError extends Error {
   }
 }
 
-type Detail = string | { loc?: (string | number)[]; msg?: string }[] | undefined;
+/** An error answer: RFC 9457 problem details (application/problem+json). `type` is stable. */
+export interface Problem {
+  type?: string;
+  title?: string;
+  status?: number;
+  detail?: string;
+  instance?: string;
+  errors?: { pointer?: string; parameter?: string; header?: string; detail?: string }[];
+}
 
-function where(loc: (string | number)[] = []): string {
-  // ["body", "items", 0, "points", "p1"] -> "scan 1, points, p1"
-  const parts = loc.filter((p) => p !== "body").map(String);
+function where(pointer: string): string {
+  // "/items/0/points/p1" -> "scan 1, points, p1" (RFC 6901: "~1" is "/", "~0" is "~")
+  const parts = pointer.split("/").slice(1).map((p) => p.replace(/~1/g, "/").replace(/~0/g, "~"));
   if (parts[0] === "items" && parts.length > 1) parts.splice(0, 2, `scan ${Number(parts[1]) + 1}`);
   return parts.join(", ");
 }
 
-export function plainWords(status: number, detail: Detail): string {
+function sentence(text: string): string {
+  return text.charAt(0).toUpperCase() + text.slice(1) + (/[.!?]$/.test(text) ? "" : ".");
+}
+
+export function plainWords(status: number, problem: Problem | undefined): string {
   if (status === 401) return "The API key was not accepted. Check it and log in again.";
   if (status === 413) return "The file is larger than the service accepts.";
   if (status === 503) return "The service is busy or one of its stores is down; try again shortly.";
-  if (Array.isArray(detail)) {
-    const msgs = detail.map((d) => (d.loc?.length ? `${where(d.loc)}: ` : "") + (d.msg ?? "invalid"));
+  const errors = problem?.errors ?? [];
+  if (errors.length) {
+    const msgs = errors.map((e) => {
+      const place = e.pointer ? where(e.pointer) : (e.parameter ?? e.header ?? "");
+      return (place ? `${place}: ` : "") + (e.detail ?? "invalid");
+    });
     return `The service refused the request. ${msgs.join("; ")}`;
   }
-  if (typeof detail === "string" && detail) return detail.charAt(0).toUpperCase() + detail.slice(1) + ".";
+  if (typeof problem?.detail === "string" && problem.detail) return sentence(problem.detail);
   return `The service answered with an error (HTTP ${status}).`;
 }
 
@@ -55,13 +71,13 @@ export async function call(path: string, init: RequestInit = {}, key = savedKey(
     throw new ApiError("Could not reach the service. Check the connection and try again.", 0);
   }
   if (!response.ok) {
-    let detail: Detail;
+    let problem: Problem | undefined;
     try {
-      detail = (await response.json()).detail;
+      problem = (await response.json()) as Problem;
     } catch {
-      detail = undefined;
+      problem = undefined;
     }
-    throw new ApiError(plainWords(response.status, detail), response.status);
+    throw new ApiError(plainWords(response.status, problem), response.status);
   }
   return response;
 }
