@@ -181,9 +181,28 @@ def _noise_sigma(fn, front: np.ndarray, side: np.ndarray, noise_px: float) -> np
     return np.std(np.array(draws), axis=0)
 
 
+def _oblique_cost(front: np.ndarray, side: np.ndarray, scale: Scale | None,
+                  noise_px: float) -> np.ndarray:
+    """The square-on model's relative error (3,), a high (90th) percentile over the corner
+    noise; views the noisy quads cannot explain count as the worst seen."""
+    rng = np.random.default_rng(1)
+    costs = []
+    for _ in range(_MC_DRAWS):
+        view = obliqueness(front + rng.normal(0, noise_px, front.shape),
+                           side + rng.normal(0, noise_px, side.shape))
+        costs.append(np.full(3, np.nan) if view is None else square_on_cost(view, scale))
+    drawn = np.array(costs)
+    if np.isnan(drawn).all():
+        return np.ones(3)  # no view of a box fits these quads: nothing is known
+    worst = np.nanmax(drawn, axis=0)
+    drawn = np.where(np.isnan(drawn), worst, drawn)
+    return np.percentile(drawn, 90, axis=0)
+
+
 def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
                    focal_px: float | None, two_photo: bool, corner_noise_px: float = NOISE_CLICK_PX,
-                   view: Obliqueness | None = None) -> Dimensions:
+                   view: Obliqueness | None = None, clicked: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> Dimensions:
     """Dimensions with each face assumed square to the camera (the paper's model).
 
     Parameters
@@ -193,14 +212,21 @@ def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
     corner_noise_px : float
         1-sigma error of a corner, px, for the uncertainty.
     view : Obliqueness, optional
-        The photo's estimated obliqueness (single photo): what the square-on model ignores,
-        added to the uncertainty.
+        The photo's estimated obliqueness (single photo): what the square-on model ignores is
+        added to the uncertainty (read again from the noisy corners: a face seen nearly
+        edge-on makes that reading itself unsure).
+    clicked : (front, side) quads as clicked, optional
+        When the refined edges moved the faces, the dimensions the clicks alone give: how far
+        they disagree is added to the uncertainty (an edge taken from a printed line or a
+        guessed corner shows up there).
     """
     dims, unit, notes = _affine(front, side, scale, focal_px, two_photo)
     sigma = _noise_sigma(lambda f, s: _affine(f, s, scale, focal_px, two_photo)[0], front, side,
                          corner_noise_px)
     if view is not None:
-        sigma = np.hypot(sigma, square_on_cost(view, scale) * dims)
+        sigma = np.hypot(sigma, _oblique_cost(front, side, scale, corner_noise_px) * dims)
+    if clicked is not None:
+        sigma = np.hypot(sigma, _affine(*clicked, scale, focal_px, two_photo)[0] - dims)
     return Dimensions(*map(float, dims), unit, False, tuple(notes),
                       tuple(float(s) for s in sigma))  # type: ignore[arg-type]
 

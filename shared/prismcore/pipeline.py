@@ -35,7 +35,7 @@ from .measure import (
     obliqueness,
     square_on_cost,
 )
-from .perspective import NOISE_CLICK_PX, NOISE_LINE_PX, FaceEvidence
+from .perspective import NOISE_CLICK_PX, FaceEvidence
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
 from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
 
@@ -232,7 +232,8 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
     # A Pinhole scale's mm-per-pixel reads the focal length (given, camera or EXIF).
     dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=focal.focal_px,
                           two_photo=spec.two_photo, view=view,
-                          corner_noise_px=NOISE_LINE_PX if fits else NOISE_CLICK_PX)
+                          corner_noise_px=NOISE_CLICK_PX,
+                          clicked=(marked.front, marked.side) if fits else None)
     if not spec.two_photo:
         _oblique_warning(spec, shape, dims, warnings)
     return dims, quads, camera
