@@ -1350,7 +1350,8 @@ def _face_angles(box: Box, camera_centre: np.ndarray) -> tuple[float, float]:
     return out[0], out[1]
 
 
-def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960)) -> PhotoLikeScene:
+def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
+                     edge_radius_mm: float | None = None) -> PhotoLikeScene:
     """A random oblique photo of a random box, as a phone would take it and a user would click it.
 
     Drawn from `seed` alone: box sides 40-300 x 30-220 x 25-180 mm; a pose that shows the
@@ -1367,6 +1368,9 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960)) ->
         Everything follows from it (same seed, same bytes).
     image_size : (int, int)
         (width, height) px.
+    edge_radius_mm : float or None
+        Overrides the drawn edge radius (everything else stays as the seed draws it), e.g. 0 to
+        see what the rounding alone costs.
 
     Returns
     -------
@@ -1378,9 +1382,11 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960)) ->
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
     box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
     focal = float(rng.uniform(0.7, 1.2) * w)
-    realism = Realism(k1=float(rng.uniform(-0.15, 0.10)), k2=float(rng.uniform(-0.03, 0.03)),
-                      edge_radius_mm=float(min(rng.uniform(0.5, 2.5),
-                                               0.2 * min(box.width_mm, box.height_mm, box.depth_mm))),
+    k1, k2 = float(rng.uniform(-0.15, 0.10)), float(rng.uniform(-0.03, 0.03))
+    radius = float(min(rng.uniform(0.5, 2.5), 0.2 * min(box.width_mm, box.height_mm, box.depth_mm)))
+    if edge_radius_mm is not None:
+        radius = float(edge_radius_mm)
+    realism = Realism(k1=k1, k2=k2, edge_radius_mm=radius,
                       vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
                       exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
     style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
