@@ -143,7 +143,7 @@ def test_not_a_video_is_refused_with_the_reason(api, env, clip, data, name, word
     assert "/tmp" not in r.json()["detail"]
     runs = env.runs(TASK_EXTRACT_FRAME)
     frame = api.get(f"/v1/uploads/{upload_id}/frames/1.png", headers=ACME)  # refused at once
-    assert frame.status_code == 422 and frame.json() == r.json()
+    assert frame.status_code == 422 and frame.json()["detail"] == r.json()["detail"]
     assert env.runs(TASK_EXTRACT_FRAME) == runs
 
 
