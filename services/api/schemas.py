@@ -82,6 +82,9 @@ class UploadPublic(BaseModel):
     size: int
     name: str
     probe: UploadProbe | None = None
+    sha256: str | None = Field(default=None, description="SHA-256 of the content (hex). The "
+                               "same file (content and name) sent again is answered (200, not "
+                               "201) with the upload already stored.")
 
 
 class VideoPublic(BaseModel):

@@ -7,6 +7,7 @@ the limit is refused as soon as the limit is passed, with the rest of the body l
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from typing import IO
 
@@ -55,6 +56,7 @@ class MultipartFile:
         self._header_field = self._header_value = b""
         self._disposition = b""
         self.size, self.name = 0, "upload"
+        self.sha256 = hashlib.sha256()  # of the file's bytes, for finding the same upload again
         self.head = bytearray()
         self._spool_when = spool_when
         self.spool: IO[bytes] | None = None
@@ -89,6 +91,7 @@ class MultipartFile:
     def _part_data(self, data: bytes, start: int, end: int) -> None:
         if self._in_file:
             self._buf += data[start:end]
+            self.sha256.update(data[start:end])
             self.size += end - start
 
     def _part_end(self) -> None:

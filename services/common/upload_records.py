@@ -6,10 +6,14 @@
 * ``uploads`` sorted set: upload id -> when its lifetime counts from (made, or last named by a
   submitted job), s since the epoch: the sweep deletes those past ``upload_ttl_s``.
 * ``upload:{id}:extract:{n}`` (expiring): frame n of that video was asked of a worker.
+* ``tenant:{t}:upload-sha256:{hex}:{name}``: the tenant's upload of that content under that
+  name, so the same file sent again is answered with the upload it already has (the name is
+  part of it: errors about an upload quote the name the client gave it).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Mapping
 from datetime import UTC, datetime
@@ -36,20 +40,28 @@ def upload_probe(record: Mapping[str, str] | None) -> dict[str, Any] | None:
 _UPLOADS = f"{_P}uploads"
 
 
+def _sha_key(tenant: str, sha256: str, name: str) -> str:
+    return f"{_P}tenant:{tenant}:upload-sha256:{sha256}:{hashlib.sha256(name.encode()).hexdigest()[:16]}"
+
+
 class UploadRecords:
     """The upload half of the job store: methods over the store's Redis client, `_r`."""
 
     _r: redis.Redis
 
     def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str,
-                   probe: Mapping[str, Any] | None = None) -> None:
+                   probe: Mapping[str, Any] | None = None, sha256: str | None = None) -> None:
         now = datetime.now(UTC)
         fields: dict[str, str | int] = {"tenant": tenant, "key": key, "size": size, "name": name,
                                         "created_at": now.isoformat()}
         if probe is not None:
             fields["probe"] = json.dumps(dict(probe))
+        if sha256 is not None:
+            fields["sha256"] = sha256
         with self._r.pipeline() as pipe:
             pipe.hset(f"{_P}upload:{upload_id}", mapping=fields)
+            if sha256 is not None:
+                pipe.set(_sha_key(tenant, sha256, name), upload_id)
             pipe.zadd(_UPLOADS, {upload_id: now.timestamp()})  # for their expiry
             pipe.execute()
 
@@ -77,7 +89,19 @@ class UploadRecords:
         """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
         return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)
 
+    def find_upload(self, tenant: str, sha256: str, name: str) -> tuple[str, dict[str, str]] | None:
+        """The tenant's upload of this content (SHA-256) under this name (id and record), if
+        it is still kept."""
+        upload_id = self._r.get(_sha_key(tenant, sha256, name))
+        record = self.get_upload(upload_id) if upload_id else None
+        if record is None or record.get("tenant") != tenant or record.get("sha256") != sha256:
+            return None
+        return upload_id, record
+
     def delete_upload(self, upload_id: str) -> None:
+        tenant, sha256, name = self._r.hmget(f"{_P}upload:{upload_id}", ["tenant", "sha256", "name"])
+        if tenant and sha256 and self._r.get(_sha_key(tenant, sha256, name or "")) == upload_id:
+            self._r.delete(_sha_key(tenant, sha256, name or ""))
         with self._r.pipeline() as pipe:
             pipe.delete(f"{_P}upload:{upload_id}")
             pipe.zrem(_UPLOADS, upload_id)

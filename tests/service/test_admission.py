@@ -48,7 +48,7 @@ def apps(settings, objects) -> Iterator:
 
 def _upload(client: TestClient, headers: dict) -> str:
     r = client.post("/v1/uploads", files={"file": ("a.png", photo())}, headers=headers)
-    assert r.status_code == 201, r.text
+    assert r.status_code in (200, 201), r.text  # 200: the same content again
     return r.json()["reference"]
 
 

@@ -12,7 +12,7 @@ from typing import IO, Any
 from uuid import uuid4
 
 import anyio
-from fastapi import APIRouter, HTTPException, Request, status
+from fastapi import APIRouter, HTTPException, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
 from prism_common.upload_keys import upload_key
 
@@ -48,10 +48,12 @@ def _probe(upload: MultipartFile) -> dict[str, Any]:
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadPublic,
              openapi_extra=_BODY, responses={
+                 200: {"description": "The same content was uploaded before: that upload",
+                       "model": UploadPublic},
                  413: {"description": "Larger than the upload limit"},
                  415: {"description": "Neither a photo nor a video: `detail` names what it is"},
                  422: {"description": "No non-empty multipart `file`"}})
-async def create_upload(request: Request, tenant: TenantDep, settings: SettingsDep,
+async def create_upload(request: Request, response: Response, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
     """Stream the multipart field `file` into object storage; refused past the size limit (413)
     and when it is neither a photo nor a video (415). The answer says what the file is."""
@@ -81,7 +83,19 @@ async def create_upload(request: Request, tenant: TenantDep, settings: SettingsD
     finally:
         if upload.spool is not None:
             upload.spool.close()  # deletes the local copy
+    digest = upload.sha256.hexdigest()
+    existing = await run_in_threadpool(store.find_upload, tenant, digest, upload.name)
+    if existing is not None and await anyio.to_thread.run_sync(objects.exists, existing[1]["key"]):
+        # The tenant has this very file (content and name) stored: one copy is kept, its
+        # lifetime renewed.
+        found_id, record = existing
+        await anyio.to_thread.run_sync(objects.delete_keys, [key])
+        await run_in_threadpool(store.touch_uploads, {found_id})
+        response.status_code = status.HTTP_200_OK
+        return UploadPublic(id=found_id, reference=f"upload:{found_id}", size=int(record["size"]),
+                            name=record.get("name", upload.name), sha256=digest,
+                            probe=UploadProbe(**probe))
     await run_in_threadpool(store.put_upload, upload_id, tenant=tenant, key=key, size=upload.size,
-                            name=upload.name, probe=probe)
+                            name=upload.name, probe=probe, sha256=digest)
     return UploadPublic(id=upload_id, reference=f"upload:{upload_id}", size=upload.size,
-                        name=upload.name, probe=UploadProbe(**probe))
+                        name=upload.name, probe=UploadProbe(**probe), sha256=digest)
