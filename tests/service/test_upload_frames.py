@@ -157,7 +157,7 @@ def test_an_upload_whose_file_is_gone_is_refused_with_the_reason(api, env, clip)
 
 
 def test_another_tenants_upload_is_not_there(api, env, clip):
-    upload_id = _id(upload(api, clip[1], name="clip.avi"))
+    upload_id = _id(upload(api, clip[1], name="theirs.avi"))  # not the upload other tests decoded
     for path in (f"/v1/uploads/{upload_id}/video", f"/v1/uploads/{upload_id}/frames/0.png"):
         r = api.get(path, headers=GLOBEX)
         assert r.status_code == 404 and r.json()["detail"] == f"no upload {upload_id!r}", r.text
