@@ -40,7 +40,14 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
     """
     # The engine (numpy) is imported on the first job whose photos have known sizes.
     from prismcore.errors import InputError
-    from prismcore.faces import clicked_quads, paper_rectangles, quad_labels, validate_points, validate_quad
+    from prismcore.faces import (
+        clicked_quads,
+        paper_rectangles,
+        quad_labels,
+        resolve_side_face,
+        validate_points,
+        validate_quad,
+    )
     from prismcore.pipeline import _side_height_guess
 
     try:
@@ -48,11 +55,13 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
         camera = spec.camera
         if camera is not None and camera.has_distortion:
             return None  # the engine checks the quads on undistorted points, after decoding
+        face = resolve_side_face(points, spec.side_face, two_photo=spec.two_photo)
         if spec.method == "paper":
-            quads, labels = paper_rectangles(points, two_photo=spec.two_photo), (None, None)
+            quads, labels = paper_rectangles(points, two_photo=spec.two_photo, side_face=face), (None, None)
         else:
             this = spec.model_copy(update={"points": points})
-            quads = clicked_quads(points, two_photo=spec.two_photo, side_height_px=_side_height_guess(this))
+            quads = clicked_quads(points, two_photo=spec.two_photo, side_height_px=_side_height_guess(this),
+                                  side_face=face)
             labels = quad_labels(quads)
         validate_quad(quads.front, "front face", front, labels=labels[0])
         validate_quad(quads.side, "side face", side, labels=labels[1])
@@ -65,6 +74,27 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
 def _size(probe: dict[str, Any] | None) -> tuple[int, int] | None:
     if probe and isinstance(probe.get("width"), int) and isinstance(probe.get("height"), int):
         return probe["height"], probe["width"]
+    return None
+
+
+def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> tuple[tuple, str] | None:
+    """Where and why the upload named by `field` is the wrong kind for the item: a video as a
+    photo, a photo as a video, frame indices past the video's end; None when it fits (or its
+    probe is unknown)."""
+    kind = (probe or {}).get("kind")
+    if kind == "video" and (field == "side_image" or not item.is_video):
+        return (field,), (f"{field}: the upload is a video: measure it with `frames` (e.g. {{}} for "
+                          "every frame, or {\"every\": 10}) in single-photo mode")
+    if kind == "image" and field == "image" and item.is_video:
+        return ("frames",), "frames: the image is a photo, not a video: drop frames (and frame_points)"
+    count = (probe or {}).get("frame_count")
+    indices = item.frames.indices if item.frames is not None else None
+    if kind == "video" and isinstance(count, int) and indices:
+        past = sorted(n for n in indices if n >= count)
+        if past:
+            where = ("frame_points", str(past[0])) if item.frame_points else ("frames", "indices")
+            return where, (f"frames: indices {past} are past the video's end: it has {count} "
+                           f"frames (0-{count - 1})")
     return None
 
 
@@ -92,6 +122,7 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                          f"{settings.max_frames_per_job} frames per job")
     owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
     sizes: dict[str, tuple[int, int] | None] = {}
+    probes: dict[str, dict[str, Any] | None] = {}
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
@@ -105,9 +136,13 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                 if ref.kind == "upload" and ref.upload_id not in owners:
                     upload = store.get_upload(ref.upload_id)
                     owners[ref.upload_id] = upload["tenant"] if upload else None
-                    sizes[ref.upload_id] = _size(upload_probe(upload))
+                    probes[ref.upload_id] = upload_probe(upload)
+                    sizes[ref.upload_id] = _size(probes[ref.upload_id])
                 check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
                 shapes[field] = sizes.get(ref.upload_id) if ref.kind == "upload" else None
+                if ref.kind == "upload" and (problem := _kind_problem(item, field, probes[ref.upload_id])):
+                    fail(("items", i, *problem[0]), f"item {i} {problem[1]}")
+                    shapes[field] = None
             except ReferenceError as exc:
                 fail(("items", i, field), f"item {i} {field}: {exc}")
                 shapes[field] = None

@@ -135,7 +135,8 @@ VIDEO_CASES = {  # name -> (file name, how to spoil the clip)
     "corrupt-middle": ("bits.avi", lambda v: v[:2000] + bytes(b ^ 0x5A for b in v[2000:6000]) + v[6000:]),
     "riff-junk": ("junk.avi", lambda v: b"RIFF\x10\x00\x00\x00AVI junk" * 50),
     "mp4-junk": ("junk.mp4", lambda v: b"\x00\x00\x00\x18ftypmp42" + bytes(range(256)) * 8),
-    "photo-named-avi": ("photo.avi", lambda v: GOOD),
+    # A photo given frames (and indices past a video's end) is refused at submit now, from the
+    # upload's probe: test_upload_probe.py.
     "clip-named-png": ("clip.png", lambda v: v),
 }
 
@@ -158,24 +159,18 @@ def test_bad_video_fails_its_item_only_or_reads_what_is_there(stack, clip, case,
         assert "\n" not in spoilt["error"] and "/tmp" not in spoilt["error"]
     else:
         assert spoilt["state"] == "succeeded" and spoilt["result"]["points"] > 0, spoilt
-    if case in ("riff-junk", "mp4-junk", "header-only", "photo-named-avi"):  # a photo is no video
+    if case in ("riff-junk", "mp4-junk", "header-only"):
         assert spoilt["state"] == "failed", spoilt
     if case == "clip-named-png":  # read by content, not by name
         assert spoilt["state"] == "succeeded", spoilt
 
 
-@pytest.mark.parametrize("case", ["no-frames", "indices-out-of-range"])
-def test_a_video_with_nothing_to_measure_fails_its_item_only(stack, clip, tmp_path, case, figures):
+def test_a_video_with_nothing_to_measure_fails_its_item_only(stack, clip, tmp_path, figures):
     scenes, video = clip
-    if case == "no-frames":  # a well-formed AVI that holds no frame at all
-        path = tmp_path / "empty.avi"
-        cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48)).release()
-        bad = {**_video_item(stack.upload(path.read_bytes(), name="empty.avi"), scenes[0])}
-        needle = "'empty.avi'"
-    else:  # indices are checked against the video when it is read: the clip has 4 frames
-        bad = {**_video_item(stack.upload(video, name="clip.avi"), scenes[0]),
-               "frames": {"indices": [1, 9]}}
-        needle = "frame indices 9 out of range: 'clip.avi' has 4 frames (0-3)"
+    path = tmp_path / "empty.avi"  # a well-formed AVI that holds no frame at all
+    cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48)).release()
+    bad = {**_video_item(stack.upload(path.read_bytes(), name="empty.avi"), scenes[0])}
+    needle = "'empty.avi'"
     job_id = stack.submit([bad, item(stack.upload(GOOD), SCENE)])
     job = stack.wait([job_id], timeout=90)[job_id]
     figures["inputs tried"] += 1

@@ -131,3 +131,29 @@ def test_video_frame_points_are_checked_against_the_frames(client, tmp_path):
     assert _submit(client, [{"image": ref, "frame_points": {"1": good}}]).status_code == 202
     r = _submit(client, [{"image": ref, "frame_points": {"0": good, "2": {**bad, "p5": [120, 8]}}}])
     assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/items/0/frame_points/2/p5", r.text
+
+
+def test_a_video_named_as_a_photo_and_a_photo_named_as_a_video_are_refused(client, tmp_path):
+    video = post(client, avi(tmp_path, 5, (256, 128)), "clip.avi").json()["reference"]
+    still = _ref(client, photo())
+    r = _submit(client, [{"image": video, "points": POINTS}])
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/image" and "is a video" in error["detail"]
+    r = _submit(client, [{"image": still, "points": POINTS, "frames": {"every": 2}}])
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/frames" and "is a photo, not a video" in error["detail"]
+
+
+def test_frame_indices_past_the_end_are_refused_at_submit(client, tmp_path):
+    video = post(client, avi(tmp_path, 5, (256, 128)), "five.avi").json()["reference"]
+    r = _submit(client, [{"image": video, "points": POINTS, "frames": {"indices": [0, 4, 5, 9]}}])
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/frames/indices"
+    assert "indices [5, 9] are past the video's end: it has 5 frames (0-4)" in error["detail"]
+    r = _submit(client, [{"image": video, "frame_points": {"0": POINTS, "7": POINTS}}])
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/frame_points/7"
+    ok = _submit(client, [{"image": video, "points": POINTS, "frames": {"indices": [0, 4]}}])
+    assert ok.status_code == 202, ok.text
