@@ -166,7 +166,7 @@ def test_bad_video_fails_its_item_only_or_reads_what_is_there(stack, clip, case,
 
 
 def test_a_video_with_nothing_to_measure_fails_its_item_only(stack, clip, tmp_path, figures):
-    scenes, video = clip
+    scenes, _ = clip
     path = tmp_path / "empty.avi"  # a well-formed AVI that holds no frame at all
     cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48)).release()
     bad = {**_video_item(stack.upload(path.read_bytes(), name="empty.avi"), scenes[0])}
