@@ -1,11 +1,14 @@
 """Real video: the hand-marked frames of OpenCV's cookie-box video, measured with one known edge.
 
-Run: .venv/bin/python benchmarks/real_video.py [--frames 127,141] [--json out.json]
+Run: .venv/bin/python benchmarks/real_video.py [--frames 127,141] [--pooled] [--json out.json]
 For each marked frame (benchmarks/data/opencv_box_marks.json) the engine measures the photo with
-the front's width as the known edge and no focal length (fitted from the box when the engine can),
-then again with the tutorial's published camera intrinsics as a baseline. Prints measured
-height and depth against the truth (258 x 189 x 75 mm), their % errors, the report's camera and
-uncertainty fields when present, and the median over frames. Needs Debian's opencv-doc package.
+the front's width as the known edge and no focal length (fitted from the box), one table for the
+frames whose second face is the lid (``side: top``, spec ``side_face: top``) and one for those with
+the right end wall (``side: right``), then again with the tutorial's published camera intrinsics
+as a baseline. With --pooled, every frame's fitted focal length (plan only) is pooled with
+``prismcore.pooling.pool_focal`` and every frame is measured again with that focal length given.
+Prints measured height and depth against the truth (258 x 189 x 75 mm), their % errors, the report's camera
+and uncertainty fields when present, and the median over frames. Needs Debian's opencv-doc package.
 """
 
 from __future__ import annotations
@@ -30,24 +33,46 @@ from real_video_data import (
     video_path,
 )
 
-from prismcore import InputError, ScanSpec, run_scan
+from prismcore import InputError, ScanSpec, plan_scan, run_scan
+from prismcore.pooling import pool_focal
 
 
-def measure(frame: dict, image: np.ndarray, camera: dict | None = None) -> dict:
-    """One marked frame through the engine: width known, no focal length unless `camera`.
+def frame_spec(frame: dict, camera: dict | None = None, focal_px: float | None = None) -> ScanSpec:
+    """The engine spec of one marked frame: width known, its second face named by ``side``."""
+    spec: dict = {"image": f"frame_{frame['index']}.png", "points": points_of(frame),
+                  "side_face": frame["side"],
+                  "scale": {"kind": "edge", "edge": "width", "length_mm": truth_mm(frame)["width"]},
+                  "formats": ["csv"]}
+    if camera is not None:
+        spec["camera"] = camera
+    if focal_px is not None:
+        spec["focal_px"] = focal_px
+    return ScanSpec.model_validate(spec)
+
+
+def fitted_focal(frame: dict, image: np.ndarray) -> tuple[float, float] | None:
+    """The frame's own focal fit (plan only): (focal_px, focal_std_px), or None when refused."""
+    try:
+        cam = plan_scan(frame_spec(frame), image).camera
+    except InputError:
+        return None
+    if cam.get("focal_source") != "fitted":
+        return None
+    return float(cam["focal_px"]), float(cam["focal_std_px"])
+
+
+def measure(frame: dict, image: np.ndarray, camera: dict | None = None,
+            focal_px: float | None = None) -> dict:
+    """One marked frame through the engine: width known, no focal length unless `camera` or
+    `focal_px`.
 
     Returns the row of figures: measured and true mm, % errors (None when the engine refused,
     with its message in ``error``), and the report's camera and uncertainty when present.
     """
     truth = truth_mm(frame)
-    spec: dict = {"image": f"frame_{frame['index']}.png", "points": points_of(frame),
-                  "scale": {"kind": "edge", "edge": "width", "length_mm": truth["width"]},
-                  "formats": ["csv"]}
-    if camera is not None:
-        spec["camera"] = camera
-    row: dict = {"frame": frame["index"], "truth": truth}
+    row: dict = {"frame": frame["index"], "side": frame["side"], "truth": truth}
     try:
-        report = run_scan(ScanSpec.model_validate(spec), image).report
+        report = run_scan(frame_spec(frame, camera, focal_px), image).report
     except InputError as exc:
         return {**row, "error": str(exc), "errors_pct": None}
     dims = report["dimensions"]
@@ -67,19 +92,20 @@ def median_abs(rows: list[dict], axis: str) -> float | None:
 def _table(title: str, rows: list[dict]) -> Table:
     table = Table(title=title)
     for col in ("frame", "W mm", "H mm", "D mm", "truth WxHxD", "H err %", "D err %", "focal px (source)",
-                "sigma H/D mm", "note"):
+                "focal std", "sigma H/D mm", "note"):
         table.add_column(col, justify="right" if col != "note" else "left")
     for r in rows:
         t = r["truth"]
         truth = f"{t['width']:.0f}x{t['height']:.0f}x{t['depth']:.0f}"
         if r["errors_pct"] is None:
-            table.add_row(str(r["frame"]), "-", "-", "-", truth, "-", "-", "-", "-", r["error"][:40])
+            table.add_row(str(r["frame"]), "-", "-", "-", truth, "-", "-", "-", "-", "-", r["error"][:40])
             continue
         m, e, cam, unc = r["measured"], r["errors_pct"], r.get("camera") or {}, r.get("uncertainty") or {}
         focal = f"{cam['focal_px']:.0f} ({cam.get('focal_source', '?')})" if cam.get("focal_px") else "-"
+        std = f"{cam['focal_std_px']:.0f}" if cam.get("focal_std_px") else "-"
         sigma = f"{unc['height']:.1f}/{unc['depth']:.1f}" if "height" in unc and "depth" in unc else "-"
         table.add_row(str(r["frame"]), f"{m['width']:.1f}", f"{m['height']:.1f}", f"{m['depth']:.1f}", truth,
-                      f"{e['height']:+.1f}", f"{e['depth']:+.1f}", focal, sigma,
+                      f"{e['height']:+.1f}", f"{e['depth']:+.1f}", focal, std, sigma,
                       f"{len(r['warnings'])} warning(s)" if r["warnings"] else "")
     h, d = median_abs(rows, "height"), median_abs(rows, "depth")
     failed = sum(r["errors_pct"] is None for r in rows)
@@ -92,6 +118,8 @@ def _table(title: str, rows: list[dict]) -> Table:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", help="comma-separated frame indices (default: every marked frame)")
+    parser.add_argument("--pooled", action="store_true",
+                        help="also measure every frame with the focal length pooled over the frames' fits")
     parser.add_argument("--json", type=Path, help="also write the figures here")
     args = parser.parse_args(argv)
     marks = load_marks()
@@ -102,16 +130,33 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             parser.error(f"frames {sorted(unknown)} are not marked")
         frames = [f for f in frames if f["index"] in wanted]
-    frames = [f for f in frames if f["side"] == "right"]  # the engine's single-photo mode today
     images = read_frames(video_path(), [f["index"] for f in frames])
-    runs = {"no focal (fitted)": [measure(f, images[f["index"]]) for f in frames],
-            "tutorial camera (fx 1578, fy 1772)": [measure(f, images[f["index"]], TUTORIAL_CAMERA)
-                                                   for f in frames]}
-    console = Console(width=170)
+    runs: dict[str, list[dict]] = {}
+    pooled_info: dict[str, dict] = {}
+    for side in ("top", "right"):
+        group = [f for f in frames if f["side"] == side]
+        if not group:
+            continue
+        runs[f"{side}: no focal (fitted)"] = [measure(f, images[f["index"]]) for f in group]
+        if args.pooled:
+            fits = [fitted_focal(f, images[f["index"]]) for f in group]
+            usable = [(f, fit) for f, fit in zip(group, fits, strict=True) if fit is not None]
+            pooled = pool_focal([fit for _, fit in usable])
+            if pooled is not None:
+                pooled_info[side] = {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
+                                     "used": [usable[k][0]["index"] for k in pooled.used],
+                                     "fits": {f["index"]: fit for f, fit in usable}}
+                runs[f"{side}: pooled focal {pooled.focal_px:.0f} +- {pooled.std_px:.0f} px "
+                     f"({len(pooled.used)}/{len(group)} fits)"] = [
+                    measure(f, images[f["index"]], focal_px=pooled.focal_px) for f in group]
+        runs[f"{side}: tutorial camera (fx 1578, fy 1772)"] = [
+            measure(f, images[f["index"]], TUTORIAL_CAMERA) for f in group]
+    console = Console(width=190)
     for title, rows in runs.items():
         console.print(_table(title, rows))
     if args.json:
-        args.json.write_text(json.dumps(runs, indent=1, default=float) + "\n")
+        figures = {"runs": runs, "pooled": pooled_info}
+        args.json.write_text(json.dumps(figures, indent=1, default=float) + "\n")
     return 0
 
 

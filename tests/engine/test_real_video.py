@@ -17,7 +17,9 @@ assert _spec is not None and _spec.loader is not None
 rvd = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(rvd)
 
-MARKED = [f for f in rvd.load_marks()["frames"] if f["side"] == "right"]
+MARKS = rvd.load_marks()["frames"]
+MARKED = [f for f in MARKS if f["side"] == "right"]
+TOP = [f for f in MARKS if f["side"] == "top"]
 
 
 @pytest.fixture(scope="module")
@@ -26,13 +28,14 @@ def frames() -> dict:
         path = rvd.video_path()
     except FileNotFoundError as exc:  # fail, not skip: the acceptance figures must not vanish silently
         pytest.fail(f"the real box video is missing: {exc}")
-    return rvd.read_frames(path, [f["index"] for f in MARKED])
+    return rvd.read_frames(path, [f["index"] for f in MARKS])
 
 
 def _errors(frame: dict, image) -> dict[str, float]:
     truth = rvd.truth_mm(frame)
     spec = ScanSpec.model_validate({
         "image": "frame.png", "points": rvd.points_of(frame), "formats": ["csv"],
+        "side_face": frame["side"],
         "scale": {"kind": "edge", "edge": "width", "length_mm": truth["width"]}})
     try:
         dims = run_scan(spec, image).report["dimensions"]
@@ -46,7 +49,8 @@ def test_marks_cover_enough_frames() -> None:
     assert all(len(rvd.points_of(f)) == 7 for f in MARKED)
 
 
-@pytest.mark.xfail(strict=False, reason="needs the free-focal fit")
+@pytest.mark.xfail(strict=False, reason="right-side marks: median height 9.8 %, depth 10.7 % "
+                   "(free focal), frame 159 refused")
 def test_known_width_no_focal_within_issue_bounds(frames: dict) -> None:
     errors = {f["index"]: _errors(f, frames[f["index"]]) for f in MARKED}
     for axis in ("height", "depth"):
@@ -54,4 +58,25 @@ def test_known_width_no_focal_within_issue_bounds(frames: dict) -> None:
         assert median <= 0.02, f"median {axis} error {median:.1%} over frames {sorted(errors)}"
     worst = {i: max(e.values()) for i, e in errors.items()}
     bad = {i: f"{w:.1%}" for i, w in worst.items() if w > 0.05}
+    assert not bad, f"frames over 5 %: {bad}"
+
+
+@pytest.mark.xfail(strict=False, reason="no top-face (lid) frames committed yet: the first semi-automatic "
+                   "marking pass was not accurate enough at P2, P5 and P7 to be trusted "
+                   "(see the marks' convention)")
+def test_top_face_frames_marked_over_the_whole_video() -> None:
+    indices = sorted(f["index"] for f in TOP)
+    assert len(indices) >= 12, f"top-face frames marked: {indices}"
+    assert indices[-1] - indices[0] >= 300, f"top-face frames span only {indices[0]}..{indices[-1]}"
+    assert all(f["points"]["P4"] == f["points"]["P1"] for f in TOP)
+
+
+@pytest.mark.xfail(strict=False, reason="no top-face frames committed yet (see above)")
+def test_top_face_known_width_no_focal_within_issue_bounds(frames: dict) -> None:
+    assert TOP, "no top-face frames marked"
+    errors = {f["index"]: _errors(f, frames[f["index"]]) for f in TOP}
+    for axis in ("height", "depth"):
+        median = statistics.median(e[axis] for e in errors.values())
+        assert median <= 0.02, f"median {axis} error {median:.1%} over frames {sorted(errors)}"
+    bad = {i: f"{max(e.values()):.1%}" for i, e in errors.items() if max(e.values()) > 0.05}
     assert not bad, f"frames over 5 %: {bad}"
