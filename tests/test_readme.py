@@ -16,6 +16,7 @@ import re
 import signal
 import subprocess
 import time
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -48,6 +49,7 @@ MARKERS = {
     "serve": "prism serve",
     "client": "export PRISM_API_KEY",
     "curl": "curl ",
+    "mistakes": "refused (exit",
 }
 
 
@@ -62,7 +64,7 @@ def test_every_sh_block_is_run_by_a_test():
 def user_dir(tmp_path: Path) -> Path:
     """A folder like the repository's top as a user's shell sees it (samples, .venv), whose
     outputs (`out/...`) land in the test's temporary folder."""
-    for name in ("samples", ".venv"):
+    for name in ("samples", ".venv", "README.md"):
         (tmp_path / name).symlink_to(ROOT / name)
     return tmp_path
 
@@ -164,3 +166,61 @@ def test_serve_refuses_a_taken_port_in_one_line(served):
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0 and "taken" in run.stderr, run.stderr
     assert "ready" not in run.stdout
+
+
+def test_mistakes_block_refuses_a_text_file_and_a_point_outside_in_one_line_each(served, user_dir: Path):
+    run = _bash(_as_user(_block(MARKERS["mistakes"]), served), cwd=user_dir, env=_client_env(served),
+                timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout.count("refused (exit 2)") == 2, run.stdout
+    errors = [line for line in run.stderr.splitlines() if line.startswith("prism: error:")]
+    assert len(errors) == 2 and len(run.stderr.strip().splitlines()) == 2, run.stderr
+    assert "HTTP 415" in errors[0] and "'README.md' is text" in errors[0], errors
+    assert "HTTP 422" in errors[1] and "p5" in errors[1] and "outside" in errors[1], errors
+
+
+def test_serve_restarted_keeps_download_links_working_and_says_stopped(tmp_path: Path):
+    """Ctrl-C prints one 'stopped' line; started again on the same data, the object store is on
+    the same port, so a download link handed out before the restart still works."""
+    from prism_cli.stack import free_port
+
+    port = free_port()
+    env = {**os.environ, "PRISM_SERVE_PORT": str(port), "PRISM_SERVE_DATA_DIR": str(tmp_path / ".prism")}
+    env.pop("PRISM_API_KEYS", None)
+    prism = str(ROOT / ".venv" / "bin" / "prism")
+
+    def start() -> tuple[subprocess.Popen, Path]:
+        log = tmp_path / f"serve-{time.monotonic_ns()}.out"
+        with log.open("w") as sink:  # the child keeps its own copy
+            proc = subprocess.Popen([prism, "serve"], cwd=ROOT, env=env, stdout=sink,
+                                    stderr=subprocess.STDOUT, start_new_session=True)
+        deadline = time.monotonic() + 120
+        while "ready: API" not in log.read_text():
+            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.3)
+        return proc, log
+
+    def stop(proc: subprocess.Popen, log: Path) -> str:
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(60) == 0
+        return log.read_text()
+
+    proc, log = start()
+    key = json.loads((tmp_path / ".prism" / "credentials.json").read_text())["api_key"]
+    client = {**os.environ, "PRISM_API_URL": f"http://127.0.0.1:{port}", "PRISM_API_KEY": key}
+    run = subprocess.run([prism, "submit", str(ROOT / "samples" / "box.jpg"), "--points",
+                          "395,293 943,331 919,761 943,331 1035,298", "--width-mm", "120", "--wait"],
+                         env=client, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    job_id = run.stdout.split()[0]
+    status = subprocess.run([prism, "status", job_id, "--json"], env=client, capture_output=True,
+                            text=True, timeout=60)
+    link = json.loads(status.stdout)["items"][0]["downloads"]["report"]
+    out = stop(proc, log)
+    assert out.strip().splitlines()[-1] == "stopped" and out.count("stopped") == 1, out
+    proc, log = start()
+    try:
+        with urllib.request.urlopen(link, timeout=30) as answer:  # signed before the restart
+            assert json.loads(answer.read())["dimensions"]["unit"] == "mm"
+    finally:
+        stop(proc, log)
