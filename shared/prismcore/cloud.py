@@ -2,7 +2,8 @@
 
 World frame: origin at P1 (the front face's upper-left corner), X along P1 -> P2, Y down the
 front face (the paper's screen convention), Z into the object; right-handed. The front face
-gives X and Y (Z = 0), the side face (at X = width) gives Z and Y, as in the paper.
+gives X and Y (Z = 0), the side face (at X = width) gives Z and Y, as in the paper. A second face
+photographed on the left lands at X = 0, one photographed on top at Y = 0.
 """
 
 from __future__ import annotations
@@ -65,23 +66,35 @@ def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
 
 
 def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.ndarray],
-             width: float, depth: float, kind: str, max_points: int) -> Cloud:
+             width: float, depth: float, kind: str, max_points: int, *, side_face: str = "right",
+             height: float | None = None) -> Cloud:
     """Build the cloud of the prism.
 
     Parameters
     ----------
     front, side : (uv, rgb)
-        Output of :func:`face_points` for each face (side u runs along the depth).
+        Output of :func:`face_points` for each face, the side's quad as photographed: a right
+        side's u runs along the depth from the front (Z = u), a left side's toward it
+        (Z = depth - u); a top's u runs along X and its v toward the front (Z = depth - v).
     width, depth : float
         Real width (X) and depth (Z) of the prism.
     kind : {"surface", "volume"}
-        `surface`: the prism's six faces: the front and the side as seen, the back and the left
-        side as their copies at Z = depth and X = 0, top and bottom from the front's first and
-        last rows carried through every depth step. `volume`: every front pixel at every depth
-        step (the paper's cloud).
+        `surface`: the prism's six faces: the front and the second face as seen, the back and
+        the face opposite the second one as their copies (at Z = depth; at X = 0 for a right
+        side, X = width for a left one, Y = height for a top), and the two faces left from the
+        front's first and last rows (columns for a top face) carried through every depth step.
+        `volume`: every front pixel at every depth step (the paper's cloud).
     max_points : int
         Refuse (InputError) a cloud larger than this before allocating it.
+    side_face : {"right", "left", "top"}
+        Where the second face was photographed.
+    height : float, optional
+        Real height (Y) of the prism; needed for a top face (its copy is the bottom).
     """
+    if side_face not in ("right", "left", "top"):
+        raise ValueError(f"side_face must be right, left or top, got {side_face!r}")
+    if side_face == "top" and height is None:
+        raise ValueError("a top face needs the prism's height (its copy is the bottom face)")
     (f_uv, f_rgb), (s_uv, s_rgb) = front, side
     pitch = _pitch(f_uv)
     if f_uv.shape[0] < 2:
@@ -95,8 +108,8 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
         pts[..., :2] = f_uv
         pts[..., 2] = zs[:, None]
         return Cloud(pts.reshape(-1, 3), np.tile(f_rgb, (zs.size, 1)))
-    top, bottom = _edge_rows(f_uv, pitch or 1.0)
-    layers = [(f_uv[top], f_rgb[top]), (f_uv[bottom], f_rgb[bottom])]
+    first, last = _edge_rows(f_uv, pitch or 1.0, 0 if side_face == "top" else 1)
+    layers = [(f_uv[first], f_rgb[first]), (f_uv[last], f_rgb[last])]
     n = 2 * len(f_uv) + 2 * len(s_uv) + sum(len(uv) for uv, _ in layers) * zs.size
     _check_size(int(n), max_points, kind)
     f32 = f_uv.astype(np.float32)
@@ -110,11 +123,20 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
     parts = [
         face(f32[:, 0], f32[:, 1], 0.0, len(f32)),  # front
         face(f32[:, 0], f32[:, 1], depth, len(f32)),  # back
-        face(width, s32[:, 1], s32[:, 0], len(s32)),  # right side, as seen
-        face(0.0, s32[:, 1], s32[:, 0], len(s32)),  # left side
     ]
+    if side_face == "right":
+        parts += [face(width, s32[:, 1], s32[:, 0], len(s32)),  # right side, as seen
+                  face(0.0, s32[:, 1], s32[:, 0], len(s32))]  # left side
+    elif side_face == "left":
+        z = np.float32(depth) - s32[:, 0]
+        parts += [face(0.0, s32[:, 1], z, len(s32)),  # left side, as seen
+                  face(width, s32[:, 1], z, len(s32))]  # right side
+    else:
+        z = np.float32(depth) - s32[:, 1]
+        parts += [face(s32[:, 0], 0.0, z, len(s32)),  # top, as seen
+                  face(s32[:, 0], height, z, len(s32))]  # bottom
     rgbs = [f_rgb, f_rgb, s_rgb, s_rgb]
-    for uv, rgb in layers:  # top and bottom, at every depth step
+    for uv, rgb in layers:  # top and bottom (left and right beside a top face), at every depth step
         block = np.empty((zs.size, len(uv), 3), dtype=np.float32)
         block[..., :2] = uv
         block[..., 2] = zs[:, None]
@@ -134,12 +156,13 @@ def _pitch(front_uv: np.ndarray) -> float:
     return float(np.sqrt(extent / front_uv.shape[0]))
 
 
-def _edge_rows(front_uv: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
-    """Masks of the front points on the face's top and bottom pixel rows (nearest v)."""
+def _edge_rows(front_uv: np.ndarray, pitch: float, axis: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the front points on the face's first and last pixel rows (axis 1: nearest v,
+    top and bottom) or columns (axis 0: nearest u, left and right)."""
     if front_uv.shape[0] == 0:
         empty = np.zeros(0, dtype=bool)
         return empty, empty
-    v = front_uv[:, 1]
+    v = front_uv[:, axis]
     return v <= v.min() + 0.5 * pitch, v >= v.max() - 0.5 * pitch
 
 

@@ -11,6 +11,10 @@ Two models:
 Each dimension carries a 1-sigma uncertainty: from the fit's covariance under click and edge
 noise (perspective), or from the click noise and the obliqueness the square-on model ignores
 (affine).
+
+In one photo the second face may be the right side, the left side or the top
+(`side_face`, see `prismcore.faces`): its quad is as photographed, and its depth edges run
+horizontally in the photo for a side, vertically for a top.
 """
 
 from __future__ import annotations
@@ -58,7 +62,8 @@ class Dimensions:
 class Obliqueness:
     """How far a single photo's faces are from square-on, read from the quads (affine camera).
 
-    front_deg, side_deg : angle between each face's normal and the viewing direction, degrees
+    front_deg, side_deg : angle between the front's (then the second face's) normal and the
+        viewing direction, degrees
     foreshortening : (3,) float64, cos of the angle between the image plane and the X, Y, Z
         edges: the square-on model reads each edge this much short
     """
@@ -79,7 +84,20 @@ def camera_matrix(focal_px: float, principal: tuple[float, float]) -> np.ndarray
     return np.array([[focal_px, 0, principal[0]], [0, focal_px, principal[1]], [0, 0, 1.0]])
 
 
-def obliqueness(front: np.ndarray, side: np.ndarray) -> Obliqueness | None:
+def _depth_edge(side: np.ndarray, side_face: str) -> np.ndarray:
+    """The mean image vector (2,) of the side quad's edges that run along the depth (Z)."""
+    if side_face == "top":
+        return (side[3] - side[0] + side[2] - side[1]) / 2
+    return (side[1] - side[0] + side[2] - side[3]) / 2
+
+
+def _side_size_px(side: np.ndarray, side_face: str) -> tuple[float, float]:
+    """(depth, other) mean side lengths (px) of the second face's quad."""
+    across, down = quad_size_px(side)
+    return (down, across) if side_face == "top" else (across, down)
+
+
+def obliqueness(front: np.ndarray, side: np.ndarray, side_face: str = "right") -> Obliqueness | None:
     """The view direction of a single photo of a box, from its front and side quads.
 
     Under an affine camera the images a, b, c of the box's X, Y and Z edges satisfy
@@ -90,7 +108,9 @@ def obliqueness(front: np.ndarray, side: np.ndarray) -> Obliqueness | None:
     Parameters
     ----------
     front, side : ndarray, shape (4, 2)
-        TL, TR, BR, BL image (x, y) px; the side face lies right of the front.
+        TL, TR, BR, BL image (x, y) px; the side face as photographed.
+    side_face : {"right", "left", "top"}
+        Where the second face lies (`side_deg` is then that face's angle).
 
     Returns
     -------
@@ -100,7 +120,7 @@ def obliqueness(front: np.ndarray, side: np.ndarray) -> Obliqueness | None:
     """
     a = (front[1] - front[0] + front[2] - front[3]) / 2
     b = (front[3] - front[0] + front[2] - front[1]) / 2
-    c = (side[1] - side[0] + side[2] - side[3]) / 2
+    c = _depth_edge(side, side_face)
     A = np.array([[a[0] ** 2, b[0] ** 2, c[0] ** 2],
                   [a[0] * a[1], b[0] * b[1], c[0] * c[1]],
                   [a[1] ** 2, b[1] ** 2, c[1] ** 2]])
@@ -113,7 +133,8 @@ def obliqueness(front: np.ndarray, side: np.ndarray) -> Obliqueness | None:
     M = np.stack([a, b, c], axis=1) * np.sqrt(uvw)  # (2, 3), rows orthonormal up to noise
     r3 = np.cross(M[0], M[1])
     n = np.abs(r3) / np.linalg.norm(r3)
-    return Obliqueness(math.degrees(math.acos(min(1.0, n[2]))), math.degrees(math.acos(min(1.0, n[0]))),
+    normal = 1 if side_face == "top" else 0
+    return Obliqueness(math.degrees(math.acos(min(1.0, n[2]))), math.degrees(math.acos(min(1.0, n[normal]))),
                        np.sqrt(np.clip(1 - n**2, 0.0, 1.0)))
 
 
@@ -155,9 +176,9 @@ def _scales_affine(scale: Scale | None, sizes: dict[str, float], focal: float | 
 
 
 def _affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, focal_px: float | None,
-            two_photo: bool) -> tuple[np.ndarray, str, list[str]]:
+            two_photo: bool, side_face: str = "right") -> tuple[np.ndarray, str, list[str]]:
     w_px, h_px = quad_size_px(front)
-    d_px, hs_px = quad_size_px(side)
+    d_px, hs_px = _side_size_px(side, side_face)
     s_front, s_side, unit = _scales_affine(scale, {"w": w_px, "h": h_px, "d": d_px},
                                            focal_px, two_photo)
     notes = []
@@ -182,14 +203,14 @@ def _noise_sigma(fn, front: np.ndarray, side: np.ndarray, noise_px: float) -> np
 
 
 def _oblique_cost(front: np.ndarray, side: np.ndarray, scale: Scale | None,
-                  noise_px: float) -> np.ndarray:
+                  noise_px: float, side_face: str = "right") -> np.ndarray:
     """The square-on model's relative error (3,), a high (90th) percentile over the corner
     noise; views the noisy quads cannot explain count as the worst seen."""
     rng = np.random.default_rng(1)
     costs = []
     for _ in range(_MC_DRAWS):
         view = obliqueness(front + rng.normal(0, noise_px, front.shape),
-                           side + rng.normal(0, noise_px, side.shape))
+                           side + rng.normal(0, noise_px, side.shape), side_face)
         costs.append(np.full(3, np.nan) if view is None else square_on_cost(view, scale))
     drawn = np.array(costs)
     if np.isnan(drawn).all():
@@ -201,8 +222,8 @@ def _oblique_cost(front: np.ndarray, side: np.ndarray, scale: Scale | None,
 
 def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
                    focal_px: float | None, two_photo: bool, corner_noise_px: float = NOISE_CLICK_PX,
-                   view: Obliqueness | None = None, clicked: tuple[np.ndarray, np.ndarray] | None = None
-                   ) -> Dimensions:
+                   view: Obliqueness | None = None, clicked: tuple[np.ndarray, np.ndarray] | None = None,
+                   side_face: str = "right") -> Dimensions:
     """Dimensions with each face assumed square to the camera (the paper's model).
 
     Parameters
@@ -219,14 +240,16 @@ def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
         When the refined edges moved the faces, the dimensions the clicks alone give: how far
         they disagree is added to the uncertainty (an edge taken from a printed line or a
         guessed corner shows up there).
+    side_face : {"right", "left", "top"}
+        Where the second face lies in one photo.
     """
-    dims, unit, notes = _affine(front, side, scale, focal_px, two_photo)
-    sigma = _noise_sigma(lambda f, s: _affine(f, s, scale, focal_px, two_photo)[0], front, side,
-                         corner_noise_px)
+    dims, unit, notes = _affine(front, side, scale, focal_px, two_photo, side_face)
+    sigma = _noise_sigma(lambda f, s: _affine(f, s, scale, focal_px, two_photo, side_face)[0], front,
+                         side, corner_noise_px)
     if view is not None:
-        sigma = np.hypot(sigma, _oblique_cost(front, side, scale, corner_noise_px) * dims)
+        sigma = np.hypot(sigma, _oblique_cost(front, side, scale, corner_noise_px, side_face) * dims)
     if clicked is not None:
-        sigma = np.hypot(sigma, _affine(*clicked, scale, focal_px, two_photo)[0] - dims)
+        sigma = np.hypot(sigma, _affine(*clicked, scale, focal_px, two_photo, side_face)[0] - dims)
     return Dimensions(*map(float, dims), unit, False, tuple(notes),
                       tuple(float(s) for s in sigma))  # type: ignore[arg-type]
 
@@ -261,7 +284,7 @@ def _box_sigma(scale: Scale | None, fit: BoxFit) -> np.ndarray:
 
 
 def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *, K: np.ndarray,
-                free_focal: bool = False) -> tuple[Dimensions, BoxFit]:
+                free_focal: bool = False, side_face: str = "right") -> tuple[Dimensions, BoxFit]:
     """Dimensions of a box whose front and side share one photo, through a pinhole camera.
 
     The shooting distance (or mm-per-pixel, read as distance / focal) is the depth of the front
@@ -271,6 +294,8 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     ----------
     K : ndarray, shape (3, 3)
         Intrinsics; with `free_focal` only the principal point is used and the focal is fitted.
+    side_face : {"right", "left", "top"}
+        Where the second face lies (see `perspective.fit_box`).
 
     Returns
     -------
@@ -278,7 +303,7 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
         With the uncertainty from the fit's covariance.
     fit : BoxFit
     """
-    fit = fit_box(K, front, side, free_focal=free_focal)
+    fit = fit_box(K, front, side, free_focal=free_focal, side_face=side_face)
     dims = _box_dims(scale, np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px]))
     unit = _scale_factor(scale, fit.width, fit.depth, fit.centre_depth, fit.focal_px)[1]
     sigma = _box_sigma(scale, fit)
@@ -287,8 +312,8 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
 
 
 def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
-                        K_front: np.ndarray, K_side: np.ndarray, two_photo: bool
-                        ) -> tuple[Dimensions, np.ndarray, np.ndarray]:
+                        K_front: np.ndarray, K_side: np.ndarray, two_photo: bool,
+                        side_face: str = "right") -> tuple[Dimensions, np.ndarray, np.ndarray]:
     """Dimensions with perspective corrected through a pinhole camera of known focal length.
 
     The shooting distance (or mm-per-pixel, read as distance / focal) is the depth of the front
@@ -301,7 +326,7 @@ def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | 
         The faces' corners as the fitted model projects them.
     """
     if not two_photo:
-        dims, fit = measure_box(front, side, scale, K=K_front)
+        dims, fit = measure_box(front, side, scale, K=K_front, side_face=side_face)
         return dims, fit.front_quad, fit.side_quad
 
     def two_rectangles(f_corners: np.ndarray, s_corners: np.ndarray):

@@ -40,6 +40,7 @@ __all__ = [
     "LABEL_COLOR",
     "OVERLAY_NAME",
     "RESIDUAL_COLOR",
+    "SECOND_FACE_CORNERS",
     "SIDE_OVERLAY_NAME",
     "draw_overlay",
     "overlay_from_report",
@@ -69,6 +70,13 @@ CORNER_OF: dict[str, tuple[str, int]] = {
     "p4": ("side", 0), "p5": ("side", 1), "p7": ("side", 2),
 }
 """The fitted corner each click marks: (face, corner index in TL TR BR BL order)."""
+SECOND_FACE_CORNERS: dict[str, dict[str, tuple[str, int]]] = {
+    "right": {"p4": ("side", 0), "p5": ("side", 1), "p7": ("side", 2)},
+    "left": {"p4": ("side", 1), "p5": ("side", 0), "p7": ("side", 3)},
+    "top": {"p4": ("side", 3), "p5": ("side", 0), "p7": ("side", 1)},
+}
+"""In one photo, the side quad's corner P4, P5 and P7 mark for each second face (see
+`prismcore.faces`); the side quad is as photographed."""
 _SIDE_PHOTO_POINTS = ("p4", "p5", "p7")  # two-photo mode: the clicks made on the side photo
 _DIMENSIONS = ("width", "height", "depth")
 _SHIFT = 4  # OpenCV fixed point: coordinates in 1/16 px
@@ -294,6 +302,7 @@ def draw_overlay(
     alerts: Sequence[str] = (),
     title: str = "",
     warn_px: float = 3.0,
+    side_face: str = "right",
 ) -> np.ndarray:
     """Draw the clicks and the fitted faces on a copy of `image`.
 
@@ -319,6 +328,8 @@ def draw_overlay(
     warn_px : float
         A residual above this many px gets a red line to its fitted corner and its value in
         the click's label.
+    side_face : {"right", "left", "top"}
+        The second face P4, P5 and P7 mark (``SECOND_FACE_CORNERS``), named so in the key.
 
     Returns
     -------
@@ -343,11 +354,14 @@ def draw_overlay(
         if name not in FACE_COLORS:
             raise InputError(f"unknown face name {name!r} (expected front or side)")
         quads[name] = _quad(name, value)
+    if side_face not in SECOND_FACE_CORNERS:
+        raise InputError(f"side_face must be right, left or top, got {side_face!r}")
+    corner_of = {**CORNER_OF, **SECOND_FACE_CORNERS[side_face]}
     if not math.isfinite(warn_px) or warn_px < 0:
         raise InputError(f"warn_px must be a finite number >= 0, got {warn_px!r}")
 
     sizes = _Sizes.for_shape(H, W)
-    fitted = {n: quads[f][i] for n, (f, i) in CORNER_OF.items() if n in pts and f in quads}
+    fitted = {n: quads[f][i] for n, (f, i) in corner_of.items() if n in pts and f in quads}
     if residuals is None:
         shown = {n: float(np.linalg.norm(pts[n] - c)) for n, c in fitted.items()}
     else:
@@ -419,8 +433,9 @@ def draw_overlay(
         layout.pill(text, x0, y0, RESIDUAL_COLOR if worst is not None else CLICK_COLOR)
         ink[max(y0, 0):y1, max(x0, 0):x1] = 1
 
-    key: list[tuple[str, Color, str]] = [(f"{n} face", FACE_COLORS[n], "line") for n in FACE_COLORS
-                                         if n in quads]
+    face_names = {"front": "front", "side": {"left": "left side", "top": "top"}.get(side_face, "side")}
+    key: list[tuple[str, Color, str]] = [(f"{face_names[n]} face", FACE_COLORS[n], "line")
+                                         for n in FACE_COLORS if n in quads]
     if pts:
         key.append(("click", CLICK_COLOR, "cross"))
     if moved & fitted.keys():
@@ -626,5 +641,8 @@ def overlay_from_report(image: np.ndarray, report: Mapping, *, photo: str = "fro
     if not count:
         notes.append("no warnings")
     title = "PrismCloud fit" + (f" - {photo} photo" if two_photo else "")
+    side_face = report.get("side_face", "right")
+    if side_face not in SECOND_FACE_CORNERS:
+        side_face = "right"  # a report from before the choice existed, or a side photo's
     return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
-                        title=title, warn_px=warn_px)
+                        title=title, warn_px=warn_px, side_face=side_face)

@@ -12,6 +12,9 @@ over-determine the focal length: when none is known it is a free parameter of th
 started from the vanishing points' closed form. Every fit is started several times (focal
 candidates, poses from either face) and the lowest cost wins, so that neighbouring inputs land
 in the same minimum.
+
+The second face may be the right side (the paper's), the left side (in the plane X = 0) or the
+top (in the plane Y = 0): see `prismcore.faces` for which corner each point marks.
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ class BoxFit:
     focal_std_px : float or None
         1-sigma error of a fitted focal length, px; None when it was given.
     front_quad, side_quad : ndarray, shape (4, 2)
-        The fitted model's projected face corners (TL, TR, BR, BL).
+        The fitted model's projected face corners (TL, TR, BR, BL as photographed).
     shape_cov : ndarray, shape (4, 4)
         Covariance of (width, depth, z, focal_px), z the depth of the front face's centre
         along the optical axis (height units), under click noise NOISE_CLICK_PX and edge-line
@@ -232,9 +235,53 @@ def _box_corners(p: np.ndarray) -> np.ndarray:
                     dtype=np.float64)
 
 
+def _left_corners(p: np.ndarray) -> np.ndarray:
+    W, D = p[0], p[1]
+    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [0, 0, D], [0, 1, D]],
+                    dtype=np.float64)
+
+
+def _top_corners(p: np.ndarray) -> np.ndarray:
+    W, D = p[0], p[1]
+    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [0, 0, D], [W, 0, D]],
+                    dtype=np.float64)
+
+
 _FRONT_IDX, _SIDE_IDX = (0, 1, 2, 3), (1, 4, 5, 2)
 # World (X, Y, Z) -> the side rectangle's own frame (u along Z, v along Y, w = W - X).
 _SIDE_AXES = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class _Second:
+    """Where a second face lies on the box model.
+
+    corners : the model's six corners (P1, P2, P3, P6, P5, P7) of (W, D), height 1
+    idx : the model corners of the side quad's TL, TR, BR, BL as photographed
+    sides : the side quad's edges fitted (all but the one shared with the front)
+    axes : world -> the side rectangle's frame (rows: its u, v and u x v directions)
+    origin : its TL corner in the world, as a function of (W, D)
+    v_is_depth : its TL -> BL edge is the depth D (else the height, 1)
+    """
+
+    corners: Callable[[np.ndarray], np.ndarray]
+    idx: tuple[int, ...]
+    sides: tuple[int, ...]
+    axes: np.ndarray
+    origin: Callable[[float, float], np.ndarray]
+    v_is_depth: bool
+
+
+_SECOND = {
+    "right": _Second(_box_corners, _SIDE_IDX, (0, 1, 2), _SIDE_AXES,
+                     lambda w, d: np.array([w, 0.0, 0.0]), False),
+    "left": _Second(_left_corners, (4, 0, 3, 5), (0, 2, 3),
+                    np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+                    lambda w, d: np.array([0.0, 0.0, d]), False),
+    "top": _Second(_top_corners, (4, 5, 1, 0), (0, 1, 3),
+                   np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+                   lambda w, d: np.array([0.0, 0.0, d]), True),
+}
 
 
 def _vanishing_point(segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -251,7 +298,7 @@ def _vanishing_point(segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarra
 
 
 def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: np.ndarray,
-                                 max_focal: float) -> list[float]:
+                                 max_focal: float, side_face: str = "right") -> list[float]:
     """Focal lengths (px) from the box's three orthogonal vanishing points.
 
     For vanishing points v_i, v_j of orthogonal directions and principal point c,
@@ -261,20 +308,26 @@ def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: 
     Parameters
     ----------
     front, side : ndarray, shape (4, 2)
-        TL, TR, BR, BL image (x, y) px of the front face and of the side face.
+        TL, TR, BR, BL image (x, y) px of the front face and of the side face as photographed.
     principal : ndarray, shape (2,)
     max_focal : float
+    side_face : {"right", "left", "top"}
+        Where the side face lies (its edges then run along other world axes).
 
     Returns
     -------
     list of float
         Zero to three estimates, px.
     """
-    vps = [
-        _vanishing_point([(front[0], front[1]), (front[3], front[2])]),  # X
-        _vanishing_point([(front[0], front[3]), (front[1], front[2]), (side[1], side[2])]),  # Y
-        _vanishing_point([(side[0], side[1]), (side[3], side[2])]),  # Z
-    ]
+    x_edges = [(front[0], front[1]), (front[3], front[2])]
+    y_edges = [(front[0], front[3]), (front[1], front[2])]
+    if side_face == "top":  # the top's far edge runs along X, its left and right along Z
+        x_edges.append((side[0], side[1]))
+        z_edges = [(side[0], side[3]), (side[1], side[2])]
+    else:  # a side's far edge runs along Y, its top and bottom along Z
+        y_edges.append((side[1], side[2]) if side_face == "right" else (side[0], side[3]))
+        z_edges = [(side[0], side[1]), (side[3], side[2])]
+    vps = [_vanishing_point(x_edges), _vanishing_point(y_edges), _vanishing_point(z_edges)]
     out = []
     for i, j in ((0, 1), (0, 2), (1, 2)):
         vi, vj = vps[i], vps[j]
@@ -286,41 +339,56 @@ def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: 
     return out
 
 
-def _box_starts(K: np.ndarray, front: FaceEvidence, side: FaceEvidence) -> list[np.ndarray]:
+def _box_starts(K: np.ndarray, front: FaceEvidence, side: FaceEvidence,
+                side_face: str = "right") -> list[np.ndarray]:
     """Initial [rvec, tvec, W, D] from the front's homography and from the side's."""
     width, rvec, tvec = _closed_form(K, front.corners)
     depth, rvec_s, tvec_s = _closed_form(K, side.corners)
+    second = _SECOND[side_face]
+    if second.v_is_depth:  # the side rectangle's aspect is W / D, its unit length D
+        depth = width / depth if depth > 0 else float("nan")
     starts = [np.concatenate([rvec, tvec, [width, depth]])]
     R_s = cv2.Rodrigues(rvec_s)[0]
-    R = R_s @ _SIDE_AXES
-    t = R_s[:, 2] * width + tvec_s
+    R = R_s @ second.axes
+    if side_face == "right":
+        t = R_s[:, 2] * width + tvec_s
+    else:  # X_cam = R_s A (X - o) / L + t_s in the rectangle's units L: scale to the height's
+        unit = depth if second.v_is_depth else 1.0
+        t = unit * tvec_s - R @ second.origin(width, depth)
     if np.isfinite(R).all() and np.isfinite(t).all():
         starts.append(np.concatenate([cv2.Rodrigues(R)[0].ravel(), t, [width, depth]]))
     return starts
 
 
 def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
-            free_focal: bool = False) -> BoxFit:
-    """Width and depth (height = 1) and pose of a box whose front and right side share a photo.
+            free_focal: bool = False, side_face: str = "right") -> BoxFit:
+    """Width and depth (height = 1) and pose of a box whose front and second face share a photo.
 
-    Model corners: P1 (0,0,0), P2 (W,0,0), P3 (W,1,0), P6 (0,1,0), P5 (W,0,D), P7 (W,1,D)
-    (X right, Y down, Z into the object). The side's left side is the front's right side, so
-    it is used once.
+    Model corners: P1 (0,0,0), P2 (W,0,0), P3 (W,1,0), P6 (0,1,0) (X right, Y down, Z into the
+    object) and the second face's far corners: a right side P5 (W,0,D), P7 (W,1,D); a left
+    side P5 (0,0,D), P7 (0,1,D); a top P5 (0,0,D), P7 (W,0,D). The edge the second face shares
+    with the front is used once (the front's).
 
     Parameters
     ----------
     K : ndarray, shape (3, 3)
         Intrinsics; with `free_focal` only its principal point is used.
     front, side : FaceEvidence
+        The side's quads TL, TR, BR, BL as photographed (a left side's TR is P1, a top's BL).
     free_focal : bool
         Fit the focal length too, started from the vanishing points' closed form and from a
         range of typical focal lengths.
+    side_face : {"right", "left", "top"}
 
     Returns
     -------
     BoxFit
     """
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, _SIDE_IDX, (0, 1, 2))]
+    if side_face not in _SECOND:
+        raise ValueError(f"side_face must be right, left or top, got {side_face!r}")
+    second = _SECOND[side_face]
+    box_corners = second.corners
+    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
     n_lines = _n_line_terms(faces)
     principal = K[:2, 2].astype(np.float64)
     best: OptimizeResult | None = None
@@ -328,8 +396,8 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
         size = 2 * float(np.abs(np.concatenate([front.clicked, side.clicked]) - principal).max())
         size = max(size, 2 * float(principal.max()) + 1)
         lo, hi = (b * size for b in _FOCAL_BOUNDS)
-        closed = focal_from_vanishing_points(front.corners, side.corners, principal, hi)
-        residual = _residual_fn(lambda x: _camera(float(np.exp(x[8])), principal), _box_corners,
+        closed = focal_from_vanishing_points(front.corners, side.corners, principal, hi, side_face)
+        residual = _residual_fn(lambda x: _camera(float(np.exp(x[8])), principal), box_corners,
                                 2, faces)
         bounds = (np.r_[np.full(8, -np.inf), np.log(lo)], np.r_[np.full(8, np.inf), np.log(hi)])
         # The vanishing points' focal first; the spread of typical focal lengths only when that
@@ -342,7 +410,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     break
                 guesses = closed + [m * size for m in _FOCAL_STARTS]
             for f in ([guesses] if isinstance(guesses, float) else guesses):
-                for x0 in _box_starts(_camera(f, principal), front, side):
+                for x0 in _box_starts(_camera(f, principal), front, side, side_face):
                     if not np.isfinite(x0).all():
                         continue
                     res = _solve(residual, np.r_[x0, np.log(np.clip(f, lo * 1.001, hi * 0.999))],
@@ -350,8 +418,8 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     if best is None or res.cost < best.cost - 1e-9:
                         best = res
     else:
-        residual = _residual_fn(lambda _: K, _box_corners, 2, faces)
-        for x0 in _box_starts(K, front, side):
+        residual = _residual_fn(lambda _: K, box_corners, 2, faces)
+        for x0 in _box_starts(K, front, side, side_face):
             if not np.isfinite(x0).all():
                 continue
             res = _solve(residual, x0)
@@ -362,7 +430,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     x = best.x
     focal = float(np.exp(x[8])) if free_focal else float(K[0, 0])
     Kx = _camera(focal, principal) if free_focal else K
-    pts = project(Kx, x[:3], x[3:6], _box_corners(x[6:8]))
+    pts = project(Kx, x[:3], x[3:6], box_corners(x[6:8]))
     cov = _covariance(best, n_lines)
     # (W, D, z, f) as functions of x: gradient by central differences (z is nonlinear in rvec).
     def shape(v: np.ndarray) -> np.ndarray:
@@ -378,4 +446,4 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     shape_cov = G @ cov @ G.T
     focal_std = float(np.sqrt(max(shape_cov[3, 3], 0.0))) if free_focal else None
     return BoxFit(float(x[6]), float(x[7]), x[:3].copy(), x[3:6].copy(), focal, focal_std,
-                  pts[list(_FRONT_IDX)], pts[list(_SIDE_IDX)], shape_cov, _line_rms(best, n_lines))
+                  pts[list(_FRONT_IDX)], pts[list(second.idx)], shape_cov, _line_rms(best, n_lines))

@@ -20,9 +20,12 @@ from .edges import EdgeFit, inward, line_through, refine_quad
 from .errors import InputError
 from .faces import (
     FaceQuads,
+    SideFace,
     clicked_quads,
     paper_rectangles,
     quad_labels,
+    resolve_side_face,
+    shared_edges,
     validate_points,
     validate_quad,
 )
@@ -56,6 +59,14 @@ _POINT_ROLES = {
     "p6": "the front face's lower-left corner",
     "p7": "the side face's lower-right corner",
 }
+_SECOND_FACE_ROLES = {
+    "left": {"p4": "the corner P1 marks (where the left side face starts)",
+             "p5": "the left side face's far upper corner",
+             "p7": "the left side face's far lower corner"},
+    "top": {"p4": "the corner P1 marks (where the top face starts)",
+            "p5": "the top face's far corner above P1",
+            "p7": "the top face's far corner above P2"},
+}
 
 SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
 SAME_SCALE_ASSUMED = ("two photos, no P7 and a scale for only one of them: the other is taken to be "
@@ -77,6 +88,12 @@ class ScanPlan:
     camera: dict = field(default_factory=dict)  # report.json's "camera" (JSON-ready)
     fit: dict = field(default_factory=dict)  # report.json's "fit" (JSON-ready)
 
+    @property
+    def side_face(self) -> SideFace:
+        """Where the second face lies: the spec's choice, or what its points say (as planned)."""
+        assert self.spec.points is not None
+        return resolve_side_face(self.spec.points, self.spec.side_face, two_photo=self.spec.two_photo)
+
 
 @dataclass(frozen=True)
 class ScanResult:
@@ -97,7 +114,7 @@ def _check_image(image: np.ndarray, name: str) -> None:
 
 
 def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]):
-    """Edge-fit both faces; the single-photo side face reuses the front's right edge."""
+    """Edge-fit both faces; the single-photo side face reuses the front's edge it shares."""
     def search(quad: np.ndarray) -> float:
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
         return float(min(SEARCH_PX, 0.3 * sides.min()))
@@ -109,13 +126,15 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
         r = search(quad)
         known = extra = None
         if not spec.two_photo:
+            front_edge, side_edge = shared_edges(clicked.side_face)
             if name == "side":
-                known = {3: fits["front"][1]}
+                known = {side_edge: fits["front"][front_edge]}
             else:
-                # In one photo the side face lies beyond the front's right edge: the edge must
-                # not be taken from the side face's far (right) side.
-                far = inward(line_through(clicked.side[1], clicked.side[2]), clicked.side[0])
-                extra = {1: ((far, 0.5 * float(far[:2] @ clicked.side[0] + far[2])),)}
+                # In one photo the side face lies beyond the front's shared edge: that edge must
+                # not be taken from the side face's far side.
+                o, ref = (side_edge + 2) % 4, clicked.side[(side_edge + 1) % 4]
+                far = inward(line_through(clicked.side[o], clicked.side[(o + 1) % 4]), ref)
+                extra = {front_edge: ((far, 0.5 * float(far[:2] @ ref + far[2])),)}
         corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known,
                                          extra_bounds=extra)
         moved = np.linalg.norm(corners - quad, axis=1).max() if np.isfinite(corners).all() else np.inf
@@ -133,7 +152,7 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
                             "the click was used there")
         fits[name], refined[name] = face_fits, corners
     return FaceQuads(refined["front"], refined["side"], clicked.front_complete,
-                     clicked.side_complete), fits
+                     clicked.side_complete, clicked.side_face), fits
 
 
 def _side_height_guess(spec: ScanSpec) -> float | None:
@@ -177,7 +196,7 @@ def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list | Non
 
 def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warnings: list[str]) -> None:
     """Say how oblique a single photo measured with the square-on model is, and what it costs."""
-    view = obliqueness(quads.front, quads.side)
+    view = obliqueness(quads.front, quads.side, quads.side_face)
     if view is None:
         return
     cost = square_on_cost(view, spec.scale)
@@ -186,8 +205,9 @@ def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warning
     worst = ("width", "height", "depth")[int(np.argmax(cost))]
     model = "the paper's method" if spec.method == "paper" else "the square-on model"
     fix = "" if spec.method == "paper" else "; mark P6 and P7 to have perspective corrected"
+    second = "top face" if quads.side_face == "top" else "side face"
     warnings.append(f"oblique photo measured with {model}: the front face is seen {view.front_deg:.0f}° "
-                    f"and the side face {view.side_deg:.0f}° off square-on, which costs about "
+                    f"and the {second} {view.side_deg:.0f}° off square-on, which costs about "
                     f"{cost.max():.0%} on the {worst}{fix}")
 
 
@@ -197,6 +217,7 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
     """The prism's dimensions, the face quads to scan (the fitted model's, in perspective) and
     the report's "camera" fields."""
     complete = quads.front_complete and quads.side_complete
+    face = quads.side_face
     camera = {"focal_px": focal.focal_px, "focal_source": focal.source,
               "principal_point": [round(float(v), 3) for v in focal.principal[0]]}
     if spec.method == "default" and complete and (focal.focal_px is not None or not spec.two_photo):
@@ -211,7 +232,7 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
             return dims, FaceQuads(front, side, True, True), camera
         free = focal.focal_px is None
         K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
-        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free)
+        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free, side_face=face)
         if free:
             assert fit.focal_std_px is not None
             camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
@@ -221,19 +242,19 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
                         f"({fit.focal_px:.0f} ± {fit.focal_std_px:.0f} px): measured as a nearly "
                         "square-on (weak-perspective) view; give the focal length or a camera to be sure")
                 dims = replace(dims, notes=(*dims.notes, note))
-        return dims, FaceQuads(fit.front_quad, fit.side_quad, True, True), camera
+        return dims, FaceQuads(fit.front_quad, fit.side_quad, True, True, face), camera
     if spec.method == "default" and focal.source != "none":
         warnings.append("perspective not corrected: it needs p6 and p7 besides the focal length")
     camera["focal_source"] = "none" if focal.source == "none" else focal.source
     # The paper's rectangles are axis-aligned by design: the view is read from the clicks.
     assert spec.points is not None
-    shape = clicked_quads(spec.points, two_photo=False) if spec.method == "paper" else quads
-    view = None if spec.two_photo else obliqueness(shape.front, shape.side)
+    shape = clicked_quads(spec.points, two_photo=False, side_face=face) if spec.method == "paper" else quads
+    view = None if spec.two_photo else obliqueness(shape.front, shape.side, face)
     # A Pinhole scale's mm-per-pixel reads the focal length (given, camera or EXIF).
     dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=focal.focal_px,
                           two_photo=spec.two_photo, view=view,
                           corner_noise_px=NOISE_CLICK_PX,
-                          clicked=(marked.front, marked.side) if fits else None)
+                          clicked=(marked.front, marked.side) if fits else None, side_face=face)
     if not spec.two_photo:
         _oblique_warning(spec, shape, dims, warnings)
     return dims, quads, camera
@@ -262,8 +283,9 @@ def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: boo
     if spec.method == "default":
         worst = max(order, key=lambda n: residuals[n] / limits[n])
         if perspective and residuals[worst] > limits[worst]:
+            role = _SECOND_FACE_ROLES.get(marked.side_face, {}).get(worst, _POINT_ROLES[worst])
             raise InputError(f"the fitted box sits {residuals[worst]:.0f} px from {worst.upper()}: "
-                             f"check that {worst.upper()} is {_POINT_ROLES[worst]}")
+                             f"check that {worst.upper()} is {role}")
         far = [n for n in order if residuals[n] > FIT_WARN_PX]
         if far:
             what = "fitted box's corners" if perspective else "refined face corners"
@@ -317,8 +339,9 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     Raises
     ------
     InputError
-        For a missing side photo, points outside the image, out of order or collinear, or a
-        video spec (one with `frames`: each frame has its own spec, see `video.frame_spec`).
+        For a missing side photo, points outside the image, out of order or collinear, points
+        that mark no second face (or not the spec's `side_face`), or a video spec (one with
+        `frames`: each frame has its own spec, see `video.frame_spec`).
     """
     if spec.is_video or spec.points is None:
         raise InputError(f"{spec.image!r} is a video spec: measure each frame with the spec "
@@ -332,6 +355,14 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     warnings: list[str] = []
     side_index = 1 if spec.two_photo else 0
     validate_points(spec.points, front.shape, images[side_index].shape)
+    # The front alone first: a bad front says so, rather than that no second face can be read.
+    if spec.method == "paper":
+        validate_quad(paper_rectangles(spec.points).front, "front face", front.shape)
+    else:
+        front_only = clicked_quads(spec.points, two_photo=spec.two_photo)
+        validate_quad(front_only.front, "front face", front.shape, labels=quad_labels(front_only)[0])
+    # Read from the points as clicked (before undistortion), as ScanPlan.side_face reads it.
+    side_face = resolve_side_face(spec.points, spec.side_face, two_photo=spec.two_photo)
     if exif_focal_px is not None and not (math.isfinite(exif_focal_px) and exif_focal_px > 0):
         raise InputError(f"the EXIF focal length must be a positive number of pixels, got {exif_focal_px!r}")
     cameras = _cameras(spec, images)
@@ -345,15 +376,16 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     work = spec.model_copy(update={"points": points})
     with _timed(timings, "refine"):
         if spec.method == "paper":
-            quads = paper_rectangles(points, two_photo=spec.two_photo)
+            quads = paper_rectangles(points, two_photo=spec.two_photo, side_face=side_face)
             marked = quads
             labels: tuple = (None, None)
         else:
             marked = clicked_quads(points, two_photo=spec.two_photo,
-                                   side_height_px=_side_height_guess(work))
+                                   side_height_px=_side_height_guess(work), side_face=side_face)
             labels = quad_labels(marked)
         validate_quad(marked.front, "front face", front.shape, labels=labels[0])
-        validate_quad(marked.side, "side face", images[side_index].shape, labels=labels[1])
+        validate_quad(marked.side, "top face" if side_face == "top" else "side face",
+                      images[side_index].shape, labels=labels[1])
         fits: dict[str, list[EdgeFit]] = {}
         if spec.method == "default":
             quads, fits = _refine(spec, images, marked, warnings)
@@ -401,11 +433,13 @@ def scan_face(image: np.ndarray, face: FacePlan, tiles: int = 1) -> FaceScan:
 def finish_scan(plan: ScanPlan, images: list[np.ndarray], scans: list[FaceScan]) -> ScanResult:
     """Assemble the cloud from the merged face scans and write the report."""
     dims = plan.dimensions
+    face = plan.side_face
     with _timed(plan.timings_ms, "assemble"):
         front = face_points(scans[0], images[scans[0].plan.image], (dims.width, dims.height))
-        side = face_points(scans[1], images[scans[1].plan.image], (dims.depth, dims.height))
+        size = (dims.width, dims.depth) if face == "top" else (dims.depth, dims.height)
+        side = face_points(scans[1], images[scans[1].plan.image], size)
         cloud = assemble(front, side, dims.width, dims.depth, plan.spec.cloud,
-                         plan.spec.max_points)
+                         plan.spec.max_points, side_face=face, height=dims.height)
     return ScanResult(cloud, build_report(plan, scans, cloud))
 
 
@@ -442,6 +476,7 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:
         "fit": plan.fit,
         "point_loss": round(rejected / marked, 6) if marked else 0.0,
         "method": plan.spec.method,
+        "side_face": plan.side_face,
         "cloud": plan.spec.cloud,
         "perspective_corrected": dims.perspective,
         "faces": faces,

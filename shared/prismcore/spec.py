@@ -67,9 +67,15 @@ class _Strict(BaseModel):
 class ReferencePoints(_Strict):
     """The paper's five reference points, plus two optional extra corners.
 
-    p1 front upper-left, p2 front upper-right, p3 front lower-right, p4 side upper-left,
-    p5 side upper-right; p6 front lower-left and p7 side lower-right make each face a full
-    quadrilateral, which perspective correction needs.
+    p1 front upper-left, p2 front upper-right, p3 front lower-right, p6 front lower-left.
+    p4, p5 and p7 mark the second face by role: p4 the front corner where the second face's top
+    (far) edge starts, p5 the second face's far corner next to p4, p7 its far corner next to
+    the other shared corner. A right side (the paper's; a side photo's): p4 = p2 (side
+    upper-left), p5 side upper-right, p7 side lower-right. In one photo also a left side:
+    p4 = p1, p5 the side's far upper corner (left of p1), p7 its far lower corner (left of p6);
+    or the top: p4 = p1, p5 the top's far corner above p1, p7 its far corner above p2 (see
+    `ScanSpec.side_face`). p6 and p7 make each face a full quadrilateral, which perspective
+    correction needs.
     """
 
     p1: Point
@@ -228,6 +234,10 @@ class ScanSpec(_Strict):
         default=None, description="Calibrated camera; trusted after focal_px, before EXIF and "
         "before the focal length fitted from the box."
     )
+    side_face: Literal["auto", "right", "left", "top"] = Field(
+        default="auto", description="One photo: the face p4, p5 and p7 mark besides the front: the "
+        "right side (p4 = p2), the left side (p4 = p1, p5 left of it) or the top (p4 = p1, p5 "
+        "above it); auto reads it from the points. Two photos: the side photo's face (right).")
     cloud: Literal["surface", "volume"] = "surface"
     formats: list[Literal["csv", "ply"]] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
     csv: CsvOptions = CsvOptions()
@@ -269,6 +279,10 @@ class ScanSpec(_Strict):
         elif self.points is None:
             raise ValueError("points: the reference points are missing (give points, or "
                              "frame_points for a video)")
+        if self.side_image is not None and self.side_face in ("left", "top"):
+            raise ValueError(f"side_face {self.side_face!r} is for one photo: with side_image "
+                             f"{self.side_image!r}, p4, p5 and p7 mark the side face as photographed "
+                             "(a right side); drop side_face or give 'right'")
         if self.frames is not None and self.side_image is not None:
             raise ValueError(f"a video is measured in single-photo mode: side_image "
                              f"{self.side_image!r} cannot be used with frames")

@@ -311,6 +311,16 @@ def _corners(box: Box) -> dict[str, np.ndarray]:
             "p7": np.array([W, H, D])}
 
 
+def _second_face_corners(box: Box, side_face: str) -> dict[str, np.ndarray]:
+    """p4, p5, p7 of the second face by role (see prismcore.faces): right, left or top."""
+    W, H, D = box.width_mm, box.height_mm, box.depth_mm
+    if side_face == "left":
+        return {"p4": np.zeros(3), "p5": np.array([0.0, 0.0, D]), "p7": np.array([0.0, H, D])}
+    if side_face == "top":
+        return {"p4": np.zeros(3), "p5": np.array([0.0, 0.0, D]), "p7": np.array([W, 0.0, D])}
+    return {n: c for n, c in _corners(box).items() if n in ("p4", "p5", "p7")}
+
+
 def _box_vertices(box: Box) -> np.ndarray:
     W, H, D = box.width_mm, box.height_mm, box.depth_mm
     return np.array([[x, y, z] for x in (0, W) for y in (0, H) for z in (0, D)], dtype=np.float64)
@@ -937,9 +947,11 @@ def _jpeg_round_trip(rgb: np.ndarray, quality: int) -> np.ndarray:
 def _scene(box: Box, view: str, image_size: tuple[int, int], focal_px: float, distance_mm: float,
            R: np.ndarray, t: np.ndarray, style: Style, seed: int, names: tuple[str, ...],
            photographed: str, mm_per_px: float | None, side_view: bool = False,
-           realism: Realism | None = None) -> Scene:
+           realism: Realism | None = None, side_face: str = "right") -> Scene:
     K = _camera_matrix(focal_px, _principal(image_size))
     corners = _corners(box)
+    if side_face != "right":
+        corners.update(_second_face_corners(box, side_face))
     if side_view:
         corners["p3"] = np.array([box.width_mm, box.height_mm, 0.0])  # side lower-left: same corner
     world = np.array([corners[n] for n in names])
@@ -1193,8 +1205,9 @@ def render_side_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), fo
 
 def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024), focal_px: float = 1400.0,
                         distance_mm: float | None = None, yaw_deg: float = 30.0, pitch_deg: float = 15.0,
-                        style: Style = DEFAULT_STYLE, seed: int = 0, realism: Realism | None = None) -> Scene:
-    """One photo from the front-right and above: the front, right and top faces are visible.
+                        style: Style = DEFAULT_STYLE, seed: int = 0, realism: Realism | None = None,
+                        side_face: str = "right") -> Scene:
+    """One photo from the front-right (or -left) and above: the front, a side and the top are visible.
 
     The camera is aimed at the front face's centre, which projects to the principal point.
     Its centre is at ``c + distance_mm * (sin(yaw) cos(pitch), -sin(pitch), -cos(yaw) cos(pitch))``
@@ -1212,7 +1225,8 @@ def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024),
         Distance from the camera to the front face's centre (its depth along the optical
         axis), mm. None: the whole box spans about half the image width.
     yaw_deg : float
-        Rotation of the camera toward +X (the right side) about the vertical, degrees.
+        Rotation of the camera toward +X (the right side) about the vertical, degrees; negative
+        toward the left side.
     pitch_deg : float
         Elevation of the camera above the front face's centre, degrees.
     style : Style
@@ -1221,20 +1235,39 @@ def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024),
         Seed of all the randomness.
     realism : Realism or None
         Imperfections of real photos; None renders exactly as before.
+    side_face : {"right", "left", "top"}
+        The face p4, p5 and p7 mark besides the front (by role, see `prismcore.faces`): the
+        right side (p4 where p2 is; needs yaw > 0), the left side (p4 where p1 is, p5 and p7
+        its far corners; needs yaw < 0) or the top (p4 where p1 is, p5 and p7 its far corners
+        above p1 and p2; needs pitch > 0). The image does not depend on it.
 
     Returns
     -------
     Scene
-        ``view="oblique"``, points p1..p7 (p4 is where p2 is), ``mm_per_px=None``.
+        ``view="oblique"``, points p1..p7, ``mm_per_px=None``.
+
+    Raises
+    ------
+    ValueError
+        When the camera does not see `side_face` (left or top).
     """
     _check_camera(image_size, focal_px, distance_mm)
+    if side_face not in ("right", "left", "top"):
+        raise ValueError(f"side_face must be right, left or top, got {side_face!r}")
     if distance_mm is None:
         distance_mm = _auto_distance(box, image_size, focal_px,
                                      lambda d: _oblique_pose(box, d, yaw_deg, pitch_deg))
     R, t = _oblique_pose(box, distance_mm, yaw_deg, pitch_deg)
+    centre = -R.T @ t
+    seen = {"right": centre[0] > box.width_mm, "left": centre[0] < 0, "top": centre[1] < 0}[side_face]
+    # (the right side is not checked: renders from before the choice stay as they were; a camera
+    # partly behind the box is the render's to refuse)
+    if side_face != "right" and not seen and np.min((_box_vertices(box) @ R.T + t)[:, 2]) > 0:
+        raise ValueError(f"a camera at yaw {yaw_deg:g}°, pitch {pitch_deg:g}° does not see the "
+                         f"{side_face} face")
     names = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
     return _scene(box, "oblique", image_size, focal_px, distance_mm, R, t, style, seed, names,
-                  "front", None, realism=realism)
+                  "front", None, realism=realism, side_face=side_face)
 
 
 def save_image(scene_or_array: Scene | np.ndarray, path: str | Path) -> None:
