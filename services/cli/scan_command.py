@@ -89,6 +89,10 @@ def scan(
     points: Annotated[str | None, typer.Option(
         help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels.')] = None,
     side: Annotated[Path | None, typer.Option(help="Side photo (two-photo mode).")] = None,
+    side_face: Annotated[str | None, typer.Option(
+        help="One photo: the face P4, P5 (P7) mark besides the front: right (P4 = P2), left "
+             "(P4 = P1, P5 left of it) or top (P4 = P1, P5 above it); default: read from the points.",
+        metavar="right|left|top")] = None,
     spec_file: Annotated[Path | None, typer.Option("--spec", help="Job spec JSON.")] = None,
     tolerance: Annotated[float, typer.Option(help="RGB tolerance per channel.")] = 12.0,
     method: Annotated[str, typer.Option(help="default or paper.")] = "default",
@@ -119,6 +123,9 @@ def scan(
         if spec_file is not None:
             if image is not None or points is not None or selection is not None:
                 raise InputError("give either --spec or IMAGE with --points (and frame flags), not both")
+            if side_face is not None:
+                raise InputError(f"--side-face {side_face!r} goes with IMAGE and --points; "
+                                 "in a spec file, set side_face")
             spec, base = _spec_from_file(spec_file)
         else:
             if selection is None and image is not None and is_video(image):
@@ -128,7 +135,8 @@ def scan(
                 mm_per_px=mm_per_px, distance_mm=distance_mm, focal_px=focal_px,
                 width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
-                ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection), Path(".")
+                ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
+                side_face=side_face or "auto"), Path(".")
         if spec.is_video or is_video(base / spec.image):
             scan_video(spec, base, out, tiles=tiles, max_frames=max_frames)
             return
