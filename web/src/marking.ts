@@ -3,7 +3,7 @@
 
 import { Marker } from "./marker";
 import { renderPointTable } from "./point-table";
-import { describe, photoOf, regions, type Photo } from "./points";
+import { describe, photoOf, regions, setFaceChoice, type FaceChoice, type Photo } from "./points";
 import * as S from "./state";
 import type { Point, PointName } from "./types";
 
@@ -38,6 +38,10 @@ export class Marking {
     $<HTMLInputElement>("extra-corners").addEventListener("change", (e) => {
       S.state.extra = (e.target as HTMLInputElement).checked;
       this.changed(() => (S.state.extra ? undefined : S.clear(["p6", "p7"])));
+    });
+    $<HTMLSelectElement>("second-face").addEventListener("change", (e) => {
+      setFaceChoice((e.target as HTMLSelectElement).value as FaceChoice);
+      this.changed(() => {});
     });
   }
 
@@ -83,6 +87,7 @@ export class Marking {
     const next: PointName | null = S.nextPoint();
     const two = S.state.twoPhoto;
     $("show-side").hidden = !two;
+    $("second-face-row").hidden = two; // a side photo shows the side face
     let prompt = "Every point is placed. Drag a point, or use the arrow keys, to adjust it.";
     if (!S.photoShown("front")) prompt = "Add a photo or a video to start.";
     else if (next && two && !S.photoShown("side") && photoOf(next, true) === "side") {

@@ -1,7 +1,7 @@
 // The table of points under the photo: each point's place in words and its coordinates as
 // labelled number fields, so points can be read by a screen reader and typed in as well as clicked.
 
-import { describe, photoOf, sequence } from "./points";
+import { describe, faceChoice, photoOf, sequence } from "./points";
 import { state } from "./state";
 import type { Point, PointName } from "./types";
 
@@ -10,7 +10,7 @@ let built = "";
 export function renderPointTable(set: (name: PointName, p: Point) => void): void {
   const body = document.querySelector<HTMLTableSectionElement>("#point-table tbody")!;
   const names = sequence(state.extra, state.twoPhoto);
-  const key = `${names.join()}|${state.twoPhoto}`;
+  const key = `${names.join()}|${state.twoPhoto}|${faceChoice()}`;
   if (key !== built) {
     built = key;
     body.replaceChildren(...names.map((n) => row(n, set)));

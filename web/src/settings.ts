@@ -6,7 +6,7 @@ import type { Scale, ScanSpec } from "./types";
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const value = (id: string) => $<HTMLInputElement | HTMLSelectElement>(id).value;
 
-export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px">;
+export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px" | "side_face">;
 
 export class SettingsForm {
   constructor(private twoPhoto: () => boolean) {
@@ -51,6 +51,7 @@ export class SettingsForm {
     };
     if (scale) settings.scale = scale;
     if (focal !== undefined) settings.focal_px = focal;
+    if (!this.twoPhoto()) settings.side_face = value("second-face") as Settings["side_face"];
     return settings;
   }
 }

@@ -111,6 +111,8 @@ export interface ScanSpec {
   frame_points?: Record<string, PointSet>;
   tolerance: number;
   method: "default" | "paper";
+  /** One photo: the face P4, P5 and P7 mark besides the front; "auto" reads it from them. */
+  side_face?: "auto" | "right" | "left" | "top";
   cloud: "surface" | "volume";
   scale?: Scale;
   focal_px?: number;
