@@ -36,7 +36,7 @@ __all__ = ["SIDE_FACES", "FaceQuads", "SideFace", "clicked_quads", "paper_rectan
 MIN_FACE_PX = 4.0
 SideFace = Literal["right", "left", "top"]
 SIDE_FACES: tuple[SideFace, ...] = ("right", "left", "top")
-_SAME_CORNER = 0.25  # P4 within this fraction of the front's size of P1 or P2 is "the same corner"
+_SAME_CORNER = 0.5  # P4 on P2 (or P1): under this fraction of its distance to the other one
 _SHARED = {"right": (1, 3), "left": (3, 1), "top": (0, 2)}
 
 
@@ -62,8 +62,9 @@ def resolve_side_face(points: ReferencePoints, choice: str = "auto", *,
     """Which face P4, P5 (and P7) mark in one photo: `choice`, or read from the points.
 
     "auto": P4 on P2 -> right; P4 on P1 with P5 to its left -> left; P4 on P1 with P5 above it
-    -> top. A given choice is checked against the points the same way. Two photos: "right"
-    (the side photo shows the side face; left and top are refused).
+    -> top. "On" is loose, as clicks are: P4 is taken for the corner it is clearly nearer to
+    (under half its distance to the other one). A given choice is checked against the points the
+    same way. Two photos: "right" (the side photo shows the side face; left and top are refused).
 
     Raises
     ------
@@ -79,10 +80,8 @@ def resolve_side_face(points: ReferencePoints, choice: str = "auto", *,
                              "lower-right corners); drop side_face or use 'right'")
         return "right"
     p = {k: np.asarray(v, dtype=np.float64) for k, v in points.as_dict().items()}
-    size = max(float(np.linalg.norm(p["p2"] - p["p1"])), float(np.linalg.norm(p["p3"] - p["p2"])))
-    near = max(_SAME_CORNER * size, MIN_FACE_PX)
     d1, d2 = (float(np.linalg.norm(p["p4"] - p[n])) for n in ("p1", "p2"))
-    at = "p2" if d2 <= near and d2 < d1 else "p1" if d1 <= near else None
+    at = "p2" if d2 < _SAME_CORNER * d1 else "p1" if d1 < _SAME_CORNER * d2 else None
     found: SideFace | None = None
     why = ""
     if at == "p2":

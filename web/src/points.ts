@@ -76,7 +76,7 @@ export type Marks = Partial<Record<PointName, Point>>;
 const add = (a: Point, b: Point): Point => [a[0] + b[0], a[1] + b[1]];
 const sub = (a: Point, b: Point): Point => [a[0] - b[0], a[1] - b[1]];
 const dist = (a: Point, b: Point): number => Math.hypot(a[0] - b[0], a[1] - b[1]);
-const SAME_CORNER = 0.25; // prismcore.faces._SAME_CORNER
+const SAME_CORNER = 0.5; // prismcore.faces._SAME_CORNER
 
 /** (a, b) with v = a * across + b * down, each scaled by its axis' length (faces._front_axes). */
 function inFront(v: Point, across: Point, down: Point): [number, number] {
@@ -92,12 +92,10 @@ export function secondFace(m: Marks, twoPhoto: boolean, chosen: FaceChoice = cho
   if (twoPhoto) return "right";
   const { p1, p2, p3, p4, p5, p6, p7 } = m;
   if (!p1 || !p2 || !p3 || !p4) return chosen === "auto" ? null : chosen;
-  const size = Math.max(dist(p2, p1), dist(p3, p2));
-  const near = Math.max(SAME_CORNER * size, 4);
   const [d1, d2] = [dist(p4, p1), dist(p4, p2)];
   let found: SecondFace | null = null;
-  if (d2 <= near && d2 < d1) found = "right";
-  else if (d1 <= near) {
+  if (d2 < SAME_CORNER * d1) found = "right";
+  else if (d1 < SAME_CORNER * d2) {
     if (!p5) return chosen === "auto" ? null : chosen;
     const across = sub(p2, p1);
     const down = sub(p6 ?? add(p1, sub(p3, p2)), p1);
