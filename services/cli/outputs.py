@@ -5,14 +5,13 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from prismcore import InputError, ScanResult, ScanSpec
+from prismcore import ScanResult, ScanSpec
 from prismcore.overlay import OVERLAY_NAME, SIDE_OVERLAY_NAME, overlay_from_report
-from prismcore.writers import FILE_NAMES, write_format
+from prismcore.writers import FILE_NAMES, encode_png, write_format
 
-__all__ = ["encode_png", "report_path", "write_outputs", "write_overlays"]
+__all__ = ["report_path", "write_outputs", "write_overlays"]
 
 
 def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str, Path]:
@@ -28,14 +27,6 @@ def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str
         ms = write_format(kind, paths[kind], result.cloud, spec)
         result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     return paths
-
-
-def encode_png(rgb: np.ndarray) -> bytes:
-    """PNG bytes of an (H, W, 3) uint8 RGB picture (OpenCV writes BGR, hence the swap)."""
-    ok, data = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-    if not ok:
-        raise InputError(f"could not encode a {rgb.shape[1]}x{rgb.shape[0]} picture as PNG")
-    return data.tobytes()
 
 
 def write_overlays(report: dict, front: np.ndarray, side: np.ndarray | None,

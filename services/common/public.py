@@ -36,6 +36,19 @@ class ResultPublic(BaseModel):
     summary: dict[str, Any] | None = Field(
         default=None, description="Videos: median, min, max, spread and std of each dimension "
                                   "over the measured frames, and each frame's values.")
+    uncertainty: dict[str, float] | None = Field(
+        default=None, description="One standard deviation of each dimension (width, height, "
+                                  "depth), in the dimensions' unit: from the fit's covariance with "
+                                  "the click and edge noise, through the scale.")
+    focal_px: float | None = Field(default=None, description="The focal length used, pixels.")
+    focal_source: str | None = Field(
+        default=None, description="Where the focal length came from: given, camera (a calibrated "
+                                  "camera), exif, pooled (fitted over the photos of one camera), "
+                                  "fitted (from this box), none (square-on model).")
+    fit_rms_px: float | None = Field(default=None, description="RMS distance, pixels, between the "
+                                     "fitted box and the edges and clicks it was fitted to.")
+    side_face: str | None = Field(default=None, description="Which face beside the front was "
+                                  "measured: right, left or top.")
 
 
 class FramePublic(BaseModel):

@@ -36,6 +36,11 @@ class ItemResult(BaseModel):
     point_loss: float
     warnings: list[str] = Field(default_factory=list)
     summary: dict[str, Any] | None = None
+    uncertainty: dict[str, float] | None = None  # 1 sigma per dimension, in its unit
+    focal_px: float | None = None
+    focal_source: str | None = None  # given, camera, exif, pooled, fitted, none
+    fit_rms_px: float | None = None
+    side_face: str | None = None
 
 
 class FrameRecord(BaseModel):

@@ -106,6 +106,10 @@ class ObjectStore:
     def get_bytes(self, key: str, *, bucket: str | None = None) -> bytes:
         return self.client.get_object(Bucket=bucket or self.bucket, Key=key)["Body"].read()
 
+    def get_head(self, key: str, size: int) -> bytes:
+        """The object's first `size` bytes (all of it when shorter)."""
+        return self.client.get_object(Bucket=self.bucket, Key=key, Range=f"bytes=0-{size - 1}")["Body"].read()
+
     def open(self, key: str) -> tuple[StreamingBody, int]:
         """The object's body, to be read in chunks and closed by the caller, and its size."""
         got = self.client.get_object(Bucket=self.bucket, Key=key)

@@ -13,12 +13,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from prismcore import ScanPlan
+from prismcore import ScanPlan, ScanSpec
+from prismcore.exif import exif_focal
 from prismcore.images import load_image
+from prismcore.pipeline import prepare_images
 
 from . import context, plans
 
-__all__ = ["image", "plan"]
+__all__ = ["exif_focal_px", "image", "plan", "prepared"]
 
 _IMAGES = 2
 _images: OrderedDict[tuple[str, int], np.ndarray] = OrderedDict()
@@ -39,6 +41,33 @@ def image(key: str, max_pixels: int, label: str = "") -> np.ndarray:
     while len(_images) > _IMAGES:
         _images.popitem(last=False)
     return decoded
+
+
+_EXIF_HEAD = 256 * 1024  # a JPEG's EXIF (APP1) is at most 64 KiB, right after its start
+
+
+def exif_focal_px(key: str, image_shape: tuple[int, ...]) -> float | None:
+    """The focal length (px of the decoded photo) the photo at `key` carries in its EXIF."""
+    found = exif_focal(context.objects().get_head(key, _EXIF_HEAD), image_shape[1], image_shape[0])
+    return found.focal_px if found else None
+
+
+_prepared: OrderedDict[tuple[str, int], np.ndarray] = OrderedDict()
+
+
+def prepared(key: str, max_pixels: int, spec: ScanSpec) -> np.ndarray:
+    """The photo at `key` as the plan's coordinates refer to it (the engine's
+    prepare_images: without lens distortion when the spec's camera has some), cached too."""
+    decoded = image(key, max_pixels)
+    if spec.camera is None or not spec.camera.has_distortion:
+        return decoded
+    if (key, max_pixels) not in _prepared:
+        undistorted = prepare_images(spec, [decoded])[0]
+        undistorted.flags.writeable = False
+        _prepared[key, max_pixels] = undistorted
+        while len(_prepared) > _IMAGES:
+            _prepared.popitem(last=False)
+    return _prepared[key, max_pixels]
 
 
 @lru_cache(maxsize=8)

@@ -38,7 +38,7 @@ def scan_frame(view: ItemView, frame: int) -> None:
         scan = run_scan(photo_spec, image)
         fps = _frames(item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
         scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
-        result, outputs = write_outputs(job_id, item, photo_spec, scan, frame=frame)
+        result, outputs = write_outputs(job_id, item, photo_spec, scan, [image], frame=frame)
     except InputError as exc:
         record = FrameRecord(index=frame, state=State.failed, error=str(exc))
     else:

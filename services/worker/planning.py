@@ -45,7 +45,9 @@ def plan_item(view: ItemView) -> list[Tile]:
     if spec.two_photo:
         side_key, side_label = copy_input(view, "side")
         side = cache.image(side_key, limit, side_label)
-    plan = plan_scan(spec, front, side)
+    # The photo's own EXIF may give the focal length (a second read of its head is cheaper
+    # than keeping the bytes beside the decoded cache).
+    plan = plan_scan(spec, front, side, exif_focal_px=cache.exif_focal_px(front_key, front.shape))
     tiles = plan_tiles(plan, tiles_per_face(view.n_items))
     objects.put_bytes(key, plans.dumps(plan, tiles=tiles), "application/json")
     return tiles

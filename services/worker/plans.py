@@ -52,11 +52,14 @@ def plan_to_json(plan: ScanPlan) -> dict[str, Any]:
         "spec": plan.spec.model_dump(mode="json"),
         "faces": [_face(f) for f in plan.faces],
         "dimensions": {"width": float(d.width), "height": float(d.height), "depth": float(d.depth),
-                       "unit": d.unit, "perspective": bool(d.perspective), "notes": list(d.notes)},
+                       "unit": d.unit, "perspective": bool(d.perspective), "notes": list(d.notes),
+                       "uncertainty": None if d.uncertainty is None else [float(u) for u in d.uncertainty]},
         "edges": {name: [_edge(e) for e in fits] for name, fits in plan.edges.items()},
         "image_sizes": [[int(w), int(h)] for w, h in plan.image_sizes],
         "warnings": list(plan.warnings),
         "timings_ms": {k: float(v) for k, v in plan.timings_ms.items()},
+        "camera": plan.camera,  # JSON-ready already
+        "fit": plan.fit,
     }
 
 
@@ -67,12 +70,15 @@ def plan_from_json(doc: dict[str, Any]) -> ScanPlan:
         spec=ScanSpec.model_validate(doc["spec"]),
         faces=(front, side),
         dimensions=Dimensions(d["width"], d["height"], d["depth"], d["unit"], d["perspective"],
-                              tuple(d["notes"])),
+                              tuple(d["notes"]),
+                              None if d.get("uncertainty") is None else tuple(d["uncertainty"])),
         edges={name: [EdgeFit(_unarray(e["line"]), e["support"], e["rms_px"], e["fitted"])
                       for e in fits] for name, fits in doc["edges"].items()},
         image_sizes=[(w, h) for w, h in doc["image_sizes"]],
         warnings=list(doc["warnings"]),
         timings_ms=dict(doc["timings_ms"]),
+        camera=dict(doc.get("camera") or {}),
+        fit=dict(doc.get("fit") or {}),
     )
 
 

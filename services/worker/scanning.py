@@ -26,9 +26,16 @@ class TilesMissingError(Exception):
 
 
 def _image(job_id: str, item: int, plan: ScanPlan, index: int) -> np.ndarray:
-    """Photo `index` as the engine numbers them (FacePlan.image): 0 front, 1 side."""
+    """Photo `index` as decoded (FacePlan.image numbering): 0 front, 1 side."""
     name = ("front", "side")[index]
     return cache.image(item_key(job_id, item, name), max_pixels(plan.spec.max_pixels))
+
+
+def _scanned_image(job_id: str, item: int, plan: ScanPlan, index: int) -> np.ndarray:
+    """Photo `index` as the plan's coordinates refer to it: without its lens distortion when
+    the spec's camera has some (the engine's prepare_images)."""
+    return cache.prepared(item_key(job_id, item, ("front", "side")[index]),
+                          max_pixels(plan.spec.max_pixels), plan.spec)
 
 
 def scan_tile(job_id: str, item: int, face_name: str, r0: int, r1: int) -> str:
@@ -41,7 +48,7 @@ def scan_tile(job_id: str, item: int, face_name: str, r0: int, r1: int) -> str:
         if face_name not in faces:
             raise ValueError(f"the plan has no face {face_name!r}")
         face = faces[face_name]
-        masks = scan_band(_image(job_id, item, plan, face.image), face, r0, r1)
+        masks = scan_band(_scanned_image(job_id, item, plan, face.image), face, r0, r1)
         objects.put_bytes(key, tiles.pack(*masks))
     return key
 
@@ -69,6 +76,6 @@ def finish_item(job_id: str, item: int) -> tuple[ItemResult, dict[str, str]]:
         bands = sorted((r0, r1) for name, r0, r1 in extra["tiles"] if name == face.name)
         keys = [tile_key(job_id, item, face.name, r0, r1) for r0, r1 in bands]
         scans.append(merge_bands(face, [tiles.unpack(_tile_bytes(objects, k, item)) for k in keys]))
-    images = [_image(job_id, item, plan, i) for i in range(2 if plan.spec.two_photo else 1)]
-    result = finish_scan(plan, images, scans)
-    return write_outputs(job_id, item, plan.spec, result)
+    indices = range(2 if plan.spec.two_photo else 1)
+    result = finish_scan(plan, [_scanned_image(job_id, item, plan, i) for i in indices], scans)
+    return write_outputs(job_id, item, plan.spec, result, [_image(job_id, item, plan, i) for i in indices])

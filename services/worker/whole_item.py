@@ -14,6 +14,7 @@ from __future__ import annotations
 from prism_common.records import ItemResult, ItemView
 
 from prismcore import run_scan
+from prismcore.exif import exif_focal
 from prismcore.images import load_image
 
 from .inputs import read_input
@@ -37,9 +38,12 @@ def scan_whole_item(view: ItemView) -> tuple[ItemResult, dict[str, str]]:
     limit = max_pixels(spec.max_pixels)
     data, label = read_input(view, "front")
     front = load_image(data, max_pixels=limit, name=label)
+    found = exif_focal(data, front.shape[1], front.shape[0])
     side = None
     if spec.two_photo:
         data, label = read_input(view, "side")
         side = load_image(data, max_pixels=limit, name=label)
     del data
-    return write_outputs(view.job_id, view.item.index, spec, run_scan(spec, front, side))
+    result = run_scan(spec, front, side, exif_focal_px=found.focal_px if found else None)
+    return write_outputs(view.job_id, view.item.index, spec, result,
+                         [front] + ([side] if side is not None else []))

@@ -63,6 +63,7 @@ __all__ = [
     "ExifFocal",
     "NoExifFocal",
     "camera_key",
+    "exif_focal",
     "explain_exif_focal",
     "focal_px_from_exif",
     "read_camera_exif",
@@ -542,3 +543,14 @@ def _chunk(
             return None
         pos += 8 + length + (4 if crc else length & 1)
     return None
+
+
+def exif_focal(data: bytes | bytearray | memoryview, decoded_width: int,
+               decoded_height: int) -> ExifFocal | None:
+    """The focal length, px of the decoded photo, that the photo's own EXIF gives; None when it
+    has none that can be trusted (no EXIF, a crop, implausible values).
+
+    data : the photo file's bytes, as given to `prismcore.images.load_image`.
+    """
+    exif = read_camera_exif(data)
+    return None if exif is None else focal_px_from_exif(exif, decoded_width, decoded_height)

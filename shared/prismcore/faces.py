@@ -80,6 +80,17 @@ def resolve_side_face(points: ReferencePoints, choice: str = "auto", *,
                              "lower-right corners); drop side_face or use 'right'")
         return "right"
     p = {k: np.asarray(v, dtype=np.float64) for k, v in points.as_dict().items()}
+    # The front must be a face before P4 can be told to be on one of its corners: the same words
+    # the front's own checks use for points on top of each other or in a line.
+    if float(np.linalg.norm(p["p2"] - p["p1"])) < MIN_FACE_PX:
+        raise InputError(f"front face corners P1 {_xy(p['p1'])} and P2 {_xy(p['p2'])} are closer "
+                         f"than {MIN_FACE_PX:g} px")
+    lower = p["p6"] if "p6" in p else p["p3"]
+    (ux, uy), (vx, vy) = p["p2"] - p["p1"], lower - p["p1"]
+    if abs(float(ux * vy - uy * vx)) < MIN_FACE_PX * float(np.hypot(ux, uy)):
+        raise InputError(f"front face corners P1 {_xy(p['p1'])}, P2 {_xy(p['p2'])} and "
+                         f"{'P6' if 'p6' in p else 'P3'} {_xy(lower)} are closer than {MIN_FACE_PX:g} px "
+                         "to one line: they do not span a face")
     d1, d2 = (float(np.linalg.norm(p["p4"] - p[n])) for n in ("p1", "p2"))
     at = "p2" if d2 < _SAME_CORNER * d1 else "p1" if d1 < _SAME_CORNER * d2 else None
     found: SideFace | None = None

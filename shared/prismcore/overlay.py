@@ -33,6 +33,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from .errors import InputError
+from .spec import FILE_NAMES
 
 __all__ = [
     "CLICK_COLOR",
@@ -48,9 +49,9 @@ __all__ = [
     "report_notes",
 ]
 
-OVERLAY_NAME = "overlay.png"
+OVERLAY_NAME = FILE_NAMES["overlay"]
 """File name of the overlay of the front photo (the only photo in single-photo mode)."""
-SIDE_OVERLAY_NAME = "overlay_side.png"
+SIDE_OVERLAY_NAME = FILE_NAMES["overlay_side"]
 """File name of the side photo's overlay in two-photo mode."""
 
 Color = tuple[int, int, int]

@@ -44,7 +44,7 @@ Point = tuple[FiniteFloat, FiniteFloat]
 pixel centre."""
 
 FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
-              "summary": "summary.json"}
+              "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
 

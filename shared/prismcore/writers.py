@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from .cloud import Cloud
     from .spec import ScanSpec
 
-__all__ = ["CHUNK_ROWS", "FILE_NAMES", "MAX_DECIMALS", "write_csv", "write_format", "write_ply"]
+__all__ = ["CHUNK_ROWS", "FILE_NAMES", "MAX_DECIMALS", "encode_png", "write_csv", "write_format", "write_ply"]
 
 CHUNK_ROWS = 1 << 17
 """Rows formatted per block: about 3.5 MB of CSV text at 3 decimals."""
@@ -382,3 +382,16 @@ def _write_blocks(write: Callable[[Any], Any], blocks: Iterator[bytes | memoryvi
         total += size
         view.release()
     return total
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """PNG bytes of a picture (an overlay of the fit, say).
+
+    rgb : (H, W, 3) uint8 RGB. OpenCV encodes BGR, hence the swap.
+    """
+    import cv2  # here: writing clouds needs no OpenCV
+
+    ok, data = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise InputError(f"could not encode a {rgb.shape[1]}x{rgb.shape[0]} picture as PNG")
+    return data.tobytes()

@@ -107,6 +107,15 @@ def test_points_the_engine_would_refuse_are_refused_at_submit(stack, figures):
     assert r.status_code == 422 and r.headers["content-type"] == "application/problem+json", r.text
     [error] = r.json()["errors"]
     assert error["pointer"] == "/items/0/points" and "closer than 4 px" in error["detail"], error
+
+
+def test_collinear_front_points_are_refused_at_submit_in_words(stack):
+    points = [[20, 60], [80, 60], [140, 60], [80, 60], [100, 40]]  # P1, P2, P3 on one row
+    spec = {**item(stack.upload(GOOD), SCENE), "points": points}
+    r = stack.call("POST", "/v1/jobs", json={"items": [spec]})
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert "to one line" in error["detail"], error
     print(f"\nzero-pixel region: {error['detail']}")
 
 

@@ -201,7 +201,8 @@ def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
         client.close()
     names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
     assert names == {"item-0/summary.json"} | {f"item-0/{frame_folder(n)}/{f}" for n in (0, 2) for f in
-                                               ("cloud.csv", "cloud.ply", "preview.ply", "report.json")}
+                                               ("cloud.csv", "cloud.ply", "preview.ply", "overlay.png",
+                                                                "report.json")}
     report = json.loads((tmp_path / "out/item-0/frame_000002/report.json").read_text())
     assert report["dimensions"] == item["frames"][1]["result"]["dimensions"]
 

@@ -216,7 +216,7 @@ def test_a_delivery_verifies_with_the_standard_library(delivered):
     # The very document GET answers; only the presigned links' signatures and expiry differ.
     assert _unsigned(payload) == _unsigned(job)
     item = payload["items"][0]
-    assert set(item["downloads"]) == {"csv", "ply", "preview", "report"}
+    assert set(item["downloads"]) == {"csv", "ply", "preview", "overlay", "report"}
     csv = httpx.get(item["downloads"]["csv"], timeout=10)  # presigned: no credentials needed
     assert csv.status_code == 200 and csv.content.count(b"\n") == item["result"]["points"]
     assert "x-prism-signature" not in headers  # the old scheme is gone

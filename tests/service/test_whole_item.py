@@ -23,7 +23,7 @@ from prismcore.writers import write_csv, write_ply
 
 from .worker_env import Env, encode, spec_for, worker_env
 
-OUTPUTS = {"cloud.csv", "cloud.ply", "preview.ply", "report.json"}
+OUTPUTS = {"cloud.csv", "cloud.ply", "preview.ply", "overlay.png", "report.json"}
 
 
 @pytest.fixture(scope="module")

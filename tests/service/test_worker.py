@@ -48,7 +48,7 @@ def scene():
 
 def _item_files(i: int, tile_names: list[str]) -> set[str]:
     return {f"items/{i}/{name}" for name in ("front", "plan.json", "cloud.csv", "cloud.ply",
-                                             "preview.ply", "report.json")} | {
+                                             "preview.ply", "overlay.png", "report.json")} | {
         f"items/{i}/tiles/{t}.npz" for t in tile_names}
 
 
@@ -98,8 +98,8 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     first, other = job.items
     assert first.outputs == {kind: f"jobs/{job_id}/items/0/{name}" for kind, name in
                              (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("preview", "preview.ply"),
-                              ("report", "report.json"))}
-    assert set(other.outputs) == {"ply", "preview", "report"}  # the formats the spec asked for
+                              ("overlay", "overlay.png"), ("report", "report.json"))}
+    assert set(other.outputs) == {"ply", "preview", "overlay", "report"}  # the formats the spec asked for
     names = _tile_names(specs[0], load_image(photo))
     assert len(names) == 2 * TILES_PER_FACE
     assert _item_files(0, names) <= env.keys(job_id)
@@ -169,7 +169,7 @@ def test_cancelled_before_it_runs_produces_nothing(env, scene):
         assert time.monotonic() < deadline, env.worker.log[-4000:]
         time.sleep(0.1)
     job = env.store.get(job_id)
-    assert job.state == State.cancelled and job.items[0].state == State.queued
+    assert job.state == State.cancelled and job.items[0].state == State.cancelled  # never ran
     assert env.keys(job_id) == set()
 
 

@@ -87,7 +87,7 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     result = job["items"][0]["result"]
     assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
     expect(page.locator("#dimensions dd[data-field=points]")).to_have_text(f"{result['points']:,}")
-    expect(page.locator(".downloads a")).to_have_count(3)
+    expect(page.locator(".downloads a")).to_have_count(4)  # CSV, PLY, report, overlay
     expect(page.locator(f"#jobs tr[data-job='{job['id']}']")).to_contain_text("succeeded")
 
     pixels = d.viewer_pixels()  # the 3D view rendered: many colours, not one flat fill
@@ -115,7 +115,15 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     assert KEY not in page.url and page.evaluate("sessionStorage.getItem('prism.apiKey')") == KEY
     page.reload()
     page.get_by_role("button", name=f"Open job {job['id'][:8]} (succeeded)").click()
-    expect(page.locator("#dimensions dd[data-field=width]")).to_have_text(f"{shown['width']:.2f} mm")
+    sigma = result["uncertainty"]["width"]
+    expect(page.locator("#dimensions dd[data-field=width]")).to_have_text(
+        f"{shown['width']:.2f} ± {sigma:.2f} mm")
+    # The fit drawn on the photo, fetched through the API (same origin, same key).
+    overlay = page.locator("#overlay")
+    expect(page.locator("#overlay-figure")).to_be_visible()
+    page.wait_for_function("document.getElementById('overlay').naturalWidth > 0")
+    assert page.evaluate("document.getElementById('overlay').naturalWidth") == scene.image.shape[1]
+    assert overlay.get_attribute("src").startswith("blob:")
     page.locator("#result").screenshot(path=str(tmp_path / "result.png"))
     assert d.viewer_pixels().std() > 5
 

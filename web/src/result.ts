@@ -1,5 +1,6 @@
-// The result panel: per scan the dimensions, point count and point loss, download links, and the
-// cloud in the 3D view (the preview fetched through the API on this origin, never from S3). A
+// The result panel: per scan the dimensions with their uncertainty, where the focal length came
+// from, point count and point loss, download links, the overlay picture of the fit, and the cloud
+// in the 3D view (preview and overlay fetched through the API on this origin, never from S3). A
 // video shows its summary and frames (video-result.ts), and the cloud of the frame chosen.
 
 import { call, message } from "./api";
@@ -9,7 +10,12 @@ import { isVideoItem, videoResult } from "./video-result";
 import { Viewer } from "./viewer";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
-const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["report", "Report (JSON)"]];
+const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["report", "Report (JSON)"],
+  ["overlay", "Fit overlay (PNG)"]];
+const SOURCES: Record<string, string> = {
+  given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
+  fitted: "fitted to the box", none: "not used (square-on model)",
+};
 
 export class ResultPanel {
   private viewer: Viewer | null = null;
@@ -68,8 +74,9 @@ export class ResultPanel {
     }
     const result = frame ? frame.result : item.result;
     status.textContent = "Loading the 3D view…";
+    const path = `/v1/jobs/${job.id}/items/${item.index}` + (frame ? `/frames/${frame.index}` : "");
+    void this.showOverlay(path, load);
     try {
-      const path = `/v1/jobs/${job.id}/items/${item.index}` + (frame ? `/frames/${frame.index}` : "");
       const response = await call(`${path}/preview.ply`);
       const data = await response.arrayBuffer();
       if (load !== this.loading) return;
@@ -85,6 +92,29 @@ export class ResultPanel {
       if (load === this.loading) status.textContent = `The 3D view could not be shown: ${message(err)}`;
     }
   }
+
+  /** The fit drawn on the photo (overlay.png), under the dimensions. */
+  private async showOverlay(path: string, load: number): Promise<void> {
+    const figure = $("overlay-figure");
+    const img = $<HTMLImageElement>("overlay");
+    figure.hidden = true;
+    if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
+    img.removeAttribute("src");
+    try {
+      const blob = await (await call(`${path}/overlay.png`)).blob();
+      if (load !== this.loading) return;
+      img.src = URL.createObjectURL(blob);
+      figure.hidden = false;
+    } catch {
+      // No overlay (a scan from before overlays, or one that failed): the figure stays hidden.
+    }
+  }
+}
+
+/** "120.00 ± 0.15 mm", or without ± when the uncertainty is unknown. */
+export function withSigma(value: number, sigma: number | undefined, unit: string): string {
+  return sigma === undefined || !Number.isFinite(sigma)
+    ? `${value.toFixed(2)} ${unit}` : `${value.toFixed(2)} ± ${sigma.toFixed(2)} ${unit}`;
 }
 
 /** The video frame whose cloud to show: null for a photo, undefined when no frame was measured. */
@@ -103,13 +133,20 @@ function summary(item: Item): HTMLElement[] {
   }
   const r = item.result;
   const unit = r.dimensions.unit;
+  const sigma = r.uncertainty ?? undefined;
   const rows: [string, string][] = [
-    ["Width", `${r.dimensions.width.toFixed(2)} ${unit}`],
-    ["Height", `${r.dimensions.height.toFixed(2)} ${unit}`],
-    ["Depth", `${r.dimensions.depth.toFixed(2)} ${unit}`],
+    ["Width", withSigma(r.dimensions.width, sigma?.width, unit)],
+    ["Height", withSigma(r.dimensions.height, sigma?.height, unit)],
+    ["Depth", withSigma(r.dimensions.depth, sigma?.depth, unit)],
     ["Points", r.points.toLocaleString("en")],
     ["Point loss", `${(r.point_loss * 100).toFixed(2)} %`],
   ];
+  if (r.focal_source) {
+    const f = r.focal_px ? `${Math.round(r.focal_px)} px, ` : "";
+    rows.push(["Focal length", `${f}${SOURCES[r.focal_source] ?? r.focal_source}`]);
+  }
+  if (r.fit_rms_px !== undefined && r.fit_rms_px !== null) rows.push(["Fit", `${r.fit_rms_px.toFixed(2)} px RMS`]);
+  if (r.side_face) rows.push(["Second face", r.side_face]);
   const dl = document.createElement("dl");
   dl.id = "dimensions";
   for (const [k, v] of rows) {
@@ -117,7 +154,7 @@ function summary(item: Item): HTMLElement[] {
     const dd = document.createElement("dd");
     dt.textContent = k;
     dd.textContent = v;
-    dd.dataset.field = k.toLowerCase().replace(" ", "-");
+    dd.dataset.field = k.toLowerCase().replaceAll(" ", "-");
     dl.append(dt, dd);
   }
   const links = document.createElement("p");

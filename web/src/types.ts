@@ -46,6 +46,12 @@ export interface Result {
   point_loss: number;
   warnings: string[];
   summary?: Summary | null;
+  /** One standard deviation of each dimension, in its unit. */
+  uncertainty?: Record<Dimension, number> | null;
+  focal_px?: number | null;
+  focal_source?: string | null;
+  fit_rms_px?: number | null;
+  side_face?: string | null;
 }
 
 export interface Frame {

@@ -1,8 +1,9 @@
-"""An item's (or a video frame's) display cloud, streamed through the API.
+"""An item's (or a video frame's) display cloud and overlay picture, streamed through the API.
 
-``GET /v1/jobs/{id}/items/{n}/preview.ply`` and ``.../items/{n}/frames/{f}/preview.ply``.
-The web page draws the cloud with WebGL from its own origin, so these routes relay the
-worker's decimated preview object (`relay`). Another tenant's job answers 404, like every job route.
+``GET /v1/jobs/{id}/items/{n}/preview.ply`` and ``.../items/{n}/frames/{f}/preview.ply``; the
+same with ``overlay.png`` (the fit drawn on the photo). The web page draws the cloud with WebGL
+and shows the overlay from its own origin, so these routes relay the worker's objects (`relay`).
+Another tenant's job answers 404, like every job route.
 """
 
 from __future__ import annotations
@@ -35,13 +36,23 @@ def _item(store, job_id: str, index: int, tenant: str) -> ItemRecord:
     return job.items[index]
 
 
-def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: str) -> StreamingResponse:
+def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: str,
+           kind: str = "preview") -> StreamingResponse:
     if key is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"{what} has no preview (the {noun} is {state})")
-    response = relay_object(objects, key, "application/octet-stream", max_age_s=300)
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"{what} has no {kind} (the {noun} is {state})")
+    media = "image/png" if kind == "overlay" else "application/octet-stream"
+    response = relay_object(objects, key, media, max_age_s=300)
     if response is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND, f"the preview of {what} is gone")
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"the {kind} of {what} is gone")
     return response
+
+
+def _frame(item: ItemRecord, job_id: str, index: int, frame: int):
+    record = next((f for f in item.frames if f.index == frame), None)
+    if record is None:
+        raise HTTPException(status.HTTP_404_NOT_FOUND,
+                            f"item {index} of job {job_id} has no frame {frame} (yet)")
+    return record
 
 
 @router.get("/{job_id}/items/{index}/preview.ply", response_class=StreamingResponse, responses=_RESPONSES)
@@ -58,10 +69,31 @@ def get_preview(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
 def get_frame_preview(job_id: str, index: Index, frame: Index, tenant: TenantDep, store: StoreDep,
                       objects: ObjectsDep) -> StreamingResponse:
     """One measured frame's cloud of a video item, decimated for display (binary PLY)."""
-    item = _item(store, job_id, index, tenant)
-    record = next((f for f in item.frames if f.index == frame), None)
-    if record is None:
-        raise HTTPException(status.HTTP_404_NOT_FOUND,
-                            f"item {index} of job {job_id} has no frame {frame} (yet)")
+    record = _frame(_item(store, job_id, index, tenant), job_id, index, frame)
     return _relay(objects, record.outputs.get("preview"), f"frame {frame} of item {index} of job {job_id}",
                   "frame", record.state.value)
+
+
+_PNG_RESPONSES = {200: {"content": {"image/png": {}}, "description": "The fit drawn on the photo: "
+                        "clicks, fitted faces and corners, residuals, dimensions."},
+                  404: {"description": "No such job, item, frame or overlay"}}
+
+
+@router.get("/{job_id}/items/{index}/overlay.png", response_class=StreamingResponse,
+            responses=_PNG_RESPONSES)
+def get_overlay(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
+                objects: ObjectsDep) -> StreamingResponse:
+    """The item's overlay picture (PNG): whether the fit sits on the box, at a glance."""
+    item = _item(store, job_id, index, tenant)
+    return _relay(objects, item.outputs.get("overlay"), f"item {index} of job {job_id}", "item",
+                  item.state.value, "overlay")
+
+
+@router.get("/{job_id}/items/{index}/frames/{frame}/overlay.png", response_class=StreamingResponse,
+            responses=_PNG_RESPONSES)
+def get_frame_overlay(job_id: str, index: Index, frame: Index, tenant: TenantDep, store: StoreDep,
+                      objects: ObjectsDep) -> StreamingResponse:
+    """One measured frame's overlay picture (PNG) of a video item."""
+    record = _frame(_item(store, job_id, index, tenant), job_id, index, frame)
+    return _relay(objects, record.outputs.get("overlay"), f"frame {frame} of item {index} of job {job_id}",
+                  "frame", record.state.value, "overlay")
