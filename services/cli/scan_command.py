@@ -12,13 +12,15 @@ from pydantic import ValidationError
 from rich.console import Console
 
 from prismcore import InputError, ScanSpec, parse_points, run_scan
+from prismcore.camera import CameraModel
+from prismcore.exif import exif_focal
 from prismcore.images import load_image
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
 from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
-__all__ = ["scan", "spec_from_flags"]
+__all__ = ["scan", "spec_from_flags", "summary_line"]
 
 console = Console()
 
@@ -72,6 +74,37 @@ def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec
     })
 
 
+def summary_line(report: dict) -> str:
+    """'640,268 points  120.00 ± 0.14 x 79.99 ± 0.09 x 59.99 ± 0.51 mm  focal 1400 px (fitted)
+    point loss 0.1%'."""
+    dims, sigma = report["dimensions"], report.get("uncertainty") or {}
+    sizes = " x ".join(f"{dims[k]:.2f}" + (f" ± {sigma[k]:.2f}" if k in sigma else "")
+                       for k in ("width", "height", "depth"))
+    camera = report.get("camera") or {}
+    focal = (f"  focal {camera['focal_px']:.0f} px ({camera['focal_source']})"
+             if camera.get("focal_px") else "")
+    return (f"[bold]{report['points']:,} points[/]  {sizes} {dims['unit']}{focal}"
+            f"  point loss {report['point_loss']:.1%}")
+
+
+_EXIF_HEAD = 256 * 1024  # a JPEG's EXIF (APP1) is at most 64 KiB, right after its start
+
+
+def _head(path: Path) -> bytes:
+    with path.open("rb") as fh:
+        return fh.read(_EXIF_HEAD)
+
+
+def _camera_file(path: Path) -> CameraModel:
+    try:
+        return CameraModel.model_validate_json(path.read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read --camera {str(path)!r}: {exc.strerror}") from None
+    except ValidationError as exc:
+        raise InputError(f"--camera {str(path)!r} is not a camera model (prism calibrate writes "
+                         f"one): {_one_line(exc)}") from None
+
+
 def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
     try:
         data = json.loads(path.read_text())
@@ -99,6 +132,8 @@ def scan(
     mm_per_px: Annotated[str | None, typer.Option(help="F, or FRONT,SIDE for two photos.")] = None,
     distance_mm: Annotated[float | None, typer.Option(help="Shooting distance, mm.")] = None,
     focal_px: Annotated[float | None, typer.Option(help="Focal length, pixels.")] = None,
+    camera: Annotated[Path | None, typer.Option(
+        help="camera.json from prism calibrate: intrinsics and lens distortion.")] = None,
     width_mm: Annotated[float | None, typer.Option(help="Known real width.")] = None,
     height_mm: Annotated[float | None, typer.Option(help="Known real height.")] = None,
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
@@ -137,6 +172,8 @@ def scan(
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
                 side_face=side_face or "auto"), Path(".")
+        if camera is not None:
+            spec = spec.model_copy(update={"camera": _camera_file(camera)})
         if spec.is_video or is_video(base / spec.image):
             scan_video(spec, base, out, tiles=tiles, max_frames=max_frames)
             return
@@ -144,8 +181,10 @@ def scan(
         front = load_image(base / spec.image, max_pixels=spec.max_pixels)
         side_img = (load_image(base / spec.side_image, max_pixels=spec.max_pixels)
                     if spec.side_image else None)
+        found = exif_focal(_head(base / spec.image), front.shape[1], front.shape[0])
         load_ms = (time.perf_counter() - load_start) * 1000
-        result = run_scan(spec, front, side_img, tiles=tiles)
+        result = run_scan(spec, front, side_img, tiles=tiles,
+                          exif_focal_px=found.focal_px if found else None)
     except ValidationError as exc:
         raise InputError(_one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
@@ -154,10 +193,7 @@ def scan(
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
-    dims = result.report["dimensions"]
-    console.print(f"[bold]{result.report['points']:,} points[/]  "
-                  f"{dims['width']:.2f} x {dims['height']:.2f} x {dims['depth']:.2f} {dims['unit']}"
-                  f"  point loss {result.report['point_loss']:.1%}")
+    console.print(summary_line(result.report), soft_wrap=True)
     for warning in result.report["warnings"]:
         console.print(f"[yellow]warning:[/] {warning}")
     wide = max(map(len, paths))

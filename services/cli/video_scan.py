@@ -17,6 +17,7 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
+from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.summary import DIMENSIONS, frame_info, summarize
 from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
@@ -42,9 +43,9 @@ def selection_from_flags(every: int | None, start: float | None, end: float | No
 
 
 def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tiles: int,
-             decode_ms: float) -> dict:
+             decode_ms: float, pooled: PooledFocal | None) -> dict:
     one = frame_spec(spec, index)
-    result = run_scan(one, frame, tiles=tiles)
+    result = run_scan(one, frame, tiles=tiles, pooled_focal=pooled)
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
@@ -52,6 +53,26 @@ def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tile
     write_overlays(result.report, frame, None, folder)
     report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
     return result.report
+
+
+def _pooled_focal(spec: ScanSpec, path: Path, indices: list[int]) -> tuple[PooledFocal, list[int]] | None:
+    """All frames of one video share one focal length: when none is known, fit it on every
+    frame first (the fit only, a fraction of a frame's cost) and pool the fits, so each frame is
+    then measured with the steadier pooled value. Returns it with the frames it was pooled
+    over; None when fewer than two frames give one."""
+    if spec.focal_px is not None or spec.camera is not None:
+        return None
+    estimates, fitted = [], []
+    try:
+        for index, frame in iter_frames(path, indices):
+            found = focal_estimate(frame_spec(spec, index), frame)
+            if found is not None:
+                estimates.append(found)
+                fitted.append(index)
+    except InputError:
+        pass  # the measuring pass meets the same break and reports it per frame
+    pooled = pool_focal(estimates) if len(estimates) >= 2 else None
+    return None if pooled is None else (pooled, [fitted[i] for i in pooled.used])
 
 
 def _table(summary: dict) -> Table:
@@ -83,6 +104,11 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
     indices = select_frames(path, spec.frames, info, max_frames=max_frames)
     console.print(f"{path}: {info.width}x{info.height} {info.codec}, {info.frame_count} frames at "
                   f"{info.fps:g} fps; measuring {len(indices)}")
+    found = _pooled_focal(spec, path, indices)
+    pooled = found[0] if found else None
+    if found is not None:
+        console.print(f"focal length pooled over {len(found[1])} frames: {found[0].focal_px:.1f} "
+                      f"± {found[0].std_px:.1f} px")
     per_frame: dict[int, dict] = {}
     frames = iter_frames(path, indices)
     tick = time.perf_counter()
@@ -90,7 +116,7 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
         for index, frame in frames:
             decode_ms = (time.perf_counter() - tick) * 1000
             try:
-                report = _measure(spec, index, frame, info, out, tiles, decode_ms)
+                report = _measure(spec, index, frame, info, out, tiles, decode_ms, pooled)
             except InputError as exc:
                 per_frame[index] = {"error": str(exc)}
                 console.print(f"[red]{frame_folder(index)} failed:[/] {exc}")
@@ -107,6 +133,9 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
     summary = summarize(per_frame, fps=info.fps or None)
     summary["video"] = {"path": str(path), **asdict(info)}
     summary["selection"] = spec.frames.model_dump(mode="json", exclude_none=True)
+    if found is not None:
+        summary["focal"] = {"pooled_px": round(found[0].focal_px, 3), "std_px": round(found[0].std_px, 3),
+                            "frames": found[1]}
     out.mkdir(parents=True, exist_ok=True)
     (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
     if not summary["frames"]["measured"]:

@@ -39,6 +39,7 @@ from .measure import (
     square_on_cost,
 )
 from .perspective import NOISE_CLICK_PX, FaceEvidence
+from .pooling import PooledFocal
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
 from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
 
@@ -173,13 +174,15 @@ class _Focal:
     """The focal length and principal point the fit starts from, and where they came from."""
 
     focal_px: float | None
-    source: str  # given | camera | exif | none (fitted is decided by the fit)
+    source: str  # given | camera | exif | pooled | none (fitted is decided by the fit)
     principal: list[tuple[float, float]]  # per image
+    extra: dict = field(default_factory=dict)  # report fields of the source (a pooled std, ...)
 
 
 def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list | None,
-                   exif_focal_px: float | None) -> _Focal:
-    """Order of trust: given > camera profile > EXIF > (fitted later)."""
+                   exif_focal_px: float | None, pooled: PooledFocal | None = None) -> _Focal:
+    """Order of trust: given > camera profile > EXIF > pooled over the camera's photos >
+    (fitted later)."""
     centres = [((img.shape[1] - 1) / 2, (img.shape[0] - 1) / 2) for img in images]
     if cameras is not None:
         centres = [(c.cx, c.cy) for c in cameras]
@@ -191,6 +194,9 @@ def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list | Non
         return _Focal(float(np.sqrt(cameras[0].fx * cameras[0].fy)), "camera", centres)
     if exif_focal_px is not None:
         return _Focal(float(exif_focal_px), "exif", centres)
+    if pooled is not None:
+        return _Focal(float(pooled.focal_px), "pooled", centres,
+                      {"focal_std_px": round(pooled.std_px, 3), "pooled_photos": len(pooled.used)})
     return _Focal(None, "none", centres)
 
 
@@ -219,7 +225,7 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
     complete = quads.front_complete and quads.side_complete
     face = quads.side_face
     camera = {"focal_px": focal.focal_px, "focal_source": focal.source,
-              "principal_point": [round(float(v), 3) for v in focal.principal[0]]}
+              "principal_point": [round(float(v), 3) for v in focal.principal[0]], **focal.extra}
     if spec.method == "default" and complete and (focal.focal_px is not None or not spec.two_photo):
         evidence = [FaceEvidence(getattr(quads, n), getattr(marked, n),
                                  tuple(f.line if f.fitted else None for f in fits[n]))
@@ -328,11 +334,12 @@ def prepare_images(spec: ScanSpec, images: list[np.ndarray]) -> list[np.ndarray]
 
 
 def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
-              exif_focal_px: float | None = None) -> ScanPlan:
+              exif_focal_px: float | None = None, pooled_focal: PooledFocal | None = None) -> ScanPlan:
     """Validate the points, locate the faces and measure the prism.
 
     The focal length is, in this order of trust: the spec's `focal_px`, its `camera`,
-    `exif_focal_px` (read from the photo by the caller, in pixels of the decoded image), or
+    `exif_focal_px` (read from the photo by the caller, in pixels of the decoded image),
+    `pooled_focal` (fitted over the photos of one camera, `prismcore.pooling.pool_focal`), or
     fitted from the box itself (one photo, seven points). A camera with lens distortion has it
     removed from the images and the points first (see `prepare_images`).
 
@@ -390,7 +397,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         if spec.method == "default":
             quads, fits = _refine(spec, images, marked, warnings)
     with _timed(timings, "measure"):
-        focal = _resolve_focal(spec, images, cameras, exif_focal_px)
+        focal = _resolve_focal(spec, images, cameras, exif_focal_px, pooled_focal)
         if isinstance(spec.scale, Pinhole) and focal.focal_px is None and not (
                 spec.method == "default" and quads.front_complete and quads.side_complete
                 and not spec.two_photo):
@@ -489,9 +496,10 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:
 
 
 def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
-             tiles: int = 1, exif_focal_px: float | None = None) -> ScanResult:
+             tiles: int = 1, exif_focal_px: float | None = None,
+             pooled_focal: PooledFocal | None = None) -> ScanResult:
     """Plan, scan every face in `tiles` row bands and assemble, in this process."""
-    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px)
+    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal)
     images = prepare_images(spec, [front] + ([side] if spec.two_photo and side is not None else []))
     with _timed(plan.timings_ms, "scan"):
         scans = [scan_face(images[f.image], f, tiles) for f in plan.faces]

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PooledFocal", "pool_focal"]
+from .spec import ScanSpec
+
+__all__ = ["PooledFocal", "focal_estimate", "pool_focal"]
 
 _OUTLIER_SIGMAS = 3.0
 _MAD_TO_SIGMA = 1.4826  # the MAD of a normal distribution, in sigmas
@@ -73,3 +75,21 @@ def pool_focal(estimates: Sequence[tuple[float, float]]) -> PooledFocal | None:
         chi2 = float(np.sum(w * (f - mean) ** 2)) / (f.size - 1)
         std *= math.sqrt(max(1.0, chi2))
     return PooledFocal(mean, std, tuple(int(i) for i in index))
+
+
+def focal_estimate(spec: ScanSpec, image: np.ndarray) -> tuple[float, float] | None:
+    """One photo's own fitted focal length and its standard error (px), for pooling; None when
+    the photo gives none (a focal length known already, too few points, a fit refused).
+
+    image : (H, W, 3) RGB, as for `prismcore.plan_scan`. Only the fit runs, not the scan.
+    """
+    from .errors import InputError
+    from .pipeline import plan_scan  # the pipeline takes a PooledFocal: imported here, not above
+
+    try:
+        camera = plan_scan(spec, image).camera
+    except InputError:
+        return None
+    if camera.get("focal_source") != "fitted" or camera.get("focal_std_px") is None:
+        return None
+    return float(camera["focal_px"]), float(camera["focal_std_px"])
