@@ -8,11 +8,17 @@ fit see a distortion-free image with the same intrinsics.
 
 from __future__ import annotations
 
-import cv2
-import numpy as np
+from typing import TYPE_CHECKING
+
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat, PositiveInt
 
 from .errors import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# numpy and OpenCV are imported where they are used: a job spec carries a CameraModel, and the
+# API validates specs without loading them (prismcore.spec is pydantic-only).
 
 __all__ = ["CameraModel", "undistort_image", "undistort_points"]
 
@@ -41,14 +47,18 @@ class CameraModel(BaseModel):
 
     def matrix(self) -> np.ndarray:
         """K, shape (3, 3), float64."""
+        import numpy as np
+
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     def distortion(self) -> np.ndarray:
+        import numpy as np
+
         return np.asarray(self.dist, dtype=np.float64)
 
     @property
     def has_distortion(self) -> bool:
-        return bool(np.any(self.distortion() != 0))
+        return any(k != 0 for k in self.dist)
 
     def for_size(self, width: int, height: int) -> CameraModel:
         """The same camera for a photo of `width` x `height` px.
@@ -77,12 +87,17 @@ def undistort_image(image: np.ndarray, camera: CameraModel) -> np.ndarray:
     """
     if not camera.has_distortion:
         return image
+    import cv2
+
     K = camera.matrix()
     return cv2.undistort(image, K, camera.distortion(), None, K)
 
 
 def undistort_points(points: np.ndarray, camera: CameraModel) -> np.ndarray:
     """Image (x, y) px, shape (N, 2), moved as `undistort_image` moves the pixels."""
+    import cv2
+    import numpy as np
+
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 1, 2)
     if not camera.has_distortion:
         return pts.reshape(-1, 2).copy()

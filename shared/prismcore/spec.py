@@ -10,19 +10,19 @@ from __future__ import annotations
 
 import re
 from collections import Counter
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from pydantic import (
     BaseModel,
-    BeforeValidator,
     ConfigDict,
     Field,
     FiniteFloat,
     NonNegativeInt,
     PositiveFloat,
-    WithJsonSchema,
     model_validator,
 )
+
+from .camera import CameraModel
 
 __all__ = [
     "FILE_NAMES",
@@ -178,24 +178,7 @@ class FrameSelection(_Strict):
         return self
 
 
-def _camera_model(value: object) -> object:
-    # prismcore.camera loads numpy and OpenCV: imported only when a spec carries a camera, so
-    # that validating any other spec stays pydantic-only (the API's rule).
-    if value is None:
-        return None
-    from .camera import CameraModel
 
-    return CameraModel.model_validate(value)
-
-
-_CAMERA_SCHEMA = {
-    "type": "object",
-    "description": "A calibrated camera (prismcore.camera.CameraModel: fx, fy, cx, cy, dist, "
-                   "image_width, image_height): its focal length and principal point are used, "
-                   "and its lens distortion is removed from the photo and the points first.",
-    "required": ["fx", "fy", "cx", "cy", "image_width", "image_height"],
-}
-CameraField = Annotated[Any, BeforeValidator(_camera_model), WithJsonSchema(_CAMERA_SCHEMA)]
 
 
 class ScanSpec(_Strict):
@@ -230,7 +213,7 @@ class ScanSpec(_Strict):
     principal_point: Point | None = Field(
         default=None, description="Optical centre (x, y) in pixels; the image centre if omitted."
     )
-    camera: CameraField = Field(
+    camera: CameraModel | None = Field(
         default=None, description="Calibrated camera; trusted after focal_px, before EXIF and "
         "before the focal length fitted from the box."
     )

@@ -551,7 +551,9 @@ def test_results_and_presigned_downloads(client, store, objects):
     first, second = job["items"]
     assert first["result"] == {"points": 1234, "dimensions": {"width": 120.0, "height": 80.0,
                                                               "depth": 60.0, "unit": "mm"},
-                               "point_loss": 0.01, "warnings": ["low contrast"], "summary": None}
+                               "point_loss": 0.01, "warnings": ["low contrast"], "summary": None,
+                               "uncertainty": None, "focal_px": None, "focal_source": None,
+                               "fit_rms_px": None, "side_face": None}
     assert set(first["downloads"]) == {"csv", "report"}  # only what the item has
     csv = httpx.get(first["downloads"]["csv"])
     assert csv.status_code == 200 and csv.content == b"1,2,3\n"
