@@ -15,6 +15,7 @@ from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView
 
 from prismcore import InputError, run_scan
 from prismcore.images import load_image
+from prismcore.pooling import PooledFocal
 from prismcore.spec import SUMMARY_NAME
 from prismcore.summary import frame_info, summarize
 from prismcore.video import frame_spec
@@ -23,7 +24,7 @@ from . import context, fanout
 from .keys import frame_key, item_key
 from .outputs import write_outputs
 from .planning import max_pixels
-from .video_item import FRAMES_NAME
+from .video_item import FOCAL_NAME, FRAMES_NAME
 
 __all__ = ["frame_failed", "frame_finished", "scan_frame"]
 
@@ -35,7 +36,7 @@ def scan_frame(view: ItemView, frame: int) -> None:
         photo_spec = frame_spec(spec, frame)
         data = context.objects().get_bytes(frame_key(job_id, item, frame, "frame.png"))
         image = load_image(data, max_pixels=max_pixels(spec.max_pixels), name=f"frame {frame}")
-        scan = run_scan(photo_spec, image)
+        scan = run_scan(photo_spec, image, pooled_focal=_pooled(item_key(job_id, item, FOCAL_NAME)))
         fps = _frames(item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
         scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
         result, outputs = write_outputs(job_id, item, photo_spec, scan, [image], frame=frame)
@@ -62,6 +63,16 @@ def frame_finished(job_id: str, item: int, frame: int, *, maybe_repeat: bool) ->
 
 
 @lru_cache(maxsize=32)
+def _pooled(key: str) -> PooledFocal | None:
+    """focal.json: the focal length pooled over the video's frames (None: none was pooled)."""
+    objects = context.objects()
+    if not objects.exists(key):
+        return None
+    doc = objects.get_json(key)
+    return PooledFocal(doc["focal_px"], doc["std_px"], tuple(doc["used"]))
+
+
+@lru_cache(maxsize=32)
 def _frames(key: str) -> dict:
     """frames.json (never changes once written)."""
     return json.loads(context.objects().get_bytes(key))  # missing: an error, retried
@@ -85,6 +96,9 @@ def _finish_video(job_id: str, item: int, frames: dict, *, maybe_repeat: bool) -
             # The same document as the CLI's summary.json; the video named by its reference.
             summary["video"] = {"reference": view.item.spec.image, **frames["video"]}
             summary["selection"] = view.item.spec.frames.model_dump(mode="json", exclude_none=True)
+            if (pooled := _pooled(item_key(job_id, item, FOCAL_NAME))) is not None:
+                summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
+                                    "frames": [frames["frames"][i] for i in pooled.used]}
             key = item_key(job_id, item, SUMMARY_NAME)
             context.objects().put_json(key, summary)
             dims = {k: v["median"] for k, v in summary["dimensions"].items()}

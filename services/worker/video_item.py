@@ -18,7 +18,8 @@ from prism_common.queue import TASK_SCAN_FRAME
 from prism_common.records import ItemView, State
 
 from prismcore import InputError
-from prismcore.video import iter_frames, probe_video, select_frames
+from prismcore.pooling import focal_estimate, pool_focal
+from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
 
 from . import context
 from .app import app
@@ -27,9 +28,10 @@ from .inputs import save_input
 from .keys import frame_key, item_key
 from .planning import max_pixels
 
-__all__ = ["FRAMES_NAME", "client_message", "png_bytes", "split_video"]
+__all__ = ["FOCAL_NAME", "FRAMES_NAME", "client_message", "png_bytes", "split_video"]
 
 FRAMES_NAME = "frames.json"
+FOCAL_NAME = "focal.json"  # the focal length pooled over the frames' own fits, when one was
 _PNG_FAST = [cv2.IMWRITE_PNG_COMPRESSION, 1]  # lossless either way; level 1 is ~5x faster than 3
 
 
@@ -76,9 +78,27 @@ def split_video(view: ItemView) -> list[int]:
                              "per job: select fewer (every, start_s/end_s, sharpest or indices)")
         objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
         count_plan(job_id, item, len(frames))  # progress counts frames from here on
+        # Without a focal length, every frame's own fit is pooled into one (one camera) before
+        # any frame is measured: the frames' tasks then wait for the split to end.
+        pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
+        estimates: list[tuple[float, float]] = []
+        stored: list[int] = []
         for index, rgb in iter_frames(path, frames):
             if store.state(job_id) != State.running:
                 break  # cancelled (or ended) meanwhile: the remaining frames are not wanted
             objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
-            app.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+            if pool:
+                if (found := focal_estimate(frame_spec(spec, index), rgb)) is not None:
+                    estimates.append(found)
+                stored.append(index)
+            else:
+                app.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+        if pool:
+            pooled = pool_focal(estimates) if len(estimates) >= 2 else None
+            if pooled is not None:
+                objects.put_json(item_key(job_id, item, FOCAL_NAME),
+                                 {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
+                                  "used": list(pooled.used), "estimates": len(estimates)})
+            for index in stored:
+                app.send_task(TASK_SCAN_FRAME, (job_id, item, index))
     return frames

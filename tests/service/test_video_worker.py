@@ -164,3 +164,22 @@ def test_the_frame_cap_fails_the_item_that_goes_over_it(env, clip):
     assert states == [State.failed, State.succeeded], both
     failed = next(item for item in both.items if item.state == State.failed)
     assert "the job's videos select 6 frames, over the cap of 5 frames per job" in failed.error
+
+
+def test_a_video_without_a_focal_length_is_measured_with_one_pooled_over_its_frames(env, clip):
+    scenes, video = clip
+    spec = ScanSpec.model_validate({
+        "image": env.upload(video, name="pooled.avi"), "points": _clicks(scenes[0]),
+        "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}, "frames": {"every": 2}})
+    job = env.wait(env.submit([spec]), timeout=120)
+    item = job.items[0]
+    assert item.state == State.succeeded, item.error
+    summary = item.result.summary
+    assert summary["focal"]["pooled_px"] == pytest.approx(scenes[0].focal_px, rel=0.03)
+    assert len(summary["focal"]["frames"]) >= 2
+    for frame in item.frames:
+        assert frame.state == State.succeeded, frame.error
+        assert frame.result.focal_source == "pooled"
+        assert frame.result.focal_px == pytest.approx(summary["focal"]["pooled_px"], abs=1e-3)
+        assert abs(frame.result.dimensions["depth"] / 60.0 - 1) < 0.02
+    assert "focal.json" in {k.rsplit("/", 1)[-1] for k in env.keys(job.id)}
