@@ -22,7 +22,7 @@ from prism_worker.pending import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.scan import merge_bands, row_tiles, scan_band
-from prismcore.synth import Box, render_oblique_view
+from prismcore.synth import Box, CameraExif, Realism, Style, render_oblique_view
 from prismcore.writers import write_csv
 
 from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env
@@ -125,6 +125,32 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
 
     durations = read_task_durations(env.redis)
     assert durations["prism.scan_tile"]["count"] >= 16 and durations["prism.finish_item"]["count"] >= 2
+
+
+def test_a_calibrated_camera_inline_and_exif_reach_the_tiled_scan(env):
+    # A photo through a lens with barrel distortion, its camera given inline: the plan undistorts
+    # it and every tile scans the undistorted photo; the same photo's EXIF alone gives the focal.
+    realism = Realism(k1=-0.12, exif=CameraExif())
+    shot = render_oblique_view(Box(120.0, 80.0, 60.0), style=Style(jpeg_quality=92), realism=realism, seed=3)
+    h, w = shot.image.shape[:2]
+    camera = {"fx": shot.focal_px, "fy": shot.focal_px, "cx": (w - 1) / 2, "cy": (h - 1) / 2,
+              "dist": list(realism.distortion()), "image_width": w, "image_height": h}
+    ref = env.upload(shot.jpeg, name="lens.jpg")
+    clicks = [list(shot.points[n]) for n in ("p1", "p2", "p3", "p4", "p5", "p6", "p7")]
+    scale = {"kind": "edge", "edge": "width", "length_mm": 120.0}
+    specs = [ScanSpec.model_validate({"image": ref, "points": clicks, "scale": scale, "camera": camera}),
+             ScanSpec.model_validate({"image": ref, "points": clicks, "scale": scale})]
+    job = env.wait(env.submit(specs), timeout=120)
+    with_camera, with_exif = job.items
+    assert with_camera.state == with_exif.state == State.succeeded, (with_camera.error, with_exif.error)
+    assert with_camera.result.focal_source == "camera" and with_exif.result.focal_source == "exif"
+    for item in job.items:
+        dims = item.result.dimensions
+        assert abs(dims["height"] / 80.0 - 1) < 0.02 and abs(dims["depth"] / 60.0 - 1) < 0.02, dims
+        assert set(item.result.uncertainty) == {"width", "height", "depth"}
+    # The service's result is the engine's own on the same input (tiles of the undistorted photo).
+    local = run_scan(specs[0], load_image(shot.jpeg))
+    assert with_camera.result.dimensions == local.report["dimensions"]
 
 
 def test_bad_inputs_fail_only_their_items(env, scene):
