@@ -31,6 +31,12 @@ def sh_blocks() -> list[str]:
     return [body for lang, body in _BLOCK.findall(README.read_text()) if lang == "sh"]
 
 
+def python_block(marker: str) -> str:
+    found = [body for lang, body in _BLOCK.findall(README.read_text()) if lang == "python" and marker in body]
+    assert len(found) == 1, f"README: expected one python block containing {marker!r}, found {len(found)}"
+    return found[0]
+
+
 def _block(marker: str) -> str:
     found = [b for b in sh_blocks() if marker in b]
     assert len(found) == 1, f"README: expected one sh block containing {marker!r}, found {len(found)}"
@@ -224,3 +230,15 @@ def test_serve_restarted_keeps_download_links_working_and_says_stopped(tmp_path:
             assert json.loads(answer.read())["dimensions"]["unit"] == "mm"
     finally:
         stop(proc, log)
+
+
+def test_python_client_block_measures_the_sample(served, user_dir: Path):
+    script = user_dir / "client_example.py"
+    script.write_text(python_block("from prism_cli.client import ApiClient"))
+    run = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(script)], cwd=user_dir,
+                         env=_client_env(served), capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "succeeded 100" in run.stdout and "fitted" in run.stdout, run.stdout
+    report = json.loads((user_dir / "out" / "client" / "item-0" / "report.json").read_text())
+    assert report["camera"]["focal_source"] == "fitted"
+    assert (user_dir / "out" / "client" / "item-0" / "overlay.png").stat().st_size > 0
