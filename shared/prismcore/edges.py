@@ -51,6 +51,10 @@ class EdgeFit:
     support: float  # fraction of profiles that agree with the line, 0-1
     rms_px: float  # RMS distance of the agreeing edge points to the line
     fitted: bool  # False when no edge was found and the clicked side was kept
+    points: np.ndarray | None = None
+    """(N, 2) float64 image (x, y) px of the edge as sampled along the side (one per profile that
+    sees it), following its curvature: a lens's distortion bends straight edges, and these
+    samples are what a plumb-line estimate of it reads. None when the edge was not fitted."""
 
 
 def line_through(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -214,7 +218,37 @@ def fit_edge(image: np.ndarray, p: np.ndarray, q: np.ndarray, *, search_px: floa
     a, b, support, rms = refined
     start = p + a * n
     end = p + (q - p) + (a + b * float(np.linalg.norm(q - p))) * n
-    return EdgeFit(line_through(start, end), support, rms, True)
+    return EdgeFit(line_through(start, end), support, rms, True, _curve_points(s, pos, p, d, n, a, b))
+
+
+_CURVE_REACH_PX = 3.0  # how far a bent edge may stray from its chord (a phone lens: a few px)
+_CURVE_TOL_PX = 0.75
+
+
+def _curve_points(s: np.ndarray, pos: np.ndarray, p: np.ndarray, d: np.ndarray, n: np.ndarray,
+                  a: float, b: float) -> np.ndarray | None:
+    """The edge's samples (N, 2) image (x, y) px, following its curvature.
+
+    The straight fit keeps only the samples within 0.6 px of its line, which on an edge bent by
+    the lens are the middle ones. Here each profile's candidate nearest the line (within
+    _CURVE_REACH_PX) seeds a quadratic t = a + b s + c s^2 (the lowest order that bends), and the
+    candidates within _CURVE_TOL_PX of that quadratic are kept.
+    """
+    filled = np.where(np.isfinite(pos), pos, np.inf)
+    rows = np.arange(len(s))
+    guess = a + b * s
+    for tol in (_CURVE_REACH_PX, _CURVE_TOL_PX, _CURVE_TOL_PX):
+        k = np.argmin(np.abs(filled - guess[:, None]), axis=1)
+        t = filled[rows, k]
+        use = np.abs(t - guess) <= tol
+        if use.sum() < 6:
+            return None
+        # Centred and scaled abscissa: a well-conditioned quadratic.
+        mid, half = float(s.mean()), float(np.ptp(s)) / 2 or 1.0
+        u = (s - mid) / half
+        coef = np.polyfit(u[use], t[use], 2)
+        guess = np.polyval(coef, u)
+    return p + s[use, None] * d + t[use, None] * n
 
 
 def inward(line: np.ndarray, inside: np.ndarray) -> np.ndarray:

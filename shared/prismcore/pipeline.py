@@ -228,7 +228,8 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
               "principal_point": [round(float(v), 3) for v in focal.principal[0]], **focal.extra}
     if spec.method == "default" and complete and (focal.focal_px is not None or not spec.two_photo):
         evidence = [FaceEvidence(getattr(quads, n), getattr(marked, n),
-                                 tuple(f.line if f.fitted else None for f in fits[n]))
+                                 tuple(f.line if f.fitted else None for f in fits[n]),
+                                 tuple(f.points if f.fitted else None for f in fits[n]))
                     for n in ("front", "side")]
         if spec.two_photo:
             assert focal.focal_px is not None
@@ -238,7 +239,8 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
             return dims, FaceQuads(front, side, True, True), camera
         free = focal.focal_px is None
         K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
-        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free, side_face=face)
+        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free, side_face=face,
+                                lens_known=focal.source == "camera")
         if free:
             assert fit.focal_std_px is not None
             camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
