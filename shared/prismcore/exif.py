@@ -47,7 +47,6 @@ import operator
 import re
 import struct
 import warnings
-import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -55,7 +54,7 @@ from typing import Any
 from PIL import Image
 
 from .errors import InputError
-from .images import probe_image
+from .images import PIL_ERRORS, probe_image
 
 __all__ = [
     "FILM_35MM_DIAGONAL_MM",
@@ -89,21 +88,7 @@ _PLAUSIBLE_FOCAL_DIAGONALS = (0.2, 10.0)  # f_px / image diagonal px
 _MAX_TEXT = 128  # longer make/model strings are a broken block; they are cut, not trusted further
 
 # What Pillow may raise on a malformed EXIF block, while loading it or reading a value lazily.
-_PIL_ERRORS = (
-    OSError,
-    SyntaxError,
-    ValueError,
-    EOFError,
-    struct.error,
-    zlib.error,
-    IndexError,
-    KeyError,
-    TypeError,
-    AttributeError,
-    ZeroDivisionError,
-    OverflowError,
-    RecursionError,
-)
+_PIL_ERRORS = (*PIL_ERRORS, AttributeError, ZeroDivisionError, OverflowError, RecursionError)
 
 
 @dataclass(frozen=True)

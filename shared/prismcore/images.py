@@ -71,7 +71,7 @@ from PIL import (
 from .containers import video_container
 from .errors import InputError
 
-__all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "ImageInfo", "load_image", "probe_image"]
+__all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "PIL_ERRORS", "ImageInfo", "load_image", "probe_image"]
 
 DEFAULT_MAX_PIXELS = 50_000_000
 """Largest image (width * height) :func:`load_image` decodes unless told otherwise."""
@@ -90,7 +90,7 @@ _PLUGINS: dict[str, type[ImageFile.ImageFile]] = {
 }
 # What Pillow raises for a damaged file while opening or decoding it (ImageFile wraps parser
 # slips in SyntaxError; decoders raise OSError; zlib and struct errors can escape from plugins).
-_PIL_ERRORS = (
+PIL_ERRORS = (
     OSError,
     SyntaxError,
     ValueError,
@@ -418,7 +418,7 @@ def _pil_open(fmt: str, fp: BinaryIO, label: str) -> ImageFile.ImageFile:
         return _PLUGINS[fmt](fp)
     except Image.DecompressionBombError as exc:  # WebP checks its canvas while opening
         raise InputError(f"{label} is over Pillow's decompression-bomb limit ({exc})") from exc
-    except _PIL_ERRORS as exc:
+    except PIL_ERRORS as exc:
         raise _corrupt(label, fmt, exc) from exc
 
 
@@ -436,7 +436,7 @@ def _pil_load(im: ImageFile.ImageFile, info: ImageInfo, label: str) -> None:
             im.load()
     except Image.DecompressionBombError as exc:
         raise _bomb(label, im.size, exc) from exc
-    except _PIL_ERRORS as exc:
+    except PIL_ERRORS as exc:
         raise _corrupt(label, info.format, exc) from exc
 
 
