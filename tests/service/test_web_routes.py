@@ -4,7 +4,10 @@ the real Redis and SeaweedFS of the fixtures)."""
 from __future__ import annotations
 
 import os
+import tempfile
 
+import cv2
+import numpy as np
 import pytest
 from prism_common.records import FrameRecord, State
 
@@ -68,9 +71,21 @@ def test_preview_object_gone_is_404(api, store, objects):
     assert r.status_code == 404 and "is gone" in r.json()["detail"]
 
 
+def _clip() -> bytes:
+    """A small real MJPEG AVI (8 frames, 256x128): the job's item must name a video."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, "clip.avi")
+        writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (256, 128))
+        for i in range(8):
+            writer.write(np.full((128, 256, 3), 20 * i, np.uint8))
+        writer.release()
+        with open(path, "rb") as fh:
+            return fh.read()
+
+
 def _video_job_with_frame_preview(api, store, objects, data: bytes) -> str:
     """A video item whose frame 4 succeeded with a preview holding `data`; frame 6 failed."""
-    job_id = submit(api, [item(upload(api), frames={"every": 2})]).json()["id"]
+    job_id = submit(api, [item(upload(api, _clip(), name="clip.avi"), frames={"every": 2})]).json()["id"]
     key = f"jobs/{job_id}/items/0/frame_000004/preview.ply"
     objects.put_bytes(key, data)
     store.put_frame(job_id, 0, FrameRecord(index=4, state=State.succeeded, outputs={"preview": key}))
