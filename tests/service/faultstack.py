@@ -143,5 +143,8 @@ class FaultStack:
         return {k.removeprefix(prefix) for k in self.objects().list_keys(prefix)}
 
     def ready(self) -> tuple[int, dict]:
+        """/readyz's status and each backend's state (a 503 is a problem document whose
+        `checks` hold them)."""
         r = self.http.get("/readyz", timeout=10)
-        return r.status_code, r.json()
+        body = r.json()
+        return r.status_code, body["checks"] if r.status_code == 503 else body
