@@ -90,8 +90,9 @@ def test_errors_are_plain_words(page, tmp_path):
     for name in ("p1", "p2", "p3"):
         d.click_photo(scene.points[name])
     page.get_by_role("button", name="Submit job").click()
-    expect(error).to_have_text("P4 (side face, upper-left corner: the same corner as P2, so click P2) "
-                               "is not placed yet.")
+    expect(error).to_have_text("P4 (where the second face starts: the same corner as P2 for a right "
+                               "side face (click P2), or as P1 for a left side face or the top "
+                               "(click P1)) is not placed yet.")
     page.get_by_label("Colour tolerance").fill("500")
     page.get_by_role("button", name="Submit job").click()
     expect(error).to_have_text('The colour tolerance must be at most 128 (got "500").')
@@ -104,5 +105,5 @@ def test_errors_are_plain_words(page, tmp_path):
         page.get_by_label(f"{name.upper()} y (pixels)").press("Tab")
     page.get_by_role("button", name="Submit job").click()
     expect(error).to_have_text(re.compile(
-        r"^The service refused the request\. scan 1, points: item 0: side face corners "
-        r"P4 \(700,500\), P5 \(650,520\).* not in order"))
+        r"^The service refused the request\. scan 1, points: item 0: cannot tell which face P4, P5 "
+        r"and P7 mark: P4 \(700,500\) must be the corner P2 .* or the corner P1 .*"))
