@@ -91,7 +91,7 @@ def test_a_frame_marked_then_every_second_frame_measured(page, stack, clip):
     spec = ScanSpec.model_validate(item)  # what the page sent is a valid job item
     assert spec.frames.indices == [0, 2, 3, 4, 6] and spec.frame_points is None
     assert spec.points.p1 == pytest.approx(tuple(d.mark("p1")))
-    expect(page.locator("#job-percent")).to_have_text("100 % (5 frames measured)")
+    expect(page.locator("#job-percent")).to_have_text("100 % · 5 frames measured")
 
     job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]
     summary = job["items"][0]["result"]["summary"]
