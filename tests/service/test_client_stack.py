@@ -47,6 +47,9 @@ def test_a_429_is_waited_out_and_a_retried_submit_makes_one_job(api, tmp_path: P
             seen.append(request)
             return transport.handle_request(request)
 
+        def close(self) -> None:  # the client closes its transport: pass that on (its sockets)
+            transport.close()
+
     file = tmp_path / "box.png"
     file.write_bytes(photo(width=400, height=300))
     with ApiClient(base, key, transport=Recording(), sleep=sleep) as client:
