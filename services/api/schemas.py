@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from typing import Any, Literal
 
-from prism_common.public import DimensionsPublic, ItemPublic, JobPublic, ResultPublic
+from prism_common.public import DimensionsPublic, ItemPublic, JobList, JobPublic, ResultPublic
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from prismcore.spec import ScanSpec
@@ -53,11 +53,6 @@ class JobCreate(BaseModel):
                 if (where := _first_non_finite(item)) is not None:
                     raise ValueError(f"item {i}: {where} is not a finite number")
         return items
-
-
-class JobList(BaseModel):
-    jobs: list[JobPublic]
-    next_cursor: str | None = Field(description="Pass as `cursor` for the next page; null at the end.")
 
 
 class UploadProbe(BaseModel):

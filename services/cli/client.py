@@ -27,8 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from prism_common.public import JobPublic
-from pydantic import BaseModel, Field
+from prism_common.public import JobList, JobPublic
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
@@ -50,13 +49,6 @@ class ApiError(Exception):
         super().__init__(message)
         self.status = status
         self.problem = problem or {}
-
-
-class JobList(BaseModel):
-    """One page of `GET /v1/jobs`."""
-
-    jobs: list[JobPublic]
-    next_cursor: str | None = Field(default=None)
 
 
 def remaining_s(job: JobPublic, now: datetime | None = None) -> float | None:

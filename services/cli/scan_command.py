@@ -13,7 +13,7 @@ from rich.console import Console
 
 from prismcore import InputError, ScanSpec, parse_points, run_scan
 from prismcore.camera import CameraModel
-from prismcore.exif import exif_focal
+from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
@@ -87,12 +87,11 @@ def summary_line(report: dict) -> str:
             f"  point loss {report['point_loss']:.1%}")
 
 
-_EXIF_HEAD = 256 * 1024  # a JPEG's EXIF (APP1) is at most 64 KiB, right after its start
 
 
 def _head(path: Path) -> bytes:
     with path.open("rb") as fh:
-        return fh.read(_EXIF_HEAD)
+        return fh.read(EXIF_HEAD_BYTES)
 
 
 def _camera_file(path: Path) -> CameraModel:

@@ -17,8 +17,8 @@ from prismcore.spec import FILE_NAMES, frame_folder
 
 from .records import ItemResult, JobRecord, State
 
-__all__ = ["DimensionsPublic", "FramePublic", "ItemPublic", "JobPublic", "ResultPublic", "download_name",
-           "to_public"]
+__all__ = ["DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic", "ResultPublic",
+           "download_name", "to_public"]
 
 
 class DimensionsPublic(BaseModel):
@@ -87,6 +87,13 @@ class JobPublic(BaseModel):
     item_count: int = Field(ge=0, description="How many items the job has; `items` holds those "
                                               "asked for with item_offset and item_limit (all by default).")
     items: list[ItemPublic]
+
+
+class JobList(BaseModel):
+    """One page of `GET /v1/jobs`, newest first."""
+
+    jobs: list[JobPublic]
+    next_cursor: str | None = Field(description="Pass as `cursor` for the next page; null at the end.")
 
 
 def download_name(job_id: str, index: int, kind: str, frame: int | None = None) -> str:

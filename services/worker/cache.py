@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from prismcore import ScanPlan, ScanSpec
-from prismcore.exif import exif_focal
+from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
 from prismcore.pipeline import prepare_images
 
@@ -43,12 +43,11 @@ def image(key: str, max_pixels: int, label: str = "") -> np.ndarray:
     return decoded
 
 
-_EXIF_HEAD = 256 * 1024  # a JPEG's EXIF (APP1) is at most 64 KiB, right after its start
 
 
 def exif_focal_px(key: str, image_shape: tuple[int, ...]) -> float | None:
     """The focal length (px of the decoded photo) the photo at `key` carries in its EXIF."""
-    found = exif_focal(context.objects().get_head(key, _EXIF_HEAD), image_shape[1], image_shape[0])
+    found = exif_focal(context.objects().get_head(key, EXIF_HEAD_BYTES), image_shape[1], image_shape[0])
     return found.focal_px if found else None
 
 

@@ -54,7 +54,7 @@ from typing import Any
 from PIL import Image
 
 from .errors import InputError
-from .images import PIL_ERRORS, probe_image
+from .images import PIL_ERRORS, jpeg_header, probe_image
 
 __all__ = [
     "FILM_35MM_DIAGONAL_MM",
@@ -82,6 +82,11 @@ _EP_FP_XRES, _EP_FP_YRES, _EP_FP_UNIT = 0x920E, 0x920F, 0x9210
 
 _MM_PER_UNIT = {2: 25.4, 3: 10.0, 4: 1.0, 5: 0.001}  # inch, cm, and TIFF/EP's mm and micrometre
 _UNIT_NAMES = {2: "in", 3: "cm", 4: "mm", 5: "um"}
+
+EXIF_HEAD_BYTES = 256 * 1024
+"""How much of a photo file's start to read for its EXIF: a JPEG's APP1 segment is at most 64 KiB
+and comes before the image data (a PNG's eXIf chunk past this is not found: the focal length is
+then fitted, and the report says so)."""
 
 _ASPECT_TOLERANCE = 0.01  # relative aspect mismatch still read as the same photo resized
 _PLAUSIBLE_FOCAL_DIAGONALS = (0.2, 10.0)  # f_px / image diagonal px
@@ -481,31 +486,11 @@ def _exif_block(data: bytes, fmt: str) -> bytes | None:
     if fmt == "TIFF":
         return data
     if fmt == "JPEG":
-        return _jpeg_exif(data)
+        return jpeg_header(data)[2]  # the same segment walk images.py reads the orientation by
     if fmt == "PNG":
         return _chunk(data, 8, ">I", b"eXIf", stop=(b"IDAT", b"IEND"), crc=True)
     if fmt == "WEBP":
         return _chunk(data, 12, "<I", b"EXIF", stop=(), crc=False)
-    return None
-
-
-def _jpeg_exif(data: bytes) -> bytes | None:
-    pos, size = 2, len(data)
-    while pos + 4 <= size and data[pos] == 0xFF:
-        marker = data[pos + 1]
-        if marker == 0xFF:  # fill byte
-            pos += 1
-            continue
-        if marker == 0x01 or 0xD0 <= marker <= 0xD8:  # markers without a length
-            pos += 2
-            continue
-        if marker in (0xD9, 0xDA):  # end of image, start of scan: no EXIF after the header
-            return None
-        (length,) = struct.unpack_from(">H", data, pos + 2)
-        end = pos + 2 + length
-        if marker == 0xE1 and data[pos + 4 : pos + 10] == b"Exif\x00\x00":
-            return data[pos + 4 : min(end, size)]
-        pos = end
     return None
 
 

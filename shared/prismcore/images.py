@@ -71,7 +71,8 @@ from PIL import (
 from .containers import video_container
 from .errors import InputError
 
-__all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "PIL_ERRORS", "ImageInfo", "load_image", "probe_image"]
+__all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "PIL_ERRORS", "ImageInfo", "jpeg_header", "load_image",
+           "probe_image"]
 
 DEFAULT_MAX_PIXELS = 50_000_000
 """Largest image (width * height) :func:`load_image` decodes unless told otherwise."""
@@ -457,7 +458,7 @@ def _inspect(
         info = ImageInfo(width, height, fmt, "RGBA" if alpha else "RGB", 8, _exif_orientation(exif))
         return info, None, tags
     if fmt == "JPEG":
-        header_end, idents, exif = _jpeg_header(buf)
+        header_end, idents, exif = jpeg_header(buf)
         orientation = _exif_orientation(exif)
         if idents or not whole:
             # Pillow parses a JPEG's EXIF block while opening it (for a dpi value) and only
@@ -489,7 +490,7 @@ def _inspect(
     return ImageInfo(width, height, fmt, im.mode, depth, orientation), im, tags
 
 
-def _jpeg_header(buf: bytes | mmap.mmap) -> tuple[int, list[int], bytes | None]:
+def jpeg_header(buf: bytes | mmap.mmap) -> tuple[int, list[int], bytes | None]:
     """Walk a JPEG's marker segments up to the first scan.
 
     Returns the offset just past the start-of-scan segment (the whole header; the length of

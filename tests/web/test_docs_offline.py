@@ -1,28 +1,24 @@
 """/docs (Swagger UI) and /redoc (ReDoc) work on a network without internet: in a real headless
 Chromium, against the API under uvicorn, with every request that leaves loopback refused, the
 pages list every operation of the OpenAPI document, load nothing from elsewhere, and break
-neither their Content-Security-Policy nor any script.
+neither their Content-Security-Policy nor any script. Chromium is the page tests' own (`browser`,
+tests/web/conftest.py).
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Iterator
-from pathlib import Path
 from urllib.parse import urlsplit
 
 import httpx
 import pytest
-from playwright.sync_api import Browser, Route, sync_playwright
+from playwright.sync_api import Route
+from service.servers import service_env
 
 from prism_api.webapp import STATIC_DIR
 from prism_cli.stack import ManagedProcess, start_api
 
-from .servers import service_env
-
-CHROMIUM = Path("/usr/bin/chromium")  # Debian's; scripts/setup installs it (as tests/web uses it)
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 LOOPBACK = {"127.0.0.1", "localhost", "[::1]", "::1"}
 
 
@@ -34,16 +30,6 @@ def api(redis_server, s3_server, tmp_path_factory) -> Iterator[ManagedProcess]:
     api = start_api(tmp_path_factory.mktemp("docs-api"), env)
     yield api
     api.stop()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Browser]:
-    if not CHROMIUM.exists():
-        pytest.fail(f"{CHROMIUM} is missing: run scripts/setup as root, or apt-get install chromium")
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
 
 
 def _operations(base: str) -> list[tuple[str, str]]:
