@@ -12,7 +12,7 @@ from celery import Celery
 from .settings import Settings
 
 __all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
-           "WORKER_QUEUES", "make_celery", "queue_depth", "queue_lists", "time_limits"]
+           "WORKER_QUEUES", "configure_celery", "make_celery", "queue_depth", "queue_lists", "time_limits"]
 
 TASK_RUN_JOB = "prism.run_job"
 TASK_PLAN_ITEM = "prism.plan_item"
@@ -66,8 +66,17 @@ def time_limits(settings: Settings) -> dict[str, dict[str, float]]:
 
 def make_celery(settings: Settings) -> Celery:
     """A Celery app on the settings' Redis, configured for at-least-once delivery."""
-    app = Celery("prism", broker=settings.redis_url, backend=settings.redis_url)
+    app = Celery("prism")
+    configure_celery(app, settings)
+    return app
+
+
+def configure_celery(app: Celery, settings: Settings) -> None:
+    """Configure `app` as `make_celery` does (the worker's app does it when Celery first reads
+    its configuration, so that importing the worker reads no settings)."""
     app.conf.update(
+        broker_url=settings.redis_url,
+        result_backend=settings.redis_url,
         task_acks_late=True,  # a task is acked when done, so a lost worker's task is redone
         task_reject_on_worker_lost=True,
         worker_prefetch_multiplier=1,  # one task at a time per process: fair across jobs
@@ -87,4 +96,3 @@ def make_celery(settings: Settings) -> Celery:
         worker_hijack_root_logger=False,
         task_annotations=time_limits(settings),
     )
-    return app

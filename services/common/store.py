@@ -15,6 +15,8 @@ Layout (all keys under ``prism:``):
 * ``tenant:{t}:jobs`` and ``tenant:{t}:state:{s}`` sorted sets (score: creation time, us), and
   ``state:{s}`` across tenants (for metrics).
 * ``idem:{t}:{key}`` the job an idempotency key made. Uploads: see upload_records.py.
+* ``watch:{id}`` hash: what the watchdog saw of a running job at its last sweep (``units``,
+  ``since``, ``restarts``); ``watchdog:lock``: the sweep of the current interval is taken.
 
 A state never goes backwards: transitions run in one Lua script that compares ranks.
 """
@@ -30,13 +32,14 @@ import redis
 from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord, State
 from .upload_records import UploadRecords
 
-__all__ = ["UNITS_PER_ITEM_ESTIMATE", "IdempotencyConflictError", "JobStore"]
+__all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictError", "JobStore"]
 
 _P = "prism:"
 # A job hash's fields other than its items and frames.
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
                "units_done", "items_done"]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
+WATCHDOG_LOCK_KEY = f"{_P}watchdog:lock"
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
 
 _TRANSITION = """
@@ -293,6 +296,51 @@ class JobStore(UploadRecords):
             pipe.sadd(f"{_P}job:{job_id}:frames:{item}", frame)
             pipe.scard(f"{_P}job:{job_id}:frames:{item}")
             return int(pipe.execute()[1])
+
+    # -- what the watchdog asks --------------------------------------------------------------
+    def unfinished(self) -> list[tuple[str, int, float]]:
+        """(id, units_done, created at in s since the epoch) of every queued and running job."""
+        ids = [*self._r.zrange(f"{_P}state:queued", 0, -1), *self._r.zrange(f"{_P}state:running", 0, -1)]
+        with self._r.pipeline(transaction=False) as pipe:
+            for job_id in ids:
+                pipe.hmget(f"{_P}job:{job_id}", "units_done", "score")
+            rows = pipe.execute()
+        return [(job_id, int(done or 0), float(score or 0) / 1e6)
+                for job_id, (done, score) in zip(ids, rows, strict=True)]
+
+    def done_items(self, job_id: str) -> set[int]:
+        """The indices of the job's finished items (`item_done`)."""
+        return {int(i) for i in self._r.smembers(f"{_P}job:{job_id}:done")}
+
+    def claimed_items(self, job_id: str, n_items: int) -> int:
+        """How many items have been started (claimed through `next_item`)."""
+        return min(int(self._r.get(f"{_P}job:{job_id}:next") or 0), n_items)
+
+    def get_watch(self, job_id: str) -> dict[str, str]:
+        """What the watchdog noted of the job ({} if nothing): units, since, restarts."""
+        return dict(self._r.hgetall(f"{_P}watch:{job_id}"))
+
+    def set_watch(self, job_id: str, *, since: float, units: int | None = None,
+                  restarts: int | None = None, ttl_s: int | None = None) -> None:
+        """Note what the watchdog saw at `since` (s); `ttl_s` lets the note expire."""
+        key = f"{_P}watch:{job_id}"
+        mapping: dict[str, float | int] = {"since": since}
+        if units is not None:
+            mapping["units"] = units
+        if restarts is not None:
+            mapping["restarts"] = restarts
+        self._r.hset(key, mapping=mapping)
+        if ttl_s is not None:
+            self._r.expire(key, ttl_s)
+
+    def take_watchdog_lock(self, holder: str, ttl_s: int) -> bool:
+        """Take the sweep of this interval (SET NX with expiry); False if another holds it."""
+        return bool(self._r.set(WATCHDOG_LOCK_KEY, holder, nx=True, ex=max(1, ttl_s)))
+
+    def server_time(self) -> float:
+        """Redis's clock (s since the epoch): one clock for every worker on every host."""
+        seconds, micros = self._r.time()
+        return seconds + micros / 1e6
 
     def count_by_state(self) -> dict[str, int]:
         with self._r.pipeline() as pipe:

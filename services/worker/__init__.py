@@ -1,7 +1,8 @@
 """The Celery worker: ``celery -A prism_worker.app worker -Q scans,frames,webhooks``.
 
-Tasks (``tasks.py``) are thin; the work is in the modules named for it: ``inputs`` and ``fetch``
-read the photos, ``planning``/``scanning`` run the engine's stages, ``plans`` and ``tiles``
-serialise what passes between tasks, ``outputs`` writes the results, ``fanout`` runs a job's
-items, ``webhooks`` tells the client.
+``app`` wires it (the Celery app, each process's `WorkerContext`, signals); ``tasks`` are thin
+Celery adapters over the logic: ``lifecycle`` (every job and item transition), ``steps`` (plan,
+tile, finish, or an item whole), ``video`` (split, frames, an upload's frames), ``inputs``
+(references, fetch, egress), ``artifacts`` (keys, plan.json, tiles, outputs, caches),
+``webhooks``, ``watchdog`` (stalls, retention) and ``broker`` (kombu's Redis structures).
 """

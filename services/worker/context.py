@@ -1,63 +1,55 @@
-"""The worker process's clients (settings, Redis, job store, object store), made on first use.
+"""`WorkerContext`: everything the worker's logic talks to, built once per process and passed in.
 
-Celery's prefork pool forks its children from the main process: sockets and boto3 clients made
-before the fork must not be shared with them, so each child drops the ones it inherited.
+The worker's app (`prism_worker.app`) builds one when a process starts (Celery's prefork pool
+forks its children from the main process: sockets and boto3 clients made before the fork must
+not be shared, so each child builds its own) and the tasks hand it to the logic. Tests build one
+from in-memory fakes (tests/unit/worker/conftest.py) or from a real Redis and bucket.
 """
 
 from __future__ import annotations
 
-import logging
-from functools import cache
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import redis
-from celery.signals import worker_process_init, worker_ready
-from prism_common.settings import Settings, get_settings
+from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
 
-__all__ = ["link_objects", "objects", "redis_client", "settings", "store"]
-
-log = logging.getLogger(__name__)
+__all__ = ["Clock", "SendTask", "WorkerContext", "build_context"]
 
 
-def settings() -> Settings:
-    return get_settings()
+class SendTask(Protocol):
+    """Send a task by name (Celery's ``app.send_task``): how the logic starts the next step."""
+
+    def __call__(self, name: str, args: Sequence[Any] = ..., **options: Any) -> object: ...
 
 
-@cache
-def redis_client() -> redis.Redis:
-    # Timeouts, so a stalled Redis surfaces as an error the task retries, not a hung worker.
-    return redis.Redis.from_url(settings().redis_url, decode_responses=True, health_check_interval=30,
-                                socket_timeout=30, socket_connect_timeout=5)
+Clock = Callable[[], float]
+"""Seconds since the epoch, on the clock every worker shares (Redis's)."""
 
 
-@cache
-def store() -> JobStore:
-    return JobStore(redis_client())
+@dataclass(frozen=True, eq=False)  # hashed by identity: per-process caches key on it
+class WorkerContext:
+    """The worker's collaborators. Frozen: a variant for a test is made with dataclasses.replace."""
+
+    settings: Settings
+    redis: redis.Redis
+    store: JobStore
+    objects: ObjectStore
+    link_objects: ObjectStore  # the bucket at its public endpoint: presigns clients' links
+    clock: Clock
+    send_task: SendTask
 
 
-@cache
-def objects() -> ObjectStore:
-    return ObjectStore.from_settings(settings())
-
-
-@cache
-def link_objects() -> ObjectStore:
-    """The bucket at its public endpoint: presigns the links clients download from."""
-    return ObjectStore.from_settings(settings(), for_links=True)
-
-
-@worker_process_init.connect
-def _fresh_clients(**_: object) -> None:
-    for made in (redis_client, store, objects, link_objects):
-        made.cache_clear()
-
-
-@worker_ready.connect
-def _ensure_bucket(**_: object) -> None:
-    # Outputs go to the service's bucket: make it if this is a fresh installation. A store that
-    # is down now is not fatal: the tasks retry until it is back.
-    try:
-        objects().ensure_bucket()
-    except Exception as exc:
-        log.warning("could not check the bucket %r: %s", settings().s3_bucket, exc)
+def build_context(settings: Settings, send_task: SendTask) -> WorkerContext:
+    """The real collaborators for `settings`: Redis (with timeouts, so a stalled Redis surfaces
+    as an error the task retries, not a hung worker), the job store on it, the bucket."""
+    client = redis.Redis.from_url(settings.redis_url, decode_responses=True, health_check_interval=30,
+                                  socket_timeout=30, socket_connect_timeout=5)
+    store = JobStore(client)
+    return WorkerContext(settings=settings, redis=client, store=store,
+                         objects=ObjectStore.from_settings(settings),
+                         link_objects=ObjectStore.from_settings(settings, for_links=True),
+                         clock=store.server_time, send_task=send_task)

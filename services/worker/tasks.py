@@ -1,17 +1,27 @@
-"""The worker's tasks, thin like web views: check the job, call the module that does the work.
+"""The worker's Celery tasks: adapters only. Each gets the process's `WorkerContext`
+(`app.worker_context`), reads what Celery knows (is this a repeat? how many retries?) and calls
+the logic, which lives in one place each:
+
+* `lifecycle`: every job and item transition (start, succeed, fail, complete, end; the
+  watchdog's restart and fail), and the reason a task gave up, as a client reads it;
+* `steps`: an item of a photo job: plan, scan a tile, finish; or scanned whole;
+* `video`: a video item split into frames, a frame measured, the item summarised; an uploaded
+  video's frame extracted for the web page;
+* `inputs` (references, fetch, egress), `artifacts` (object keys, plan.json, tiles, outputs,
+  caches), `webhooks`, `watchdog` (stall sweep, retention), `broker` (kombu's structures).
 
 Graph: run_job -> plan_item (a window of items per job) -> chord(scan_tile per face band)
 -> finish_item -> the next plan_item, and after the job's last item deliver_webhook. An item
-of a batch (one tile per face) is scanned whole inside plan_item instead (`whole_item`). A
-video item's plan_item splits it (`video_item`) and sends a scan_frame task per frame as it
-goes; the last frame summarises the item and completes it (`frame_scan`). Apart from jobs,
-extract_frame probes an uploaded video and stores one frame for the web page to mark
-(`upload_frames`, own queue). Tasks pass ids and object keys only; each is idempotent
-(deterministic keys, exists-checks, counting by set membership), since late acks redo a task
-whose worker was lost.
+of a batch (one tile per face) is scanned whole inside plan_item instead. A video item's
+plan_item splits it and sends a scan_frame task per frame as it goes; the last frame summarises
+the item and completes it. Apart from jobs, extract_frame probes an uploaded video and stores
+one frame for the web page to mark (own queue). Tasks pass ids and object keys only; each is
+idempotent (deterministic keys, exists-checks, counting by set membership), since late acks
+redo a task whose worker was lost.
 
 Errors: bad input fails its item only. Store and broker trouble is retried with back-off;
-when the retries run out the item fails with the reason (reasons.py), so no job runs forever.
+when the retries run out the item fails with the reason (`lifecycle.failure_reason`), so no job
+runs forever.
 """
 
 from __future__ import annotations
@@ -37,37 +47,34 @@ from prism_common.references import ReferenceError
 
 from prismcore import InputError
 
-from . import (
-    context,
-    fanout,
-    frame_scan,
-    planning,
-    reasons,
-    scanning,
-    timing,
-    upload_frames,
-    video_item,
-    webhooks,
-    whole_item,
-)
-from .app import app
-from .fetch import FetchError
-from .keys import tile_id
+from . import lifecycle, steps, video, webhooks
+from .app import app, worker_context
+from .artifacts import tile_id
+from .context import WorkerContext
+from .inputs import FetchError
 
 __all__ = ["deliver_webhook", "extract_frame", "finish_item", "plan_item", "run_job", "scan_frame",
            "scan_tile"]
 
 log = logging.getLogger(__name__)
-assert timing  # imported for its signal handlers (task durations)
 
 RETRYABLE = (BotoCoreError, ClientError, redis.ConnectionError, redis.TimeoutError)
-# A retry waits as an unacked message: past the visibility timeout the broker would hand out a
-# second copy, so back-off stays below it.
-BACKOFF_MAX = max(1, min(600, context.settings().visibility_timeout_s // 2))
-# Waits of up to 5, 10, 20, 40, 80 s (random below each: retries of many tasks spread out), so
-# five retries ride out a store restarting, not only a dropped connection.
-_RETRY = {"bind": True, "retry_backoff": 5,  # late acks: app-wide (prism_common.queue)
-          "retry_backoff_max": BACKOFF_MAX, "retry_jitter": True}
+INPUT_ERRORS = (InputError, ReferenceError, FetchError)  # the item's own fault: never retried
+
+
+class RetryingTask(Task):
+    """Waits of up to 5, 10, 20, 40, 80 s (random below each: retries of many tasks spread out),
+    so five retries ride out a store restarting, not only a dropped connection. Late acks are
+    app-wide (prism_common.queue)."""
+
+    retry_backoff = 5
+    retry_jitter = True
+
+    @property
+    def retry_backoff_max(self) -> int:  # type: ignore[override]
+        # A retry waits as an unacked message: past the visibility timeout the broker would hand
+        # out a second copy, so back-off stays below it.
+        return max(1, min(600, worker_context().settings.visibility_timeout_s // 2))
 
 
 def _maybe_repeat(task: Task) -> bool:
@@ -76,30 +83,11 @@ def _maybe_repeat(task: Task) -> bool:
     return bool(task.request.retries or delivery.get("redelivered"))
 
 
-def _open_item(job_id: str, item: int, *, repeat: bool) -> ItemView | None:
-    """The item, if its job is running and the item has no outcome yet; else None.
-
-    A repeat that finds the job ended completes the item again: the run that ended the job may
-    have died between moving its state and writing job.json, and nothing else would redo that.
-    """
-    view = context.store().get_item(job_id, item)
-    _complete_if_ended(view, repeat)
-    if view is None or view.state != State.running or view.item.state in (State.succeeded,
-                                                                          State.failed):
-        return None
-    return view
+def _reason(task: Task, exc: BaseException) -> str:
+    return lifecycle.failure_reason(exc, task.request.retries, task.soft_time_limit)
 
 
-def _complete_if_ended(view: ItemView | None, repeat: bool) -> None:
-    if view is not None and repeat and view.state in (State.succeeded, State.failed):
-        fanout.complete_item(view.job_id, view.item.index, maybe_repeat=True)
-
-
-def _running(job_id: str) -> bool:
-    return context.store().state(job_id) == State.running
-
-
-class ItemTask(Task):
+class ItemTask(RetryingTask):
     """A task about one item: if it fails for good, the item fails and the job goes on."""
 
     job_arg = 0  # where job_id is in the task's args; the item index follows it
@@ -107,145 +95,145 @@ class ItemTask(Task):
     def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
         job_id, item = args[self.job_arg], args[self.job_arg + 1]
         tile = tile_id(*args[2:5]) if self.name == TASK_SCAN_TILE else None
-        message = reasons.failure_reason(exc, self.request.retries, self.soft_time_limit)
         log.error("item %s/%s failed for good in %s: %r", job_id, item, self.name, exc)
         try:
-            fanout.fail_item(job_id, item, message, tile=tile)
-            fanout.complete_item(job_id, item, maybe_repeat=True)
+            lifecycle.fail_and_complete(worker_context(), job_id, item, _reason(self, exc),
+                                        maybe_repeat=True, tile=tile)
         except Exception:
             log.exception("could not record the failure of item %s/%s", job_id, item)
 
 
-class JobTask(Task):
+class JobTask(RetryingTask):
     def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
         try:
-            reason = reasons.failure_reason(exc, self.request.retries, self.soft_time_limit)
-            context.store().transition(args[0], State.failed, error=reason)
+            lifecycle.job_failed(worker_context(), args[0], _reason(self, exc))
         except Exception:
             log.exception("could not record the failure of job %s", args[0])
 
 
-@app.task(name=TASK_RUN_JOB, base=JobTask, autoretry_for=RETRYABLE, max_retries=5,
-          ignore_result=True, **_RETRY)
-def run_job(self: Task, job_id: str) -> None:
-    fanout.start_job(job_id, maybe_repeat=_maybe_repeat(self))
-
-
-@app.task(name=TASK_PLAN_ITEM, base=ItemTask, autoretry_for=RETRYABLE, max_retries=5,
-          ignore_result=True, **_RETRY)
-def plan_item(self: Task, job_id: str, item: int) -> None:
-    repeat = _maybe_repeat(self)
-    view = _open_item(job_id, item, repeat=repeat)
-    if view is None:
-        return
-    if not repeat and view.item.state == State.queued:
-        # Only a first run marks it: a repeat could race the item's own finish and undo it.
-        view.item = view.item.model_copy(update={"state": State.running})
-        context.store().put_item(job_id, view.item)
-    if view.item.spec.is_video:
-        _split_video(view, repeat)
-        return
-    if planning.tiles_per_face(view.n_items) == 1:
-        _scan_whole(view, repeat)
-        return
-    try:
-        tiles = planning.plan_item(view)
-    except (InputError, ReferenceError, FetchError) as exc:
-        fanout.fail_item(job_id, item, str(exc))
-        fanout.complete_item(job_id, item, maybe_repeat=repeat)
-        return
-    fanout.count_plan(job_id, item, len(tiles))
-    # The finish runs when every tile has; this task does not wait for them.
-    chord(scan_tile.s(job_id, item, *tile) for tile in tiles)(finish_item.s(job_id, item))
-
-
-def _split_video(view: ItemView, repeat: bool) -> None:
-    """A video: its frames are stored and sent as scan_frame tasks; the last one finishes it."""
-    try:
-        video_item.split_video(view)
-    except (InputError, ReferenceError, FetchError) as exc:
-        fanout.fail_item(view.job_id, view.item.index, str(exc))
-        fanout.complete_item(view.job_id, view.item.index, maybe_repeat=repeat)
-
-
-def _scan_whole(view: ItemView, repeat: bool) -> None:
-    """A batch item: plan, scan and finish here (no tiles, nothing stored on the way)."""
-    job_id, item = view.job_id, view.item.index
-    try:
-        result, outputs = whole_item.scan_whole_item(view)
-    except (InputError, ReferenceError, FetchError) as exc:
-        fanout.fail_item(job_id, item, str(exc))
-    else:
-        fanout.count_plan(job_id, item, 0)
-        if not _running(job_id):
-            return  # cancelled meanwhile: leave the item as it was
-        fanout.succeed_item(job_id, view.item, result, outputs)
-    fanout.complete_item(job_id, item, maybe_repeat=repeat)
-
-
-@app.task(name=TASK_SCAN_TILE, base=ItemTask, autoretry_for=RETRYABLE, max_retries=5, **_RETRY)
-def scan_tile(self: Task, job_id: str, item: int, face: str, r0: int, r1: int) -> str | None:
-    if not _running(job_id):
-        return None
-    key = scanning.scan_tile(job_id, item, face, r0, r1)
-    context.store().tile_done(job_id, item, tile_id(face, r0, r1))
-    return key
-
-
-class FrameTask(Task):
+class FrameTask(RetryingTask):
     """A task about one frame: if it fails for good, the frame fails and the item goes on."""
 
     def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
         job_id, item, frame = args[:3]
         log.error("frame %s of item %s/%s failed for good: %r", frame, job_id, item, exc)
         try:
-            frame_scan.frame_failed(job_id, item, frame,
-                                    reasons.failure_reason(exc, self.request.retries, self.soft_time_limit))
-            frame_scan.frame_finished(job_id, item, frame, maybe_repeat=True)
+            ctx = worker_context()
+            video.frame_failed(ctx, job_id, item, frame, _reason(self, exc))
+            video.frame_finished(ctx, job_id, item, frame, maybe_repeat=True)
         except Exception:
             log.exception("could not record the failure of frame %s of %s/%s", frame, job_id, item)
 
 
-@app.task(name=TASK_SCAN_FRAME, base=FrameTask, autoretry_for=RETRYABLE, max_retries=5,
-          ignore_result=True, **_RETRY)
-def scan_frame(self: Task, job_id: str, item: int, frame: int) -> None:
-    repeat = _maybe_repeat(self)
-    view = _open_item(job_id, item, repeat=repeat)
+@app.task(name=TASK_RUN_JOB, base=JobTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
+def run_job(self: Task, job_id: str) -> None:
+    lifecycle.start_job(worker_context(), job_id, maybe_repeat=_maybe_repeat(self))
+
+
+@app.task(name=TASK_PLAN_ITEM, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
+def plan_item(self: Task, job_id: str, item: int) -> None:
+    ctx, repeat = worker_context(), _maybe_repeat(self)
+    view = lifecycle.open_item(ctx, job_id, item, repeat=repeat)
     if view is None:
         return
-    frame_scan.scan_frame(view, frame)
-    frame_scan.frame_finished(job_id, item, frame, maybe_repeat=repeat)
+    lifecycle.mark_running(ctx, view, repeat=repeat)
+    if view.item.spec.is_video:
+        _split_video(ctx, view, repeat)
+    elif steps.tiles_per_face(ctx, view.n_items) == 1:
+        _scan_whole(ctx, view, repeat)
+    else:
+        _plan_tiles(ctx, view, repeat)
 
 
-@app.task(name=TASK_FINISH_ITEM, base=ItemTask, job_arg=1, ignore_result=True, max_retries=5,
-          autoretry_for=(*RETRYABLE, scanning.TilesMissingError), **_RETRY)
+def _plan_tiles(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    """A tiled item: plan it, then a chord of its tiles whose callback finishes it."""
+    job_id, item = view.job_id, view.item.index
+    try:
+        tiles = steps.plan_item(ctx, view)
+    except INPUT_ERRORS as exc:
+        lifecycle.fail_and_complete(ctx, job_id, item, str(exc), maybe_repeat=repeat)
+        return
+    lifecycle.count_plan(ctx, job_id, item, len(tiles))
+    # The finish runs when every tile has; this task does not wait for them.
+    chord(scan_tile.s(job_id, item, *tile) for tile in tiles)(finish_item.s(job_id, item))
+
+
+def _split_video(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    """A video: its frames are stored and sent as scan_frame tasks; the last one finishes it."""
+    try:
+        video.split_video(ctx, view)
+    except INPUT_ERRORS as exc:
+        lifecycle.fail_and_complete(ctx, view.job_id, view.item.index, str(exc), maybe_repeat=repeat)
+
+
+def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    """A batch item: plan, scan and finish here (no tiles, nothing stored on the way)."""
+    job_id, item = view.job_id, view.item.index
+    try:
+        result, outputs = steps.scan_whole_item(ctx, view)
+    except INPUT_ERRORS as exc:
+        lifecycle.fail_and_complete(ctx, job_id, item, str(exc), maybe_repeat=repeat)
+        return
+    lifecycle.count_plan(ctx, job_id, item, 0)
+    if ctx.store.state(job_id) != State.running:
+        return  # cancelled meanwhile: leave the item as it was
+    lifecycle.succeed_item(ctx, job_id, view.item, result, outputs)
+    lifecycle.complete_item(ctx, job_id, item, maybe_repeat=repeat)
+
+
+@app.task(name=TASK_SCAN_TILE, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5)
+def scan_tile(self: Task, job_id: str, item: int, face: str, r0: int, r1: int) -> str | None:
+    ctx = worker_context()
+    if ctx.store.state(job_id) != State.running:
+        return None
+    key = steps.scan_tile(ctx, job_id, item, face, r0, r1)
+    ctx.store.tile_done(job_id, item, tile_id(face, r0, r1))
+    return key
+
+
+@app.task(name=TASK_SCAN_FRAME, base=FrameTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
+def scan_frame(self: Task, job_id: str, item: int, frame: int) -> None:
+    ctx, repeat = worker_context(), _maybe_repeat(self)
+    view = lifecycle.open_item(ctx, job_id, item, repeat=repeat)
+    if view is None:
+        return
+    video.scan_frame(ctx, view, frame)
+    video.frame_finished(ctx, job_id, item, frame, maybe_repeat=repeat)
+
+
+@app.task(name=TASK_FINISH_ITEM, base=ItemTask, bind=True, job_arg=1, ignore_result=True, max_retries=5,
+          autoretry_for=(*RETRYABLE, steps.TilesMissingError))
 def finish_item(self: Task, tile_keys: list[str | None], job_id: str, item: int) -> None:
     # tile_keys (the chord's results) are not needed: plan.json lists the tiles to merge.
-    repeat = _maybe_repeat(self)
-    view = context.store().get_item(job_id, item)
-    _complete_if_ended(view, repeat)  # see _open_item
+    ctx, repeat = worker_context(), _maybe_repeat(self)
+    view = ctx.store.get_item(job_id, item)
+    lifecycle.complete_if_ended(ctx, view, repeat=repeat)  # see lifecycle.open_item
     if view is None or view.state != State.running:
         return
     record = view.item
     if record.state not in (State.succeeded, State.failed):  # else a repeat: only complete it
         try:
-            result, outputs = scanning.finish_item(job_id, item)
+            result, outputs = steps.finish_item(ctx, job_id, item)
         except InputError as exc:  # e.g. a cloud over the spec's max_points
-            fanout.fail_item(job_id, item, str(exc))
+            lifecycle.fail_item(ctx, job_id, item, str(exc))
         else:
-            fanout.succeed_item(job_id, record, result, outputs)
-    fanout.complete_item(job_id, item, maybe_repeat=repeat)
+            lifecycle.succeed_item(ctx, job_id, record, result, outputs)
+    lifecycle.complete_item(ctx, job_id, item, maybe_repeat=repeat)
 
 
-@app.task(name=TASK_DELIVER_WEBHOOK, ignore_result=True, max_retries=8,
-          autoretry_for=(*RETRYABLE, webhooks.WebhookError, httpx.HTTPError), **_RETRY)
+@app.task(name=TASK_DELIVER_WEBHOOK, base=RetryingTask, bind=True, ignore_result=True, max_retries=8,
+          autoretry_for=(*RETRYABLE, webhooks.WebhookError, httpx.HTTPError))
 def deliver_webhook(self: Task, job_id: str) -> None:
     try:
-        webhooks.deliver(job_id)
+        webhooks.deliver(worker_context(), job_id)
     except ReferenceError as exc:  # a URL we may not call will not become callable: no retry
         log.warning("webhook of job %s not sent: %s", job_id, exc)
 
 
-@app.task(name=TASK_EXTRACT_FRAME, autoretry_for=RETRYABLE, max_retries=5, ignore_result=True, **_RETRY)
+@app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
 def extract_frame(self: Task, upload_id: str, frame: int) -> None:
-    upload_frames.extract_frame(upload_id, frame)
+    video.extract_frame(worker_context(), upload_id, frame)

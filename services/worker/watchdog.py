@@ -1,85 +1,78 @@
-"""The watchdog: no job stays queued or running forever.
+"""The watchdog: no job stays queued or running forever, and what has outlived its time goes.
 
-Every worker runs it in a thread of its main process; each `watchdog_interval_s` the workers
-race for a Redis lock (SET NX with the interval as expiry) and the one that wins sweeps, so one
-sweep runs per interval whatever the number of workers and hosts, and the sweeps go on while
-any worker is alive. What a sweep learns is kept in Redis (``prism:watch:{id}``), on Redis's
-clock, so the next sweep may run on another host. A sweep looks at every queued and running job:
+Every worker runs it in a thread of its main process (started by `prism_worker.app`); each
+`watchdog_interval_s` the workers race for a lock in the store and the one that wins sweeps, so
+one sweep runs per interval whatever the number of workers and hosts, and the sweeps go on while
+any worker is alive. What a sweep learns is kept in the store (`JobStore.set_watch`), on the
+context's clock (Redis's), so the next sweep may run on another host. A sweep looks at every
+queued and running job:
 
 * progress (``units_done``) moved since the last sweep: it is alive;
-* a task of its own is waiting in the broker or held by a worker: it is waiting its turn, however
-  deep the queue;
+* a task of its own is waiting in the broker or held by a worker (broker.py): it is waiting its
+  turn, however deep the queue;
 * neither, for `job_stall_timeout_s`: its next step was lost (a worker's acknowledgement or a
-  chord's count that died with Redis, say). It is restarted where it stopped (recovery.py), up
-  to `job_stall_restarts` times; if it still makes no progress it fails, saying so;
+  chord's count that died with Redis, say). It is restarted where it stopped
+  (`lifecycle.restart_job`), up to `job_stall_restarts` times; if it still makes no progress it
+  fails, saying so (`lifecycle.fail_job`);
 * any job not final `job_max_age_s` after submission fails, whatever else (a task that kills its
   worker each time it is handed out would otherwise be redelivered for ever).
 
-The same sweep deletes uploads older than `upload_ttl_s`, and ended jobs older than `job_ttl_s`
-when that is set (retention.py).
+Retention, in the same sweep: uploads older than `upload_ttl_s` go (the file, a video's probe
+and decoded frames, the record), and, when the operator sets `job_ttl_s`, ended jobs older than
+that (every object under jobs/{id}/, the record). Objects go before records, so a sweep cut short
+leaves the thing listed and the next one finishes it; deleting twice is harmless. An upload's
+expiry does not touch the outputs of the jobs that read it.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 
-import redis
-from celery.signals import worker_ready, worker_shutdown
 from prism_common.records import State
-from prism_common.settings import Settings
+from prism_common.storage import object_key
+from prism_common.store import WATCHDOG_LOCK_KEY
+from prism_common.upload_keys import upload_key, video_info_key
 
-from . import context, recovery, retention
-from .pending import pending_job_ids
+from . import lifecycle
+from .broker import pending_job_ids
+from .context import WorkerContext
 
-__all__ = ["LOCK_KEY", "sweep", "try_sweep"]
+__all__ = ["LOCK_KEY", "Watchdog", "expire_jobs", "expire_uploads", "sweep", "try_sweep"]
 
 log = logging.getLogger(__name__)
 
-LOCK_KEY = "prism:watchdog:lock"
-_WATCH = "prism:watch:"
-_stop = threading.Event()
+LOCK_KEY = WATCHDOG_LOCK_KEY
+_indexed = False  # this process listed the uploads made before they were listed for expiry
 
 
-def _jobs(client: redis.Redis) -> list[tuple[str, int, float]]:
-    """(id, units_done, created at in s) of every queued and running job."""
-    ids = [*client.zrange("prism:state:queued", 0, -1), *client.zrange("prism:state:running", 0, -1)]
-    with client.pipeline(transaction=False) as pipe:
-        for job_id in ids:
-            pipe.hmget(f"prism:job:{job_id}", "units_done", "score")
-        rows = pipe.execute()
-    return [(job_id, int(done or 0), float(score or 0) / 1e6)
-            for job_id, (done, score) in zip(ids, rows, strict=True)]
-
-
-def sweep(settings: Settings, now: float) -> dict[str, int]:
+def sweep(ctx: WorkerContext, now: float) -> dict[str, int]:
     """One pass over the unfinished jobs at time `now` (s); returns counts of what was done."""
-    client, store = context.redis_client(), context.store()
+    settings, store = ctx.settings, ctx.store
     counts = {"jobs": 0, "restarted": 0, "failed": 0}
-    jobs = _jobs(client)
+    jobs = store.unfinished()
     counts["jobs"] = len(jobs)
     pending: set[str] | None = None  # read only if some job looks stalled
     for job_id, done, created in jobs:
-        watch = client.hgetall(_WATCH + job_id)
-        key_ttl = settings.job_max_age_s + 3600
+        watch = store.get_watch(job_id)
         if now - created > settings.job_max_age_s:
             job = store.get(job_id)
-            if job is not None and recovery.fail_job(
-                    job, f"not finished {settings.job_max_age_s} s after it was submitted"):
+            if job is not None and lifecycle.fail_job(
+                    ctx, job, f"not finished {settings.job_max_age_s} s after it was submitted"):
                 counts["failed"] += 1
             continue
         if not watch or int(watch["units"]) != done:
             # Moving again: the restarts it had are forgiven (progress is finite, so a job that
             # keeps moving between stalls still ends).
-            client.hset(_WATCH + job_id, mapping={"units": done, "since": now, "restarts": 0})
-            client.expire(_WATCH + job_id, key_ttl)
+            store.set_watch(job_id, since=now, units=done, restarts=0, ttl_s=settings.job_max_age_s + 3600)
             continue
         if now - float(watch["since"]) < settings.job_stall_timeout_s:
             continue
         if pending is None:
-            pending = pending_job_ids(client)
+            pending = pending_job_ids(ctx.redis)
         if job_id in pending:
-            client.hset(_WATCH + job_id, "since", now)  # waiting its turn: the clock restarts
+            store.set_watch(job_id, since=now)  # waiting its turn: the clock restarts
             continue
         job = store.get(job_id)
         if job is None or job.state not in (State.queued, State.running):
@@ -88,47 +81,89 @@ def sweep(settings: Settings, now: float) -> dict[str, int]:
         if restarts >= settings.job_stall_restarts:
             reason = (f"stalled: no progress for {settings.job_stall_timeout_s} s, "
                       f"{restarts} restarts did not help")
-            if recovery.fail_job(job, reason):
+            if lifecycle.fail_job(ctx, job, reason):
                 counts["failed"] += 1
                 log.error("watchdog: job %s failed: %s", job_id, reason)
             continue
-        what = recovery.restart_job(job)
-        client.hset(_WATCH + job_id, mapping={"since": now, "restarts": restarts + 1})
+        what = lifecycle.restart_job(ctx, job)
+        store.set_watch(job_id, since=now, restarts=restarts + 1)
         counts["restarted"] += 1
         log.warning("watchdog: job %s made no progress for %s s: %s", job_id,
                     settings.job_stall_timeout_s, what)
     return counts
 
 
-def try_sweep(settings: Settings, holder: str) -> dict[str, int] | None:
+def try_sweep(ctx: WorkerContext, holder: str) -> dict[str, int] | None:
     """Sweep if this process wins the interval's lock; None if another holds it."""
-    client = context.redis_client()
-    if not client.set(LOCK_KEY, holder, nx=True, ex=max(1, settings.watchdog_interval_s)):
+    if not ctx.store.take_watchdog_lock(holder, ctx.settings.watchdog_interval_s):
         return None
-    seconds, micros = client.time()
-    now = seconds + micros / 1e6
-    counts = sweep(settings, now)
-    counts["uploads expired"] = retention.expire_uploads(settings, now)
-    counts["jobs expired"] = retention.expire_jobs(settings, now)
+    now = ctx.clock()
+    counts = sweep(ctx, now)
+    counts["uploads expired"] = expire_uploads(ctx, now)
+    counts["jobs expired"] = expire_jobs(ctx, now)
     return counts
 
 
-def _loop(holder: str) -> None:
-    settings = context.settings()
-    while not _stop.wait(settings.watchdog_interval_s):
-        try:
-            try_sweep(settings, holder)
-        except Exception as exc:  # Redis down, say: the next interval tries again
-            log.warning("watchdog sweep failed: %r", exc)
+# -- retention ----------------------------------------------------------------------------------
+def expire_uploads(ctx: WorkerContext, now: float) -> int:
+    """Delete the uploads older than `upload_ttl_s` at `now` (s); how many went."""
+    ttl = ctx.settings.upload_ttl_s
+    if ttl <= 0:
+        return 0
+    store, objects = ctx.store, ctx.objects
+    global _indexed
+    if not _indexed:  # once per process: uploads made before they were listed for expiry
+        if added := store.index_old_uploads():
+            log.info("listed %d older uploads for expiry", added)
+        _indexed = True
+    gone = 0
+    for upload_id in store.uploads_before(now - ttl):
+        upload = store.get_upload(upload_id)
+        if upload is not None:
+            tenant = upload["tenant"]
+            frames = objects.list_keys(upload_key(tenant, upload_id) + ".frames/")
+            objects.delete_keys([upload["key"], video_info_key(tenant, upload_id), *frames])
+        store.delete_upload(upload_id)
+        gone += 1
+    if gone:
+        log.info("deleted %d uploads older than %d s", gone, ttl)
+    return gone
 
 
-@worker_ready.connect
-def _start(sender: object = None, **_: object) -> None:
-    if context.settings().watchdog_interval_s > 0:
-        holder = str(getattr(sender, "hostname", "worker"))
-        threading.Thread(target=_loop, args=(holder,), name="prism-watchdog", daemon=True).start()
+def expire_jobs(ctx: WorkerContext, now: float) -> int:
+    """Delete the ended jobs submitted more than `job_ttl_s` before `now` (s)."""
+    ttl = ctx.settings.job_ttl_s
+    if ttl <= 0:
+        return 0
+    store, objects = ctx.store, ctx.objects
+    gone = 0
+    for job_id in store.ended_before(now - ttl):
+        objects.delete_keys(objects.list_keys(object_key("jobs", job_id) + "/"))
+        gone += store.delete_job(job_id)
+    if gone:
+        log.info("deleted %d jobs submitted more than %d s ago", gone, ttl)
+    return gone
 
 
-@worker_shutdown.connect
-def _halt(**_: object) -> None:
-    _stop.set()
+# -- the thread ---------------------------------------------------------------------------------
+class Watchdog:
+    """The sweeping thread of one worker's main process: `start` at worker_ready, `stop` at
+    worker_shutdown (the app's wiring)."""
+
+    def __init__(self, context: Callable[[], WorkerContext], holder: str) -> None:
+        self._context, self._holder = context, holder
+        self._stop = threading.Event()
+
+    def start(self) -> None:
+        threading.Thread(target=self._loop, name="prism-watchdog", daemon=True).start()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def _loop(self) -> None:
+        ctx = self._context()
+        while not self._stop.wait(ctx.settings.watchdog_interval_s):
+            try:
+                try_sweep(ctx, self._holder)
+            except Exception as exc:  # Redis down, say: the next interval tries again
+                log.warning("watchdog sweep failed: %r", exc)

@@ -13,7 +13,7 @@ The body is the job as ``GET /v1/jobs/{id}`` shows it (download links included).
 
 The target is checked by the webhook policy (`prism_common.outbound.check_webhook_url`, the
 one the API applied at submit) before each attempt, and the request goes to the addresses
-checked.
+checked (`inputs.send_pinned`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from prism_common.records import JobRecord, State
 from prism_common.webhook_secret import signing_key
 from standardwebhooks import Webhook
 
-from . import context
-from .egress import pinned, send_pinned
+from .context import WorkerContext
+from .inputs import pinned, send_pinned
 
 __all__ = ["EVENT", "WebhookError", "deliver", "job_resource", "message_id", "signed_headers"]
 
@@ -40,9 +40,9 @@ class WebhookError(Exception):
     """The receiver did not take the delivery (no answer, or not 2xx); it is tried again."""
 
 
-def job_resource(job: JobRecord) -> JobPublic:
+def job_resource(ctx: WorkerContext, job: JobRecord) -> JobPublic:
     """The job as the API answers it, with presigned download links for finished items."""
-    ttl, objects = context.settings().presign_ttl_s, context.link_objects()
+    ttl, objects = ctx.settings.presign_ttl_s, ctx.link_objects
     return to_public(job, lambda key, name: objects.presign_get(key, ttl, filename=name))
 
 
@@ -59,7 +59,7 @@ def signed_headers(msg_id: str, body: bytes, *, key: bytes, at: datetime) -> dic
             "webhook-signature": Webhook(key).sign(msg_id, whole, body.decode())}
 
 
-def deliver(job_id: str) -> None:
+def deliver(ctx: WorkerContext, job_id: str) -> None:
     """POST the ended job to its webhook_url, signed now.
 
     Raises
@@ -69,12 +69,12 @@ def deliver(job_id: str) -> None:
     WebhookError, httpx.HTTPError
         Not delivered this time.
     """
-    job = context.store().get(job_id)
+    job = ctx.store.get(job_id)
     if job is None or not job.webhook_url or job.state not in (State.succeeded, State.failed):
         return
-    settings = context.settings()
+    settings = ctx.settings
     target = pinned(check_webhook_url(job.webhook_url, settings, resolve=True))
-    body = job_resource(job).model_dump_json().encode()
+    body = job_resource(ctx, job).model_dump_json().encode()
     key = signing_key(settings.webhook_secret.get_secret_value())
     headers = {"Content-Type": "application/json", "User-Agent": "PrismCloud-Webhook/2",
                "X-Prism-Event": EVENT,

@@ -18,7 +18,7 @@ import pytest
 from prism_common.records import ItemRecord, JobRecord
 from prism_common.store import JobStore
 
-from prism_worker.tiles import plan_tiles
+from prism_worker.artifacts import plan_tiles
 from prismcore import ScanSpec, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.synth import Box, render_oblique_view

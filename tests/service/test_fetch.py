@@ -18,8 +18,7 @@ import pytest
 from prism_common.references import ReferenceError
 from prism_common.settings import Settings
 
-from prism_worker.egress import check_target
-from prism_worker.fetch import FetchError, fetch_url
+from prism_worker.inputs import FetchError, check_target, fetch_url
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
 from .tls import https_server, make_cert

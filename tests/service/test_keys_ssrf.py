@@ -19,8 +19,8 @@ from prism_common.references import ReferenceError, is_public_ip, parse_referenc
 from prism_common.settings import Settings
 from prism_common.storage import object_key
 
-from prism_worker.fetch import fetch_url
-from prism_worker.keys import item_key, tile_key
+from prism_worker.artifacts import item_key, tile_key
+from prism_worker.inputs import fetch_url
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
 

@@ -8,10 +8,12 @@ from __future__ import annotations
 import importlib
 import json
 import uuid
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 
 import pytest
 import redis
+from prism_common.queue import make_celery
 from prism_common.records import ItemRecord, JobRecord, State
 from prism_common.settings import Settings, get_settings
 from prism_common.storage import ObjectStore
@@ -19,6 +21,7 @@ from prism_common.store import JobStore
 from prism_common.upload_keys import frame_png_key, upload_key, video_info_key
 from pydantic import ValidationError
 
+from prism_worker.context import build_context
 from prismcore import ScanSpec
 
 from .servers import service_env
@@ -39,17 +42,15 @@ def wd(redis_server, s3_server):
             mp.setenv(name, value)
         get_settings.cache_clear()
         watchdog = importlib.import_module("prism_worker.watchdog")
-        context = importlib.import_module("prism_worker.context")
-        for made in (context.redis_client, context.store, context.objects):
-            made.cache_clear()
         settings = get_settings()
+        celery = make_celery(settings)  # what the watchdog re-sends stays in this Redis's queue
+        ctx = build_context(settings, celery.send_task)
         client = redis.Redis.from_url(settings.redis_url, decode_responses=True)
         client.flushdb()
         ObjectStore.from_settings(settings).ensure_bucket()
-        yield watchdog, settings, client
+        yield watchdog, ctx, client
         client.flushdb()
-        for made in (context.redis_client, context.store, context.objects):
-            made.cache_clear()
+        celery.close()
     get_settings.cache_clear()
 
 
@@ -71,27 +72,28 @@ def _queued_for(client: redis.Redis, job_id: str) -> list[str]:
 
 
 def test_a_job_waiting_its_turn_is_left_alone(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
     job_id = _job(client, state=State.queued)
     client.lpush("scans", json.dumps({"headers": {"task": "prism.run_job", "argsrepr": f"['{job_id}']"}}))
     now = datetime.now(UTC).timestamp()
     for t in (now, now + STALL + 1, now + 3 * STALL):
-        watchdog.sweep(settings, t)
+        watchdog.sweep(ctx, t)
     assert JobStore(client).state(job_id) == State.queued
     assert _queued_for(client, job_id) == ["prism.run_job"]  # nothing re-sent
     client.delete("scans")
 
 
 def test_a_stalled_job_is_restarted_then_failed_with_the_reason(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
+    settings = ctx.settings
     store = JobStore(client)
     job_id = _job(client, state=State.running, items=3, claimed=2)  # items 0, 1 started
     store.put_item(job_id, store.get(job_id).items[1].model_copy(update={"state": State.succeeded}))
     now = datetime.now(UTC).timestamp()
-    watchdog.sweep(settings, now)
-    watchdog.sweep(settings, now + STALL - 1)
+    watchdog.sweep(ctx, now)
+    watchdog.sweep(ctx, now + STALL - 1)
     assert _queued_for(client, job_id) == []  # not stalled yet
-    counts = watchdog.sweep(settings, now + STALL + 1)
+    counts = watchdog.sweep(ctx, now + STALL + 1)
     assert counts["restarted"] == 1
     # Item 0 is started again from its plan; item 1 has an outcome: only its completion is re-sent.
     sent = [(json.loads(m)["headers"]["task"], json.loads(m)["headers"]["argsrepr"])
@@ -99,9 +101,9 @@ def test_a_stalled_job_is_restarted_then_failed_with_the_reason(wd):
     assert sorted(sent) == sorted([("prism.plan_item", f"('{job_id}', 0)"),
                                    ("prism.finish_item", f"([], '{job_id}', 1)")])
     # While those wait in the queue the job is not stalled, however long.
-    assert watchdog.sweep(settings, now + 5 * STALL)["failed"] == 0
+    assert watchdog.sweep(ctx, now + 5 * STALL)["failed"] == 0
     client.delete("scans")  # the re-sent work is lost too
-    watchdog.sweep(settings, now + 7 * STALL)
+    watchdog.sweep(ctx, now + 7 * STALL)
     job = store.get(job_id)
     assert job.state == State.failed
     assert job.error == f"stalled: no progress for {STALL} s, 1 restarts did not help"
@@ -112,33 +114,33 @@ def test_a_stalled_job_is_restarted_then_failed_with_the_reason(wd):
 
 
 def test_progress_resets_the_clock(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
     job_id = _job(client, state=State.running, claimed=1)
     now = datetime.now(UTC).timestamp()
-    watchdog.sweep(settings, now)
+    watchdog.sweep(ctx, now)
     for step in range(1, 4):  # a unit of progress before each stall would be declared
         client.hincrby(f"prism:job:{job_id}", "units_done", 1)
-        assert watchdog.sweep(settings, now + step * (STALL - 1))["restarted"] == 0
+        assert watchdog.sweep(ctx, now + step * (STALL - 1))["restarted"] == 0
     assert _queued_for(client, job_id) == []
     assert JobStore(client).state(job_id) == State.running
 
 
 def test_a_queued_job_whose_message_was_lost_is_sent_again(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
     job_id = _job(client, state=State.queued)
     now = datetime.now(UTC).timestamp()
-    watchdog.sweep(settings, now)
-    watchdog.sweep(settings, now + STALL + 1)
+    watchdog.sweep(ctx, now)
+    watchdog.sweep(ctx, now + STALL + 1)
     assert _queued_for(client, job_id) == ["prism.run_job"]
     client.delete("scans")
 
 
 def test_jobs_past_the_maximum_age_fail(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
     old = _job(client, state=State.running, age_s=MAX_AGE + 5)
     young = _job(client, state=State.queued, age_s=MAX_AGE - 60)
     client.lpush("scans", json.dumps({"headers": {"argsrepr": f"['{old}', 0]"}}))  # busy, still
-    watchdog.sweep(settings, datetime.now(UTC).timestamp())
+    watchdog.sweep(ctx, datetime.now(UTC).timestamp())
     store = JobStore(client)
     assert store.state(old) == State.failed
     assert store.get(old).error == f"not finished {MAX_AGE} s after it was submitted"
@@ -147,17 +149,19 @@ def test_jobs_past_the_maximum_age_fail(wd):
 
 
 def test_one_sweep_per_interval_across_workers(wd):
-    watchdog, settings, client = wd
+    watchdog, ctx, client = wd
+    settings = ctx.settings
     client.delete(watchdog.LOCK_KEY)
-    assert watchdog.try_sweep(settings, "worker-a") is not None
-    assert watchdog.try_sweep(settings, "worker-b") is None  # a's lock holds for the interval
+    assert watchdog.try_sweep(ctx, "worker-a") is not None
+    assert watchdog.try_sweep(ctx, "worker-b") is None  # a's lock holds for the interval
     assert client.get(watchdog.LOCK_KEY) == "worker-a"
     assert 0 < client.ttl(watchdog.LOCK_KEY) <= settings.watchdog_interval_s
 
 
 def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
-    watchdog, settings, client = wd
-    retention = importlib.import_module("prism_worker.retention")
+    watchdog, ctx, client = wd
+    settings = ctx.settings
+    retention = importlib.import_module("prism_worker.watchdog")  # retention is part of the sweep
     store, objects = JobStore(client), ObjectStore.from_settings(settings)
     ids = {"old": uuid.uuid4().hex, "new": uuid.uuid4().hex, "unlisted": uuid.uuid4().hex}
     for upload_id in ids.values():
@@ -177,13 +181,13 @@ def test_uploads_past_their_ttl_are_deleted_with_their_frames(wd):
 
     retention._indexed = False  # as in a worker process just started
     client.delete(watchdog.LOCK_KEY)
-    counts = watchdog.try_sweep(settings, "test")  # the sweep expires uploads too
+    counts = watchdog.try_sweep(ctx, "test")  # the sweep expires uploads too
     assert counts["uploads expired"] == 2
     gone = {k for k in before if ids["old"] in k or ids["unlisted"] in k}
     assert len(gone) == 8 and set(objects.list_keys("")) == before - gone
     assert store.get_upload(ids["old"]) is None and store.get_upload(ids["unlisted"]) is None
     assert store.get_upload(ids["new"]) is not None
-    assert retention.expire_uploads(settings, now) == 0  # nothing left to do: idempotent
+    assert retention.expire_uploads(ctx, now) == 0  # nothing left to do: idempotent
 
 
 @pytest.mark.parametrize("name", ["upload_ttl_s", "job_ttl_s"])
@@ -195,8 +199,9 @@ def test_a_lifetime_shorter_than_a_job_may_live_is_refused(name):
 
 
 def test_ended_jobs_past_their_ttl_are_deleted_when_one_is_set(wd):
-    _, settings, client = wd
-    retention = importlib.import_module("prism_worker.retention")
+    _, ctx, client = wd
+    settings = ctx.settings
+    retention = importlib.import_module("prism_worker.watchdog")  # retention is part of the sweep
     store, objects = JobStore(client), ObjectStore.from_settings(settings)
     day = 86_400
     ttl = settings.model_copy(update={"job_ttl_s": 30 * day})
@@ -210,8 +215,8 @@ def test_ended_jobs_past_their_ttl_are_deleted_when_one_is_set(wd):
     store.item_done(old_done, 1)
     now = datetime.now(UTC).timestamp()
 
-    assert retention.expire_jobs(settings, now) == 0  # job_ttl_s 0 (the default): kept
-    assert retention.expire_jobs(ttl, now) == 1
+    assert retention.expire_jobs(ctx, now) == 0  # job_ttl_s 0 (the default): kept
+    assert retention.expire_jobs(replace(ctx, settings=ttl), now) == 1
     assert objects.list_keys(f"jobs/{old_done}/") == []
     for kept in (old_running, recent_done):
         assert len(objects.list_keys(f"jobs/{kept}/")) == 3
@@ -219,4 +224,4 @@ def test_ended_jobs_past_their_ttl_are_deleted_when_one_is_set(wd):
     assert not [k for k in client.scan_iter(match=f"*{old_done}*")]  # no key of it is left
     listed = {j.id for j, _ in store.list("acme", limit=200)[0]}
     assert old_done not in listed and {old_running, recent_done} <= listed
-    assert retention.expire_jobs(ttl, now) == 0  # idempotent
+    assert retention.expire_jobs(replace(ctx, settings=ttl), now) == 0  # idempotent

@@ -17,8 +17,8 @@ from prism_common.metrics import read_task_durations
 from prism_common.queue import QUEUE_SCANS, TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE, queue_lists
 from prism_common.records import State
 
-from prism_worker import plans, tiles
-from prism_worker.pending import UNACKED_HASH
+from prism_worker.artifacts import dumps_plan, loads_plan, pack_tile, plan_tiles, unpack_tile
+from prism_worker.broker import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.scan import merge_bands, row_tiles, scan_band
@@ -54,18 +54,18 @@ def _item_files(i: int, tile_names: list[str]) -> set[str]:
 
 def _tile_names(spec: ScanSpec, image: np.ndarray) -> list[str]:
     plan = plan_scan(spec, image)
-    return [f"{face}-{r0}-{r1}" for face, r0, r1 in tiles.plan_tiles(plan, TILES_PER_FACE)]
+    return [f"{face}-{r0}-{r1}" for face, r0, r1 in plan_tiles(plan, TILES_PER_FACE)]
 
 
 # -- in process: what passes between the tasks is exact ---------------------------------------
 def test_plan_json_and_packed_tiles_reproduce_the_engine_exactly(scene):
     image = load_image(encode(scene.image))
     spec = spec_for("upload:0", scene)
-    plan, extra = plans.loads(plans.dumps(plan_scan(spec, image), tiles=[["front", 0, 1]]))
+    plan, extra = loads_plan(dumps_plan(plan_scan(spec, image), tiles=[["front", 0, 1]]))
     assert extra == {"tiles": [["front", 0, 1]]}
     scans = []
     for face in plan.faces:
-        bands = [tiles.unpack(tiles.pack(*scan_band(image, face, r0, r1)))
+        bands = [unpack_tile(pack_tile(*scan_band(image, face, r0, r1)))
                  for r0, r1 in row_tiles(face, TILES_PER_FACE)]
         scans.append(merge_bands(face, bands))
     tiled, local = finish_scan(plan, [image], scans), run_scan(spec, image)
@@ -227,7 +227,7 @@ def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
     assert env.store.transition(job_id, State.running) and env.store.next_item(job_id) == 0
     plan = plan_scan(spec, load_image(photo))
     env.objects.put_bytes(f"jobs/{job_id}/items/0/front", photo)
-    env.objects.put_bytes(f"jobs/{job_id}/items/0/plan.json", plans.dumps(plan, tiles=[]))
+    env.objects.put_bytes(f"jobs/{job_id}/items/0/plan.json", dumps_plan(plan, tiles=[]))
     # A tile of a face the plan does not have: an error no retry can help (a bug, say).
     env.celery.send_task(TASK_SCAN_TILE, (job_id, 0, "top", 0, 1))
     job = env.wait(job_id, timeout=20)

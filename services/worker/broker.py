@@ -1,4 +1,6 @@
-"""Which jobs have a task waiting in the broker or held by a worker right now.
+"""Which jobs have a task waiting in the broker or held by a worker right now: the one module
+that reads kombu's internal Redis structures (kombu is pinned in pyproject.toml, and
+tests/unit/worker/test_broker.py publishes real messages through Celery to check them).
 
 kombu's Redis transport keeps waiting messages in one list per queue (prism_common.queue_lists)
 and the messages workers have taken but not yet acknowledged (running, or waiting for a retry's

@@ -1,0 +1,306 @@
+"""Video: a job's video item split into frames and each frame measured; and the frames of an
+uploaded video shown to a person to mark.
+
+Split (`split_video`): read the video once, select the frames, store each one as a lossless PNG
+and send its scan task as soon as it is stored, so frames are measured while the split goes on.
+One decoded frame is in memory at a time. Without a focal length, every frame's own fit is
+pooled into one (one camera) before any frame is measured.
+
+Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frame_spec`)
+and gets its own outputs and record; after the item's last frame (`frame_finished`) the item's
+result is the summary over its frames: the median of each dimension, with its spread, so a
+client sees how repeatable the measurement is.
+
+Uploads (`extract_frame`): the web page shows a frame exactly as the worker will measure it:
+decoded by the same code (`prismcore.video`) from the same bytes, whatever the codec. What is
+written (keys in `prism_common.upload_keys`): ``{id}.video.json``, the probe (frame count, fps,
+size, codec, duration) or ``{"error": ...}`` when the upload is not a video that decodes; the
+frame's PNG, or its ``.error.json`` when that frame does not decode. The last video read stays
+on local disk (one per process), so a person stepping through frames does not download it again.
+
+Idempotent: decoding is deterministic, so a re-run stores the same frames under the same keys
+and sends the same tasks, which count each frame once; an error or a frame already written is
+not redone.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+import tempfile
+from dataclasses import asdict
+from functools import lru_cache
+from pathlib import Path
+from statistics import median
+from typing import Any
+
+import cv2
+import numpy as np
+from botocore.exceptions import ClientError
+from prism_common.queue import TASK_SCAN_FRAME
+from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView, State
+from prism_common.storage import is_missing
+from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
+
+from prismcore import InputError, run_scan
+from prismcore.containers import HEAD_BYTES, video_container
+from prismcore.images import load_image
+from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
+from prismcore.spec import SUMMARY_NAME
+from prismcore.summary import frame_info, summarize
+from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
+
+from . import lifecycle
+from .artifacts import frame_key, item_key, write_outputs
+from .context import WorkerContext
+from .inputs import save_input
+from .steps import max_pixels
+
+__all__ = ["FOCAL_NAME", "FRAMES_NAME", "client_message", "extract_frame", "frame_failed",
+           "frame_finished", "png_bytes", "scan_frame", "split_video"]
+
+log = logging.getLogger(__name__)
+
+FRAMES_NAME = "frames.json"
+FOCAL_NAME = "focal.json"  # the focal length pooled over the frames' own fits, when one was
+_PNG_FAST = [cv2.IMWRITE_PNG_COMPRESSION, 1]  # lossless either way; level 1 is ~5x faster than 3
+
+
+def png_bytes(rgb: np.ndarray) -> bytes:
+    """A decoded frame, RGB uint8 (H, W, 3), as lossless PNG bytes."""
+    ok, png = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), _PNG_FAST)
+    if not ok:
+        raise RuntimeError("a frame could not be encoded as PNG")
+    return png.tobytes()
+
+
+def client_message(exc: InputError, path: Path, name: str) -> str:
+    """The engine's message about our local copy at `path`, naming the client's file instead."""
+    return str(exc).replace(repr(str(path)), repr(name))
+
+
+def split_video(ctx: WorkerContext, view: ItemView) -> list[int]:
+    """Select the item's frames, store them and send one scan task per frame; the frames.
+
+    Raises
+    ------
+    InputError
+        Not a video, no frames, indices out of range, more frames than the cap (per video or
+        over the job's videos).
+    ReferenceError, FetchError
+        An input that may not or could not be read.
+    """
+    job_id, item, spec = view.job_id, view.item.index, view.item.spec
+    assert spec.frames is not None
+    cap, store, objects = ctx.settings.max_frames_per_job, ctx.store, ctx.objects
+    with tempfile.TemporaryDirectory(prefix="prism-video-") as tmp:
+        path = Path(tmp) / "video"
+        with path.open("wb") as dest:
+            label = save_input(ctx, view, "front", dest)
+        try:
+            info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
+            frames = select_frames(path, spec.frames, info, max_frames=cap)
+        except InputError as exc:  # quote the client's name for the video, not our temp file
+            raise InputError(client_message(exc, path, label)) from None
+        total = store.claim_frames(job_id, item, len(frames))
+        if total > cap:
+            store.release_frames(job_id, item)
+            raise InputError(f"the job's videos select {total} frames, over the cap of {cap} frames "
+                             "per job: select fewer (every, start_s/end_s, sharpest or indices)")
+        objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
+        lifecycle.count_plan(ctx, job_id, item, len(frames))  # progress counts frames from here on
+        # Without a focal length, every frame's own fit is pooled into one (one camera) before
+        # any frame is measured: the frames' tasks then wait for the split to end.
+        pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
+        estimates: list[tuple[float, float]] = []
+        stored: list[int] = []
+        for index, rgb in iter_frames(path, frames):
+            if store.state(job_id) != State.running:
+                break  # cancelled (or ended) meanwhile: the remaining frames are not wanted
+            objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
+            if pool:
+                if (found := focal_estimate(frame_spec(spec, index), rgb)) is not None:
+                    estimates.append(found)
+                stored.append(index)
+            else:
+                ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+        if pool:
+            pooled = pool_focal(estimates) if len(estimates) >= 2 else None
+            if pooled is not None:
+                objects.put_json(item_key(job_id, item, FOCAL_NAME),
+                                 {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
+                                  "used": list(pooled.used), "estimates": len(estimates)})
+            for index in stored:
+                ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+    return frames
+
+
+def scan_frame(ctx: WorkerContext, view: ItemView, frame: int) -> None:
+    """Measure the frame and record it: its outputs, or the error that stopped it."""
+    job_id, item, spec = view.job_id, view.item.index, view.item.spec
+    try:
+        photo_spec = frame_spec(spec, frame)
+        data = ctx.objects.get_bytes(frame_key(job_id, item, frame, "frame.png"))
+        image = load_image(data, max_pixels=max_pixels(ctx, spec.max_pixels), name=f"frame {frame}")
+        scan = run_scan(photo_spec, image, pooled_focal=_pooled(ctx, item_key(job_id, item, FOCAL_NAME)))
+        fps = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
+        scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
+        result, outputs = write_outputs(ctx, job_id, item, photo_spec, scan, [image], frame=frame)
+    except InputError as exc:
+        record = FrameRecord(index=frame, state=State.failed, error=str(exc))
+    else:
+        record = FrameRecord(index=frame, state=State.succeeded, result=result, outputs=outputs)
+    ctx.store.put_frame(job_id, item, record)
+
+
+def frame_failed(ctx: WorkerContext, job_id: str, item: int, frame: int, message: str) -> None:
+    """Record a frame whose task failed for good (unless it has a record already)."""
+    store = ctx.store
+    if not store.get_frames(job_id, item, [frame]):
+        store.put_frame(job_id, item, FrameRecord(index=frame, state=State.failed, error=message))
+
+
+def frame_finished(ctx: WorkerContext, job_id: str, item: int, frame: int, *, maybe_repeat: bool) -> None:
+    """Count the frame; after the item's last frame, summarise the item and complete it."""
+    done = ctx.store.frame_done(job_id, item, frame)
+    frames = _frames(ctx, item_key(job_id, item, FRAMES_NAME))
+    if done >= len(frames["frames"]):
+        _finish_video(ctx, job_id, item, frames, maybe_repeat=maybe_repeat)
+
+
+@lru_cache(maxsize=32)
+def _pooled(ctx: WorkerContext, key: str) -> PooledFocal | None:
+    """focal.json: the focal length pooled over the video's frames (None: none was pooled)."""
+    objects = ctx.objects
+    if not objects.exists(key):
+        return None
+    doc = objects.get_json(key)
+    return PooledFocal(doc["focal_px"], doc["std_px"], tuple(doc["used"]))
+
+
+@lru_cache(maxsize=32)
+def _frames(ctx: WorkerContext, key: str) -> dict[str, Any]:
+    """frames.json (never changes once written)."""
+    doc: dict[str, Any] = json.loads(ctx.objects.get_bytes(key))
+    return doc  # missing: an error, retried
+
+
+def _finish_video(ctx: WorkerContext, job_id: str, item: int, frames: dict[str, Any], *,
+                  maybe_repeat: bool) -> None:
+    store = ctx.store
+    view = store.get_item(job_id, item)
+    if view is None or view.state != State.running:
+        return
+    if view.item.state not in FINAL_STATES:  # else a repeat: only complete it
+        records = store.get_frames(job_id, item, frames["frames"])
+        summary = summarize({n: {"dimensions": r.result.dimensions} if r.result else {"error": r.error}
+                             for n, r in records.items()}, fps=frames["video"]["fps"] or None)
+        measured = [r.result for r in records.values() if r.result is not None]
+        if not measured:
+            first = summary["failed"][0]
+            lifecycle.fail_item(ctx, job_id, item, f"no frame could be measured (frame {first['frame']}: "
+                                           f"{first['error']})")
+        else:
+            # The same document as the CLI's summary.json; the video named by its reference.
+            summary["video"] = {"reference": view.item.spec.image, **frames["video"]}
+            summary["selection"] = view.item.spec.frames.model_dump(mode="json", exclude_none=True)
+            if (pooled := _pooled(ctx, item_key(job_id, item, FOCAL_NAME))) is not None:
+                summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
+                                    "frames": [frames["frames"][i] for i in pooled.used]}
+            key = item_key(job_id, item, SUMMARY_NAME)
+            ctx.objects.put_json(key, summary)
+            dims = {k: v["median"] for k, v in summary["dimensions"].items()}
+            failed = summary["frames"]["failed"]
+            warnings = [f"{failed} of {len(records)} frames could not be measured"] if failed else []
+            result = ItemResult(points=sum(r.points for r in measured),
+                                dimensions={**dims, "unit": summary["unit"]},
+                                point_loss=median(r.point_loss for r in measured),
+                                warnings=warnings, summary=summary)
+            lifecycle.succeed_item(ctx, job_id, view.item, result, {"summary": key})
+    lifecycle.complete_item(ctx, job_id, item, maybe_repeat=maybe_repeat)
+
+
+# -- an uploaded video's frames, for a person to mark ------------------------------------------
+_CHUNK = 1 << 20
+_local: dict[str, Path] = {}  # upload id -> its file, at most one entry
+_folder: tempfile.TemporaryDirectory[str] | None = None  # removed when the process exits
+
+
+def extract_frame(ctx: WorkerContext, upload_id: str, frame: int) -> None:
+    """Probe the upload (unless done) and store frame `frame` as a PNG (unless done or out of
+    range). A file that is not a decodable video gets its error recorded, never raised."""
+    written = _extract(ctx, upload_id, frame)
+    if written and ctx.store.get_upload(upload_id) is None:
+        # The upload expired while this ran: its sweep has gone by, so leave nothing behind.
+        ctx.objects.delete_keys(written)
+
+
+def _extract(ctx: WorkerContext, upload_id: str, frame: int) -> list[str]:
+    """What `extract_frame` does; returns the keys it wrote."""
+    written: list[str] = []
+    upload = ctx.store.get_upload(upload_id)
+    if upload is None or frame < 0:
+        log.warning("no frame %s of upload %s to extract", frame, upload_id)
+        return written
+    tenant, name = upload["tenant"], upload.get("name") or upload_id
+    objects = ctx.objects
+    info_key = video_info_key(tenant, upload_id)
+    png_key, error_key = frame_png_key(tenant, upload_id, frame), frame_error_key(tenant, upload_id, frame)
+    info = objects.get_json(info_key)
+    if info is not None and ("error" in info or frame >= info["frame_count"]
+                             or objects.exists(png_key) or objects.exists(error_key)):
+        return written
+    try:
+        if info is None:
+            head = objects.client.get_object(Bucket=objects.bucket, Key=upload["key"],
+                                             Range=f"bytes=0-{HEAD_BYTES - 1}")["Body"].read()
+            if video_container(head) is None:  # a photo: no need to fetch the whole file
+                objects.put_json(info_key, {"error": f"{name!r} is not a video (AVI, MP4, MOV or "
+                                              f"MKV): it starts with {head[:8]!r}"})
+                return [info_key]
+        path = _local_copy(ctx, upload_id, upload["key"])
+    except ClientError as exc:
+        if not is_missing(exc):
+            raise  # the store's trouble: retried
+        # The record outlived the file (deleted by hand, or expiring): say so, once, for good.
+        objects.put_json(info_key, {"error": f"{name!r} is no longer stored: upload it again"})
+        return [info_key]
+    if info is None:
+        try:
+            info = asdict(probe_video(path, max_pixels=ctx.settings.max_pixels))
+        except InputError as exc:
+            objects.put_json(info_key, {"error": client_message(exc, path, name)})
+            return [info_key]
+        objects.put_json(info_key, info)
+        written.append(info_key)
+    if frame >= info["frame_count"]:
+        return written
+    try:
+        for _, rgb in iter_frames(path, [frame]):
+            objects.put_bytes(png_key, png_bytes(rgb), "image/png")
+            written.append(png_key)
+    except InputError as exc:
+        objects.put_json(error_key, {"error": client_message(exc, path, name)})
+        written.append(error_key)
+    return written
+
+
+def _local_copy(ctx: WorkerContext, upload_id: str, key: str) -> Path:
+    """The upload on local disk: the one kept from the last call, or fetched in its place."""
+    global _folder
+    if upload_id in _local and _local[upload_id].exists():
+        return _local[upload_id]
+    if _folder is None:
+        _folder = tempfile.TemporaryDirectory(prefix="prism-upload-frames-")
+    for old in _local.values():
+        old.unlink(missing_ok=True)
+    _local.clear()
+    path = Path(_folder.name) / "video"
+    partial = path.with_suffix(".part")
+    objects = ctx.objects
+    with objects.client.get_object(Bucket=objects.bucket, Key=key)["Body"] as body, partial.open("wb") as f:
+        shutil.copyfileobj(body, f, _CHUNK)
+    partial.replace(path)  # a fetch cut short never passes for the whole file
+    _local[upload_id] = path
+    return path
