@@ -14,8 +14,11 @@ from prismcore.writers import FILE_NAMES, encode_png, write_format
 __all__ = ["report_path", "write_outputs", "write_overlays"]
 
 
-def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str, Path]:
-    """Write the cloud in the formats the spec asks for; returns {kind: path}.
+def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path,
+                  images: list[np.ndarray] | None = None) -> dict[str, Path]:
+    """Write the formats the spec asks for (the cloud's, and the glb model of the box, which is
+    textured from `images`: the front photo, and the side photo with two, as decoded); returns
+    {kind: path}.
 
     The writers' timings go into the report's `timings_ms`; the caller writes the report
     (with `report_path`) once everything it times is done.
@@ -24,7 +27,7 @@ def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path) -> dict[str
     paths: dict[str, Path] = {}
     for kind in spec.formats:
         paths[kind] = out_dir / FILE_NAMES[kind]
-        ms = write_format(kind, paths[kind], result.cloud, spec)
+        ms = write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=images)
         result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     return paths
 

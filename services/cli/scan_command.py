@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 from typing import Annotated
@@ -20,7 +21,7 @@ from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
-__all__ = ["scan", "spec_from_flags", "summary_line"]
+__all__ = ["quality_flags", "quality_lines", "scan", "spec_from_flags", "summary_line"]
 
 console = Console()
 
@@ -55,6 +56,34 @@ def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | N
     return None
 
 
+def _mm_values(flag: str, text: str, counts: tuple[int, ...]) -> list[float]:
+    """'100,80,60' -> [100.0, 80.0, 60.0]; a bad number or count names the flag and the text."""
+    expected = " or ".join({1: "T", 3: "W,H,D"}[n] for n in counts)
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"{flag} {text!r}: expected {expected} in mm") from None
+    if len(values) not in counts or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{flag} {text!r}: expected {expected} in mm")
+    return values
+
+
+def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict:
+    """The spec's `nominal` and `tolerance_mm` from ``--nominal W,H,D --tolerance-mm T|Tw,Th,Td``."""
+    if (nominal is None) != (tolerance_mm is None):
+        raise InputError("--nominal and --tolerance-mm go together: give both")
+    if nominal is None or tolerance_mm is None:
+        return {}
+    tol = _mm_values("--tolerance-mm", tolerance_mm, (1, 3))
+    sizes = _mm_values("--nominal", nominal, (3,))
+    if min(tol) < 0:
+        raise InputError(f"--tolerance-mm {tolerance_mm!r}: a tolerance is >= 0 mm")
+    if min(sizes) <= 0:
+        raise InputError(f"--nominal {nominal!r}: sizes are > 0 mm")
+    return {"nominal": sizes,
+            "tolerance_mm": tol[0] if len(tol) == 1 else tol}
+
+
 def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec:
     if image is None or points is None:
         raise InputError("give IMAGE and --points, or --spec FILE")
@@ -66,6 +95,7 @@ def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec
     except ValueError as exc:
         raise InputError(f"--points: {exc}") from None
     side = flags.pop("side", None)
+    flags.update(quality_flags(flags.pop("nominal", None), flags.pop("tolerance_mm", None)))
     return ScanSpec.model_validate({
         "image": str(image), "side_image": str(side) if side else None,
         "points": ref.model_dump(), "scale": scale, "formats": formats,
@@ -87,6 +117,28 @@ def summary_line(report: dict) -> str:
             f"  point loss {report['point_loss']:.1%}")
 
 
+
+
+_VERDICT_STYLE = {"pass": "green", "fail": "red", "uncertain": "yellow"}
+
+
+def quality_lines(quality: dict | None) -> list[str]:
+    """One line per dimension and the part's verdict (rich markup), or none without a nominal:
+    'width   120.05 mm  nominal 120.00 ± 0.10  deviation +0.05 (± 0.04 at k=2)  pass'."""
+    if not quality:
+        return []
+    lines = []
+    for name, row in quality["dimensions"].items():
+        sigma = ("" if row["sigma_mm"] is None
+                 else f" (± {quality['k'] * row['sigma_mm']:.2f} at k={quality['k']:g})")
+        style = _VERDICT_STYLE[row["verdict"]]
+        lines.append(f"{name:<6} {row['measured_mm']:9.2f} mm  nominal {row['nominal_mm']:.2f} "
+                     f"± {row['tolerance_mm']:.2f}  deviation {row['deviation_mm']:+.2f}{sigma}  "
+                     f"[{style}]{row['verdict']}[/]")
+    verdict = quality["verdict"]
+    lines.append(f"[bold {_VERDICT_STYLE[verdict]}]{verdict.upper()}[/]  " + ", ".join(
+        f"{n} {c}" for c, n in ((quality["counts"][v], v) for v in ("pass", "fail", "uncertain"))))
+    return lines
 
 
 def _head(path: Path) -> bytes:
@@ -137,7 +189,16 @@ def scan(
     height_mm: Annotated[float | None, typer.Option(help="Known real height.")] = None,
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     cloud: Annotated[str, typer.Option(help="surface or volume.")] = "surface",
-    formats: Annotated[str, typer.Option("--format", help="csv,ply")] = "csv,ply",
+    formats: Annotated[str, typer.Option(
+        "--format", help="Any of csv,ply,las,laz,glb (las/laz: the cloud in metres, Z up; glb: "
+                         "the box textured from the photo).")] = "csv,ply",
+    spacing_mm: Annotated[float | None, typer.Option(
+        help="Thin the cloud to about this spacing, mm (default: one point per pixel).")] = None,
+    nominal: Annotated[str | None, typer.Option(
+        help="Nominal W,H,D in mm: each dimension gets a pass/fail/uncertain verdict.",
+        metavar="W,H,D")] = None,
+    tolerance_mm: Annotated[str | None, typer.Option(
+        help="Allowed deviation from --nominal, mm: T, or Tw,Th,Td.", metavar="T")] = None,
     csv_header: Annotated[bool, typer.Option(help="Header line in the CSV.")] = False,
     csv_colors: Annotated[bool, typer.Option(help="r,g,b columns in the CSV.")] = False,
     ply_ascii: Annotated[bool, typer.Option(help="ASCII PLY instead of binary.")] = False,
@@ -160,6 +221,11 @@ def scan(
             if side_face is not None:
                 raise InputError(f"--side-face {side_face!r} goes with IMAGE and --points; "
                                  "in a spec file, set side_face")
+            for flag, value in (("--nominal", nominal), ("--tolerance-mm", tolerance_mm),
+                                ("--spacing-mm", spacing_mm)):
+                if value is not None:
+                    raise InputError(f"{flag} {value!r} goes with IMAGE and --points; in a spec file, "
+                                     f"set {flag[2:].replace('-', '_')}")
             spec, base = _spec_from_file(spec_file)
         else:
             if selection is None and image is not None and is_video(image):
@@ -170,7 +236,8 @@ def scan(
                 width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
-                side_face=side_face or "auto"), Path(".")
+                side_face=side_face or "auto", spacing_mm=spacing_mm, nominal=nominal,
+                tolerance_mm=tolerance_mm), Path(".")
         if camera is not None:
             spec = spec.model_copy(update={"camera": _camera_file(camera)})
         if spec.is_video or is_video(base / spec.image):
@@ -187,12 +254,14 @@ def scan(
     except ValidationError as exc:
         raise InputError(_one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
-    paths = write_outputs(result, spec, out)
+    paths = write_outputs(result, spec, out, [front] + ([side_img] if side_img is not None else []))
     paths.update(write_overlays(result.report, front, side_img, out))
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
     console.print(summary_line(result.report), soft_wrap=True)
+    for line in quality_lines(result.report.get("quality")):
+        console.print(line, soft_wrap=True)
     for warning in result.report["warnings"]:
         console.print(f"[yellow]warning:[/] {warning}")
     wide = max(map(len, paths))

@@ -49,7 +49,7 @@ def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tile
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
-    write_outputs(result, one, folder)
+    write_outputs(result, one, folder, [frame])
     write_overlays(result.report, frame, None, folder)
     report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
     return result.report

@@ -41,7 +41,9 @@ from .measure import (
 from .perspective import NOISE_CLICK_PX, FaceEvidence
 from .pooling import PooledFocal
 from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
+from .spacing import thin_to_spacing
 from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
+from .verdicts import quality_from_report
 
 __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images", "run_scan",
            "scan_face"]
@@ -449,7 +451,11 @@ def finish_scan(plan: ScanPlan, images: list[np.ndarray], scans: list[FaceScan])
         side = face_points(scans[1], images[scans[1].plan.image], size)
         cloud = assemble(front, side, dims.width, dims.depth, plan.spec.cloud,
                          plan.spec.max_points, side_face=face, height=dims.height)
-    return ScanResult(cloud, build_report(plan, scans, cloud))
+        if plan.spec.spacing_mm is not None:
+            cloud = thin_to_spacing(cloud, plan.spec.spacing_mm)
+    report = build_report(plan, scans, cloud)
+    report["quality"] = quality_from_report(report, plan.spec.nominal, plan.spec.tolerance_mm)
+    return ScanResult(cloud, report)
 
 
 def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:

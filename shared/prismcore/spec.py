@@ -26,6 +26,7 @@ from .camera import CameraModel
 
 __all__ = [
     "FILE_NAMES",
+    "FORMATS",
     "SUMMARY_NAME",
     "FrameSelection",
     "KnownEdge",
@@ -44,7 +45,8 @@ Point = tuple[FiniteFloat, FiniteFloat]
 pixel centre."""
 
 FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
-              "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png"}
+              "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
+              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
 
@@ -56,6 +58,14 @@ def frame_folder(index: int) -> str:
     """The folder (CLI) or key prefix (service) of one frame's outputs: ``frame_000123``."""
     return f"frame_{index:06d}"
 
+
+OutputFormat = Literal["csv", "ply", "las", "laz", "glb"]
+FORMATS: tuple[str, ...] = ("csv", "ply", "las", "laz", "glb")
+"""The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
+and the fitted box as a textured binary glTF model (glb)."""
+
+PositiveMm = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+NonNegativeMm = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 
@@ -222,7 +232,17 @@ class ScanSpec(_Strict):
         "right side (p4 = p2), the left side (p4 = p1, p5 left of it) or the top (p4 = p1, p5 "
         "above it); auto reads it from the points. Two photos: the side photo's face (right).")
     cloud: Literal["surface", "volume"] = "surface"
-    formats: list[Literal["csv", "ply"]] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
+    formats: list[OutputFormat] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
+    spacing_mm: PositiveMm | None = Field(
+        default=None, description="Thin the cloud so neighbouring points are about this far apart, "
+        "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")
+    nominal: tuple[PositiveMm, PositiveMm, PositiveMm] | None = Field(
+        default=None, description="Nominal width, height and depth of the part, mm: the report's "
+        "quality block gives each dimension's deviation and a pass/fail/uncertain verdict. Needs "
+        "tolerance_mm and a scale.")
+    tolerance_mm: NonNegativeMm | tuple[NonNegativeMm, NonNegativeMm, NonNegativeMm] | None = Field(
+        default=None, description="Allowed deviation from the nominal, mm: one value for every "
+        "dimension, or [width, height, depth]; the limits are nominal ± tolerance, inclusive.")
     csv: CsvOptions = CsvOptions()
     ply_ascii: bool = False
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
@@ -266,6 +286,16 @@ class ScanSpec(_Strict):
             raise ValueError(f"side_face {self.side_face!r} is for one photo: with side_image "
                              f"{self.side_image!r}, p4, p5 and p7 mark the side face as photographed "
                              "(a right side); drop side_face or give 'right'")
+        if (self.nominal is None) != (self.tolerance_mm is None):
+            given, missing = (("nominal", "tolerance_mm") if self.nominal is not None
+                              else ("tolerance_mm", "nominal"))
+            raise ValueError(f"{given} needs {missing}: give both (the nominal size and the "
+                             "allowed deviation from it)")
+        metric = [f"{n}" for n in ("nominal", "spacing_mm") if getattr(self, n) is not None]
+        metric += [f"format {f!r}" for f in self.formats if f in ("las", "laz", "glb")]
+        if metric and self.scale is None:
+            raise ValueError(f"{metric[0]} is in mm or metres, but without a scale the dimensions "
+                             "are in pixels: give a scale (mm_per_px, a pinhole distance or a known edge)")
         if self.frames is not None and self.side_image is not None:
             raise ValueError(f"a video is measured in single-photo mode: side_image "
                              f"{self.side_image!r} cannot be used with frames")

@@ -24,7 +24,7 @@ from __future__ import annotations
 import io
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
@@ -189,11 +189,16 @@ def write_ply(
 # validation
 
 
-def write_format(kind: str, dest: str | os.PathLike | BinaryIO, cloud: Cloud, spec: ScanSpec) -> float:
-    """Write `cloud` as `kind` ("csv" or "ply") with the spec's options; returns the ms taken.
+def write_format(kind: str, dest: str | os.PathLike | BinaryIO, cloud: Cloud, spec: ScanSpec, *,
+                 report: Mapping | None = None, images: Sequence[np.ndarray] | None = None) -> float:
+    """Write `kind` (one of `prismcore.spec.FORMATS`) with the spec's options; returns the ms taken.
 
     The one place that maps a spec's output options (CSV header and colours, ASCII PLY) onto
-    the writers, for the CLI and the service alike.
+    the writers, for the CLI and the service alike. "csv", "ply", "las" and "laz" write the
+    cloud (LAS/LAZ: see `prismcore.las` for its metres and axes; they need a seekable `dest`);
+    "glb" writes the fitted box textured from the photos (`prismcore.box_model`) and needs
+    `report` (the scan's report dict) and `images` (the front photo, and the side photo in
+    two-photo mode, as decoded).
     """
     start = time.perf_counter()
     if kind == "csv":
@@ -201,6 +206,17 @@ def write_format(kind: str, dest: str | os.PathLike | BinaryIO, cloud: Cloud, sp
                   header=spec.csv.header)
     elif kind == "ply":
         write_ply(dest, cloud.points, cloud.colors, ascii=spec.ply_ascii)
+    elif kind in ("las", "laz"):
+        from .las import write_las
+
+        write_las(dest, cloud.points, cloud.colors, compressed=kind == "laz")
+    elif kind == "glb":
+        if report is None or not images:
+            raise InputError("the glb model needs the scan's report and its photos")
+        from .box_model import box_glb
+
+        data = box_glb(report, images[0], images[1] if len(images) > 1 else None)
+        _emit(dest, iter([data]))
     else:
         raise InputError(f"unknown output format {kind!r}")
     return (time.perf_counter() - start) * 1000
