@@ -32,12 +32,33 @@ def _missing(key: str) -> ClientError:
     return ClientError({"Error": {"Code": "NoSuchKey", "Message": key}}, "GetObject")
 
 
+class _S3Client:
+    """The one boto3 call the worker makes itself (get_object, to stream an input): over the
+    store's dict for its own bucket, `other` for the rest."""
+
+    def __init__(self, store: MemoryObjectStore) -> None:
+        self._store = store
+        self.other: dict[str, dict[str, bytes]] = {}
+
+    def get_object(self, *, Bucket: str, Key: str, Range: str | None = None) -> dict[str, Any]:
+        if Bucket == self._store.bucket:
+            data = self._store.objects[Key][0] if Key in self._store.objects else None
+        else:
+            data = self.other.get(Bucket, {}).get(Key)
+        if data is None:
+            raise _missing(Key)
+        if Range is not None:
+            first, last = (int(n) for n in Range.removeprefix("bytes=").split("-"))
+            data = data[first:last + 1]
+        return {"Body": io.BytesIO(data), "ContentLength": len(data)}
+
+
 class MemoryObjectStore(ObjectStore):
     """The bucket's interface over a dict: key -> (bytes, content type)."""
 
     def __init__(self, bucket: str = "test-bucket") -> None:
-        super().__init__(client=None, bucket=bucket)
         self.objects: dict[str, tuple[bytes, str]] = {}
+        super().__init__(client=_S3Client(self), bucket=bucket)
 
     def ensure_bucket(self) -> None:
         pass
@@ -132,12 +153,20 @@ class Fakes:
         settings = self.ctx.settings.model_copy(update=overrides)
         return replace(self, ctx=replace(self.ctx, settings=settings))
 
+    def upload(self, data: bytes, *, name: str = "box.jpg", tenant: str = "acme") -> str:
+        """A stored upload of `data`; its reference (``upload:{id}``)."""
+        upload_id = uuid.uuid4().hex
+        key = f"uploads/{tenant}/{upload_id}"
+        self.objects.put_bytes(key, data)
+        self.store.put_upload(upload_id, tenant=tenant, key=key, size=len(data), name=name)
+        return f"upload:{upload_id}"
+
     def job(self, *, items: int = 1, state: State = State.queued, age_s: float = 0,
-            webhook_url: str | None = None) -> str:
+            webhook_url: str | None = None, spec: ScanSpec = SPEC) -> str:
         """A stored job of `items` items, created `age_s` before the clock's now."""
         created = datetime.fromtimestamp(self.clock.now, UTC) - timedelta(seconds=age_s)
         job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=created, webhook_url=webhook_url,
-                        items=[ItemRecord(index=i, spec=SPEC) for i in range(items)])
+                        items=[ItemRecord(index=i, spec=spec) for i in range(items)])
         self.store.create(job)
         if state != State.queued:
             self.store.transition(job.id, state)
