@@ -56,9 +56,8 @@ def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | N
     return None
 
 
-def _mm_values(flag: str, text: str, counts: tuple[int, ...]) -> list[float]:
+def _mm_values(flag: str, text: str, counts: tuple[int, ...], expected: str) -> list[float]:
     """'100,80,60' -> [100.0, 80.0, 60.0]; a bad number or count names the flag and the text."""
-    expected = " or ".join({1: "T", 3: "W,H,D"}[n] for n in counts)
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
@@ -74,8 +73,8 @@ def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict:
         raise InputError("--nominal and --tolerance-mm go together: give both")
     if nominal is None or tolerance_mm is None:
         return {}
-    tol = _mm_values("--tolerance-mm", tolerance_mm, (1, 3))
-    sizes = _mm_values("--nominal", nominal, (3,))
+    tol = _mm_values("--tolerance-mm", tolerance_mm, (1, 3), "T or Tw,Th,Td")
+    sizes = _mm_values("--nominal", nominal, (3,), "W,H,D")
     if min(tol) < 0:
         raise InputError(f"--tolerance-mm {tolerance_mm!r}: a tolerance is >= 0 mm")
     if min(sizes) <= 0:
