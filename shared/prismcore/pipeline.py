@@ -51,6 +51,8 @@ __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images
 FIT_WARN_PX = 3.0  # a click this far from the fitted model's corner is worth a look
 FIT_FAIL_PX = 25.0  # ... and this far (or 5 % of the face's size) means the fit is wrong
 FIT_FAIL_FRACTION = 0.05
+SNAP_SUSPECT_RMS_PX = 5.0  # a fit to the refined edges this far (RMS) from the clicks is suspect...
+SNAP_CLICKS_BETTER = 3.0  # ... and is replaced when the clicks alone fit a box this many times closer
 FOCAL_MAX_REL_STD = 0.25  # a fitted focal less sure than this is "not determined"
 OBLIQUE_WARN = 0.01  # warn when the square-on model costs more than 1 % on some dimension
 _POINT_ROLES = {
@@ -270,6 +272,43 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
     return dims, quads, camera
 
 
+def _click_rms(marked: FaceQuads, model: FaceQuads) -> float:
+    """RMS distance (px) between the clicked points and the model's corners they mark."""
+    d = [np.linalg.norm(corner - click)
+         for face in ("front", "side")
+         for label, click, corner in zip(quad_labels(marked)[face == "side"], getattr(marked, face),
+                                         getattr(model, face), strict=True) if label is not None]
+    return float(np.sqrt(np.mean(np.square(d)))) if d else 0.0
+
+
+def _unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
+                    images: list[np.ndarray], focal: _Focal, warnings: list[str], refined: tuple):
+    """The box fitted to the refined edges, unless the edges snapped to something else.
+
+    Edge refinement takes the consensus line near each clicked side; on a real box that can be a
+    printed border, a lid's seam or the background past a corner (a real video: 10-20 px off).
+    Its box then sits far from the clicks while the clicks alone fit a box closely. A fit
+    farther than click noise explains (SNAP_SUSPECT_RMS_PX) is compared with the clicks' own
+    fit, and the clicks win when they fit SNAP_CLICKS_BETTER times closer.
+    """
+    dims, quads, camera = refined
+    rms = _click_rms(marked, quads)
+    if not rms > SNAP_SUSPECT_RMS_PX:
+        return dims, quads, camera, fits
+    plain = {n: [EdgeFit(line_through(q[i], q[(i + 1) % 4]), 0.0, 0.0, False) for i in range(4)]
+             for n, q in (("front", marked.front), ("side", marked.side))}
+    scratch: list[str] = []
+    alt = _measure(spec, marked, marked, plain, images, focal, scratch)
+    alt_rms = _click_rms(marked, alt[1])
+    if not alt_rms * SNAP_CLICKS_BETTER < rms:
+        return dims, quads, camera, fits
+    warnings.extend(scratch)
+    warnings.append(f"the refined edges fit a box {rms:.1f} px (RMS) from the clicks, the clicks "
+                    f"alone one {alt_rms:.1f} px: the edges found were not the box's (printed "
+                    "borders or background?), so the clicks were used")
+    return *alt, plain
+
+
 def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: bool,
            warnings: list[str]) -> dict:
     """Distances between each click and the model's corner; warn, or refuse a clearly wrong fit.
@@ -408,6 +447,9 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
             raise InputError("a shooting distance needs the focal length: give focal_px, a camera, or "
                              "P6 and P7 in one photo (the focal length is then fitted)")
         dims, quads, camera = _measure(work, quads, marked, fits, images, focal, warnings)
+        if fits and dims.perspective and not spec.two_photo:
+            dims, quads, camera, fits = _unless_snapped(work, marked, fits, images, focal, warnings,
+                                                        (dims, quads, camera))
         camera["undistorted"] = undistorted
         fit = _guard(spec, marked, quads, dims.perspective, warnings)
     if spec.two_photo and spec.points.p7 is None and _side_height_guess(spec) is None:
