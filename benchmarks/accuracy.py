@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import ScanSpec, run_scan
-from prismcore.synth import Box, Style, render_front_view, render_oblique_view, render_side_view
+from prismsynth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
 
 def _clicks(points: dict, names: tuple[str, ...], rng: np.random.Generator, px: float) -> list:

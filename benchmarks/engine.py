@@ -31,7 +31,7 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import ScanSpec, run_scan
-from prismcore.synth import Box, render_front_view, render_oblique_view, render_side_view, save_image
+from prismsynth import Box, render_front_view, render_oblique_view, render_side_view, save_image
 
 sys.path.insert(0, str(Path(__file__).parent))
 import writers_bench

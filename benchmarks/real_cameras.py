@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/real_cameras.py [--scenes N] [--seed S] [--jobs J]
 
-Every scene is `prismcore.synth.photo_like_scene` (seeds S, S+1, ...): a random box photographed
+Every scene is `prismsynth.photo_like_scene` (seeds S, S+1, ...): a random box photographed
 obliquely by a phone-like camera (focal length 0.7-1.2 x the width, distortion k1 in
 [-0.15, 0.10], rounded edges, vignetting, noise, JPEG, EXIF in half of them), clicked 0-3 px
 off, with one known edge. Each scene is measured side by side by:
@@ -39,7 +39,7 @@ from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
 from prismcore.camera import CameraModel, undistort_image, undistort_points
-from prismcore.synth import PhotoLikeScene, photo_like_scene
+from prismsynth import PhotoLikeScene, photo_like_scene
 
 TARGET_MEDIAN, TARGET_WORST, TARGET_COVERAGE = 0.01, 0.03, 0.90
 DIMENSIONS = ("width", "height", "depth")

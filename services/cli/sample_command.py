@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from prismcore.synth import Box, render_oblique_view, save_image
+from prismsynth import Box, render_oblique_view, save_image
 
 __all__ = ["sample"]
 

@@ -11,8 +11,7 @@ import cv2
 import numpy as np
 
 from prismcore.overlay import FACE_COLORS
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 ROOT = Path(__file__).resolve().parents[2]
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

@@ -15,8 +15,7 @@ import numpy as np
 import pytest
 
 from prismcore.camera import CameraModel
-from prismcore.synth import Box, CameraExif, Realism, Style, render_oblique_view
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, CameraExif, Realism, Style, render_clip, render_oblique_view, write_video
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 from plyfile import PlyData
 
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 BOX = Box(120.0, 80.0, 60.0)
 TRUTH = {"width": 120.0, "height": 80.0, "depth": 60.0}

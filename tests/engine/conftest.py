@@ -8,8 +8,7 @@ from pathlib import Path
 import pytest
 from video_clips import CLIP_BOX, CLIP_FPS, CLIP_FRAMES, stamp
 
-from prismcore.synth import Scene
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Scene, render_clip, write_video
 
 
 @pytest.fixture(scope="session")

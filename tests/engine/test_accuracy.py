@@ -1,4 +1,4 @@
-"""Dimensions against ground truth: synthetic boxes of known size (prismcore.synth)."""
+"""Dimensions against ground truth: synthetic boxes of known size (prismsynth)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from prismcore import ScanSpec, run_scan
 from prismcore.pipeline import SAME_SCALE_ASSUMED
-from prismcore.synth import Box, Style, render_front_view, render_oblique_view, render_side_view
+from prismsynth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
 BOXES = [Box(120.0, 80.0, 60.0), Box(90.0, 140.0, 45.0), Box(200.0, 60.0, 110.0)]
 STYLES = {

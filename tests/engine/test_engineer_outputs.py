@@ -229,3 +229,44 @@ def test_gltf_axes_are_a_proper_rotation():
     assert np.linalg.det(axes) == pytest.approx(1.0)
     las = box_to_las(p) * 1000
     assert np.linalg.det(las[1:] - las[0]) == pytest.approx(1.0)
+
+
+def _texture_middle_matches_photo(model, index: int, corners, photo: np.ndarray) -> None:
+    blob = model.binary_blob()
+    view = model.bufferViews[model.images[index].bufferView]
+    data = np.frombuffer(blob[view.byteOffset:view.byteOffset + view.byteLength], np.uint8)
+    tex = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    h, w = tex.shape[:2]
+    quad = np.asarray(corners, np.float32)
+    # the texture's middle is where the face's diagonals cross in the photo
+    H = cv2.getPerspectiveTransform(
+        np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]], np.float32), quad)
+    x, y = np.rint(cv2.perspectiveTransform(np.array([[[w / 2 - 0.5, h / 2 - 0.5]]]), H)[0, 0]).astype(int)
+    seen = photo[y - 2:y + 3, x - 2:x + 3].reshape(-1, 3).mean(axis=0)
+    texel = tex[h // 2 - 2:h // 2 + 3, w // 2 - 2:w // 2 + 3].reshape(-1, 3).mean(axis=0)
+    assert np.abs(seen - texel).max() < 12
+
+
+@pytest.mark.parametrize(("face", "yaw", "pitch", "axis", "where"), [
+    ("left", -30.0, 15.0, 0, "low"),  # the left side at gx = 0
+    ("top", 15.0, 35.0, 1, "high"),  # the top at gy = H
+    ("right", 30.0, 15.0, 0, "high"),  # the right side at gx = W
+])
+def test_glb_textures_the_second_face_where_it_was_photographed(face, yaw, pitch, axis, where):
+    scene = render_oblique_view(BOX, yaw_deg=yaw, pitch_deg=pitch, seed=3, side_face=face)
+    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
+                                    "focal_px": scene.focal_px, "side_face": face,
+                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
+    result = run_scan(spec, scene.image)
+    buf = io.BytesIO()
+    write_format("glb", buf, result.cloud, spec, report=result.report, images=[scene.image])
+    model = pygltflib.GLTF2.load_from_bytes(buf.getvalue())
+    second = model.meshes[0].primitives[1]  # front, second face, then the grey ones
+    assert second.attributes.TEXCOORD_0 is not None
+    pos = model.accessors[second.attributes.POSITION]
+    dims = result.report["dimensions"]
+    plane = {("low", 0): 0.0, ("high", 0): dims["width"] / 1000, ("high", 1): dims["height"] / 1000}
+    assert pos.min[axis] == pytest.approx(plane[where, axis], abs=1e-6)
+    assert pos.max[axis] == pytest.approx(plane[where, axis], abs=1e-6)
+    _texture_middle_matches_photo(model, 1, result.report["faces"]["side"]["corners"], scene.image)
+    _texture_middle_matches_photo(model, 0, result.report["faces"]["front"]["corners"], scene.image)

@@ -10,7 +10,7 @@ import pytest
 from prismcore import InputError, ScanSpec, plan_scan
 from prismcore.faces import validate_quad
 from prismcore.measure import obliqueness
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 EDGE = {"kind": "edge", "edge": "width", "length_mm": 150.0}

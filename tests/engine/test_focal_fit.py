@@ -9,7 +9,7 @@ import pytest
 from prismcore import ScanSpec, plan_scan
 from prismcore.camera import CameraModel
 from prismcore.perspective import FaceEvidence, fit_box, focal_from_vanishing_points
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 PRINCIPAL = np.array([639.5, 511.5])

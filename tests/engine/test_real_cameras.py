@@ -1,5 +1,5 @@
 """Issue 15's acceptance on photo-like renders: no focal length, no EXIF, unknown lens distortion,
-rounded edges, JPEG, clicks a few px off, one known edge (`prismcore.synth.photo_like_scene`).
+rounded edges, JPEG, clicks a few px off, one known edge (`prismsynth.photo_like_scene`).
 
 The oracle is the render's true box. Asserted over a fixed set of seeds, on the two dimensions the
 known edge does not set: the median error, the worst error, and that the reported 1-sigma
@@ -15,7 +15,7 @@ import pytest
 from prismcore import ScanSpec
 from prismcore.camera import CameraModel
 from prismcore.pipeline import plan_scan
-from prismcore.synth import PhotoLikeScene, photo_like_scene
+from prismsynth import PhotoLikeScene, photo_like_scene
 
 SEEDS = tuple(range(12))
 DIMENSIONS = ("width", "height", "depth")
@@ -59,8 +59,6 @@ def no_focal(scenes: list[PhotoLikeScene]) -> tuple[np.ndarray, np.ndarray]:
     return _errors(scenes, with_camera=False)
 
 
-@pytest.mark.xfail(strict=True, reason="lens distortion is carried in the uncertainty, not removed yet "
-                   "(perspective.estimate_distortion reaches 0.9 % but is fooled by compressed video frames)")
 def test_median_error_within_one_percent(no_focal: tuple[np.ndarray, np.ndarray]) -> None:
     errors, _ = no_focal
     assert np.median(np.abs(errors)) <= 0.01, np.round(errors * 100, 2)

@@ -19,7 +19,7 @@ from pydantic import ValidationError
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
 from prismcore.faces import resolve_side_face
 from prismcore.overlay import RESIDUAL_COLOR, draw_overlay
-from prismcore.synth import Box, Style, render_oblique_view, save_image
+from prismsynth import Box, Style, render_oblique_view, save_image
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 BOXES = [Box(120.0, 80.0, 60.0), Box(90.0, 140.0, 45.0), Box(200.0, 60.0, 110.0)]

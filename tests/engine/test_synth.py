@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from prismcore.synth import (
+from prismsynth import (
     Box,
     Scene,
     Style,

@@ -14,7 +14,7 @@ from PIL import Image
 
 from prismcore.camera import CameraModel, undistort_points
 from prismcore.errors import InputError
-from prismcore.synth import (
+from prismsynth import (
     Box,
     CameraExif,
     Realism,

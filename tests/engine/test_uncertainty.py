@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec, plan_scan, run_scan
-from prismcore.synth import Box, Style, render_oblique_view
+from prismsynth import Box, Style, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 SCENES = 20

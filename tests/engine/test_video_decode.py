@@ -10,8 +10,8 @@ import pytest
 from video_clips import CLIP_FPS, CLIP_FRAMES, CODEC_IDS, CODECS, read_stamp
 
 from prismcore import InputError
-from prismcore.synth_video import write_video
 from prismcore.video import iter_frames, probe_video
+from prismsynth import write_video
 
 # What OpenCV reports as the FourCC of each codec (MPEG-4 part 2 reads as "FMP4" whatever the tag).
 FOURCC = {"MJPG": {"MJPG"}, "XVID": {"FMP4", "XVID"}, "mp4v": {"FMP4", "mp4v"},

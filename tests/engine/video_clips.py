@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismcore.synth import Box
+from prismsynth import Box
 
 CLIP_BOX = Box(120.0, 80.0, 60.0)
 CLIP_FRAMES = 6

@@ -16,7 +16,7 @@ from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 
 from prism_cli.stack import ManagedProcess, start_api, start_redis, start_s3, start_worker
-from prismcore.synth import Box, Scene, render_oblique_view
+from prismsynth import Box, Scene, render_oblique_view
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
 from .servers import S3_KEY_ID, S3_SECRET, service_env

@@ -12,8 +12,7 @@ import zlib
 import cv2
 import pytest
 
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 from .faultstack import FaultStack, item, png, tiny_scene
 

@@ -21,8 +21,8 @@ from prism_common.store import JobStore
 from prism_worker.artifacts import plan_tiles
 from prismcore import ScanSpec, plan_scan, run_scan
 from prismcore.images import load_image
-from prismcore.synth import Box, render_oblique_view
 from prismcore.writers import write_format
+from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene

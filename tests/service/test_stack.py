@@ -22,8 +22,7 @@ from prism_cli.stack import ManagedProcess, start_api, start_worker
 from prismcore import ScanSpec, run_scan
 from prismcore.images import load_image
 from prismcore.spec import frame_folder
-from prismcore.synth import Box, render_oblique_view
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, render_oblique_view, write_video
 
 from .conftest import API_KEYS
 from .servers import service_env

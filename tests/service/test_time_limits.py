@@ -21,7 +21,7 @@ from prism_common.queue import (
 from prism_common.records import State
 from prism_common.settings import Settings
 
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
 from .worker_env import Env, encode, spec_for, worker_env

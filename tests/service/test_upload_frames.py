@@ -16,8 +16,7 @@ from prism_common.settings import get_settings
 from prism_common.upload_keys import tenant_hash
 
 from prism_api.main import create_app
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 from .test_api import ACME, GLOBEX, TestClient, upload
 from .worker_env import Env, encode, worker_env

@@ -15,8 +15,7 @@ import pytest
 from prism_common.records import State
 
 from prismcore.spec import ScanSpec, frame_folder
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 from .tls import https_server, make_cert
 from .worker_env import INPUTS_BUCKET, NAMES, Env, encode, spec_for, worker_env

@@ -39,7 +39,7 @@ from standardwebhooks import Webhook, WebhookVerificationError
 
 from prism_cli.stack import ManagedProcess, start_api, start_worker
 from prism_worker.webhooks import message_id, signed_headers
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS
 from .servers import free_port, service_env, wait_for_port

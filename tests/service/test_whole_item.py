@@ -18,8 +18,8 @@ from prism_common.records import State
 from prismcore import run_scan
 from prismcore.cloud import PREVIEW_POINTS, Cloud, decimate
 from prismcore.images import load_image
-from prismcore.synth import Box, render_oblique_view
 from prismcore.writers import write_csv, write_ply
+from prismsynth import Box, render_oblique_view
 
 from .worker_env import Env, encode, spec_for, worker_env
 

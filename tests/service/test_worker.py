@@ -22,8 +22,8 @@ from prism_worker.broker import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.scan import merge_bands, row_tiles, scan_band
-from prismcore.synth import Box, CameraExif, Realism, Style, render_oblique_view
 from prismcore.writers import write_csv
+from prismsynth import Box, CameraExif, Realism, Style, render_oblique_view
 
 from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env
 

@@ -10,7 +10,7 @@ import numpy as np
 from playwright.sync_api import Page, expect
 from service.conftest import API_KEYS
 
-from prismcore.synth import Scene
+from prismsynth import Scene
 
 KEY = API_KEYS["acme"]
 

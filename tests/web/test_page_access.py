@@ -7,7 +7,7 @@ import re
 from page_driver import KEY, PageDriver, save_photo
 from playwright.sync_api import expect
 
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 LABELLED = ["API key", "Add photos", "One photo (front and side)", "Two photos (front photo, side photo)",
             "Front photo", "Also mark P6 and P7", "Magnifier", "Zoom in", "Zoom out",

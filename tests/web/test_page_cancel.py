@@ -10,7 +10,7 @@ import httpx
 from page_driver import KEY, PageDriver
 from playwright.sync_api import expect
 
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 

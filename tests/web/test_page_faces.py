@@ -10,7 +10,7 @@ from page_driver import PageDriver, save_photo
 from playwright.sync_api import expect
 
 from prismcore.spec import ScanSpec
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 BOX = Box(120.0, 80.0, 60.0)
 CYAN, ORANGE = (0, 200, 255), (255, 140, 0)  # the front's and the second face's outlines (marker-draw.ts)

@@ -12,7 +12,7 @@ import pytest
 from page_driver import PageDriver, save_photo
 from playwright.sync_api import expect
 
-from prismcore.synth import Box, render_oblique_view
+from prismsynth import Box, render_oblique_view
 
 PREFIX = "/prism"
 VIEWPORT = {"width": 1280, "height": 1000}

@@ -14,7 +14,7 @@ from page_driver import KEY, PageDriver, save_photo
 from playwright.sync_api import expect
 
 from prismcore.spec import ScanSpec
-from prismcore.synth import Box, render_front_view, render_oblique_view, render_side_view
+from prismsynth import Box, render_front_view, render_oblique_view, render_side_view
 
 BOX = Box(120.0, 80.0, 60.0)
 CYAN, ORANGE = (0, 200, 255), (255, 140, 0)  # the front's and the side's outlines (marker-draw.ts)

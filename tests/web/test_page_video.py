@@ -15,8 +15,7 @@ from page_driver import KEY, PageDriver
 from playwright.sync_api import expect
 
 from prismcore.spec import ScanSpec
-from prismcore.synth import Box
-from prismcore.synth_video import render_clip, write_video
+from prismsynth import Box, render_clip, write_video
 
 BOX = Box(120.0, 80.0, 60.0)
 FRAMES = 8

@@ -51,7 +51,7 @@ import cv2
 import numpy as np
 from PIL import Image
 
-from .errors import InputError
+from prismcore.errors import InputError
 
 __all__ = [
     "Box",

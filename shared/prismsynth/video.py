@@ -1,6 +1,6 @@
 """Short videos of a box of known size, for tests and benchmarks: a camera swaying slightly.
 
-Frames are `synth.render_oblique_view` renders of one scene (same seed, so the same box,
+Frames are `render.render_oblique_view` renders of one scene (same seed, so the same box,
 texture and background) from poses that sway around a mean view at a fixed distance, and are
 encoded with OpenCV's VideoWriter, or for H.264 with the ffmpeg of `imageio-ffmpeg` (a test
 dependency: OpenCV's wheels do not encode H.264).
@@ -15,7 +15,7 @@ from collections.abc import Iterable
 import cv2
 import numpy as np
 
-from .synth import DEFAULT_STYLE, Box, Scene, Style, render_oblique_view
+from .render import DEFAULT_STYLE, Box, Scene, Style, render_oblique_view
 
 __all__ = ["render_clip", "write_video"]
 
