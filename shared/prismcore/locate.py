@@ -1,0 +1,577 @@
+"""Zero-click: find a box in a photo, its visible faces and its reference points P1..P7.
+
+The search, on a copy of the photo about 640 px wide (inside the region of interest, if given):
+
+1. Colour edges (Canny on each Lab channel), thickened so a face's outline closes.
+2. The regions the edges enclose; those whose outline is a convex quadrilateral are face
+   candidates (a printed label is a hole in its face, not a face of its own).
+3. Faces that share an edge (two corners each) form a box: two faces, or three around one
+   corner. The top face is the one above the others; the front the larger of the upright
+   ones, the other the side (right or left), else the top.
+4. The box around the hint, or the largest near the image centre; a second candidate nearly as
+   large is an ambiguity the caller must settle with a hint.
+5. Full resolution: the engine's own plan (sub-pixel edge fits and the free-focal box fit,
+   `pipeline.plan_scan`) places the corners; run twice, the second from the first's corners,
+   so that its click residuals measure how well a box explains the edges.
+
+The confidence combines the edge fits' support, the box fit's residuals and how far the
+corners moved from the regions' outlines; below `CONFIDENCE_MIN` the result carries the reason
+and no caller should measure it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .errors import InputError
+from .faces import SideFace, quad_area
+from .spec import ReferencePoints, ScanSpec
+
+__all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points"]
+
+CONFIDENCE_MIN = 0.6
+CONFIDENCE_WARN = 0.8  # accepted below this: with a warning to check the points
+WORK_WIDTH = 640  # px: the search runs on a copy this wide
+_EDGE_DILATE = 3  # px (work scale): closes small gaps in a face's outline
+_SHRINK_PX = 1.5  # px (work scale): how far inside its edges a region's outline lies
+_MIN_FACE_FRACTION = 0.002  # of the work image's area
+_SOLIDITY = 0.88
+_AMBIGUOUS = 0.6  # a runner-up this large (relative) is a second box
+_ATTEMPTS = 3  # candidates given the full fit before giving up
+
+
+@dataclass(frozen=True)
+class Found:
+    """What the search found.
+
+    Attributes
+    ----------
+    points : ReferencePoints or None
+        P1..P7, image (x, y) px (all seven), or None when nothing box-like was found.
+    side_face : {"right", "left", "top"} or None
+        The second face P4, P5, P7 mark.
+    confidence : float
+        0-1; `CONFIDENCE_MIN` and above: the points may be measured.
+    reason : str or None
+        Why the result must not be measured (a person can act on it); None when accepted.
+    faces : tuple of ndarray
+        The face quads found, each (4, 2) float64 image px (for overlays).
+    candidates : int
+        How many box candidates the search saw.
+    fit_rms_px : float or None
+        RMS distance (px) between the corners of the two fitting passes (see the module).
+    timings_ms : dict
+        Stage -> milliseconds.
+    warnings : tuple of str
+        An accepted result below `CONFIDENCE_WARN` says to check the points.
+    """
+
+    points: ReferencePoints | None
+    side_face: SideFace | None
+    confidence: float
+    reason: str | None
+    faces: tuple[np.ndarray, ...] = ()
+    candidates: int = 0
+    fit_rms_px: float | None = None
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        return self.reason is None
+
+    def report(self) -> dict:
+        """The JSON-ready summary report.json keeps."""
+        return {"points_source": "auto", "confidence": round(self.confidence, 3),
+                "side_face": self.side_face, "reason": self.reason,
+                "points": None if self.points is None else
+                {k: [round(v[0], 2), round(v[1], 2)] for k, v in self.points.as_dict().items()},
+                "candidates": self.candidates, "warnings": list(self.warnings),
+                "fit_rms_px": None if self.fit_rms_px is None else round(self.fit_rms_px, 3)}
+
+
+@dataclass
+class _Quad:
+    corners: np.ndarray  # (4, 2) clockwise on screen, work px
+    area: float
+
+
+@dataclass
+class _Box:
+    faces: list[_Quad]
+    area: float
+    centre: np.ndarray
+    hull: np.ndarray
+
+
+# --------------------------------------------------------------------------- faces
+
+
+_LEVELS = ((20.0, 50.0), (8.0, 20.0))  # Canny thresholds on L (a, b: 0.4 of them)
+
+
+def _edges(lab: np.ndarray, low: float, high: float) -> np.ndarray:
+    """(h, w) uint8 edge map (255 on edges) from all three channels of a blurred Lab image."""
+    edges = cv2.Canny(lab[..., 0], low, high, L2gradient=True)
+    for c in (1, 2):
+        edges |= cv2.Canny(lab[..., c], 0.4 * low, 0.4 * high, L2gradient=True)
+    return cv2.dilate(edges, np.ones((_EDGE_DILATE, _EDGE_DILATE), np.uint8))
+
+
+def _all_faces(small: np.ndarray) -> list[_Quad]:
+    """Face quads at each edge sensitivity (a faint fold needs the lower one, a textured face
+    the higher), the same face found twice kept once."""
+    lab = cv2.cvtColor(cv2.GaussianBlur(small, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
+    quads: list[_Quad] = []
+    for low, high in _LEVELS:
+        for q in _faces(_edges(lab, low, high)):
+            tol = 0.05 * math.sqrt(q.area) + 2.0
+            if not any(np.linalg.norm(p.corners[:, None] - q.corners[None], axis=2).min(axis=1).max() < tol
+                       for p in quads):
+                quads.append(q)
+    return quads
+
+
+def _line(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    n = np.array([q[1] - p[1], p[0] - q[0]])
+    n /= np.linalg.norm(n)
+    return np.array([n[0], n[1], -n @ p])
+
+
+def _meet(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    x = np.cross(a, b)
+    if abs(x[2]) < 1e-9:
+        return None
+    return x[:2] / x[2]
+
+
+def _quad_of(contour: np.ndarray) -> np.ndarray | None:
+    """(4, 2) corners of a region's outline when it is a convex quadrilateral, else None.
+
+    The approximate corners split the outline into four sides; each side's line is fitted to
+    the outline points of its middle 80 % and moved out by _SHRINK_PX.
+    """
+    hull = cv2.convexHull(contour)
+    peri = cv2.arcLength(hull, True)
+    approx = cv2.approxPolyDP(hull, 0.03 * peri, True).reshape(-1, 2).astype(np.float64)
+    if len(approx) != 4:
+        return None
+    if quad_area(approx) < 0:
+        approx = approx[::-1]
+    pts = contour.reshape(-1, 2).astype(np.float64)
+    centre = approx.mean(axis=0)
+    lines = []
+    for i in range(4):
+        p, q = approx[i], approx[(i + 1) % 4]
+        d = q - p
+        length = float(np.linalg.norm(d))
+        if length < 6:
+            return None
+        u = d / length
+        along = (pts - p) @ u
+        off = (pts - p) @ np.array([-u[1], u[0]])
+        near = (along > 0.1 * length) & (along < 0.9 * length) & (np.abs(off) < 0.03 * peri + 2)
+        if near.sum() < 5:
+            return None
+        vx, vy, x0, y0 = cv2.fitLine(pts[near].astype(np.float32), cv2.DIST_HUBER, 0, 0.01, 0.01).ravel()
+        line = _line(np.array([x0, y0]), np.array([x0 + vx, y0 + vy]))
+        if line[:2] @ centre + line[2] < 0:
+            line = -line
+        line[2] += _SHRINK_PX  # the region lies inside its thickened edges: move the side out
+        lines.append(line)
+    corners = []
+    for i in range(4):
+        x = _meet(lines[(i - 1) % 4], lines[i])
+        if x is None or np.linalg.norm(x - approx[i]) > 0.1 * peri:
+            return None
+        corners.append(x)
+    quad = np.array(corners)
+    return quad if quad_area(quad) > 0 else None
+
+
+def _faces(edges: np.ndarray) -> list[_Quad]:
+    h, w = edges.shape
+    n, labels, stats, _ = cv2.connectedComponentsWithStats((edges == 0).astype(np.uint8), connectivity=4)
+    min_area = _MIN_FACE_FRACTION * h * w
+    quads = []
+    for i in range(1, n):
+        x, y, bw, bh, area = stats[i]
+        if area < min_area or area > 0.6 * h * w:
+            continue
+        if x == 0 or y == 0 or x + bw == w or y + bh == h:
+            continue  # cut by the picture's border: not a whole face
+        mask = (labels[y:y + bh, x:x + bw] == i).astype(np.uint8)
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        contour = max(contours, key=cv2.contourArea) + np.array([x, y])
+        outer = cv2.contourArea(contour)
+        hull_area = cv2.contourArea(cv2.convexHull(contour))
+        if hull_area <= 0 or outer / hull_area < _SOLIDITY:
+            continue
+        quad = _quad_of(contour)
+        if quad is not None:
+            quads.append(_Quad(quad, quad_area(quad)))
+    return quads
+
+
+# --------------------------------------------------------------------------- boxes
+
+
+def _shared(a: _Quad, b: _Quad) -> tuple[tuple[int, int], tuple[int, int]] | None:
+    """The edge a and b share: (i, i+1) of a matched to b's corners, or None."""
+    tol = 0.12 * math.sqrt(min(a.area, b.area)) + 3.0
+    d = np.linalg.norm(a.corners[:, None] - b.corners[None], axis=2)
+    for i in range(4):
+        j = (i + 1) % 4
+        ki, kj = int(np.argmin(d[i])), int(np.argmin(d[j]))
+        if d[i, ki] < tol and d[j, kj] < tol and ki != kj and (ki - kj) % 4 in (1, 3):
+            return (i, j), (ki, kj)
+    return None
+
+
+def _boxes(quads: list[_Quad]) -> list[_Box]:
+    n = len(quads)
+    pairs = {(i, j) for i in range(n) for j in range(i + 1, n) if _shared(quads[i], quads[j])}
+    boxes: list[list[int]] = []
+    used: set[tuple[int, int]] = set()
+    for i in range(n):
+        for j in range(i + 1, n):
+            for k in range(j + 1, n):
+                if {(i, j), (i, k), (j, k)} <= pairs:
+                    boxes.append([i, j, k])
+                    used |= {(i, j), (i, k), (j, k)}
+    boxes += [[i, j] for i, j in sorted(pairs - used)]
+    out = []
+    for members in boxes:
+        faces = [quads[m] for m in members]
+        allc = np.concatenate([f.corners for f in faces]).astype(np.float32)
+        hull = cv2.convexHull(allc).reshape(-1, 2).astype(np.float64)
+        out.append(_Box(faces, float(cv2.contourArea(hull.astype(np.float32))), hull.mean(axis=0), hull))
+    return out
+
+
+def _score(box: _Box, shape: tuple[int, int]) -> float:
+    h, w = shape
+    off = np.linalg.norm(box.centre - np.array([w / 2, h / 2])) / math.hypot(w / 2, h / 2)
+    return box.area * (1.0 - 0.6 * off) * (1.1 if len(box.faces) == 3 else 1.0)
+
+
+# --------------------------------------------------------------------------- labels
+
+
+def _from(quad: np.ndarray, start: int) -> np.ndarray:
+    """The quad's corners clockwise, starting at corner `start`."""
+    return np.roll(quad, -start, axis=0)
+
+
+def _label(box: _Box) -> tuple[dict[str, np.ndarray], SideFace]:
+    """P1..P7 (work px) and the second face of a box's faces, per `prismcore.faces`."""
+    faces = sorted(box.faces, key=lambda f: f.corners[:, 1].mean())
+    if len(faces) == 3:
+        upright = faces[1:]  # the highest face is the top
+        top = None
+    else:
+        a, b = faces
+        (ia, ja), _ = _shared(a, b)  # type: ignore[misc]
+        d = a.corners[ja] - a.corners[ia]
+        top, upright = (a, [b]) if abs(d[0]) > abs(d[1]) else (None, [a, b])
+    if top is not None:
+        front = upright[0]
+        (i, j), (ki, kj) = _shared(front, top)  # type: ignore[misc]
+        left, _ = (i, j) if front.corners[i, 0] < front.corners[j, 0] else (j, i)
+        f = _from(front.corners, left)  # P1, P2, P3, P6
+        t_left = ki if left == i else kj
+        t_right = kj if left == i else ki
+        t = top.corners
+        # Clockwise on screen from the top face's lower-right: BR, BL, TL, TR.
+        order = _from(t, t_right)
+        p1, p2 = (f[0] + t[t_left]) / 2, (f[1] + t[t_right]) / 2
+        return {"p1": p1, "p2": p2, "p3": f[2], "p6": f[3], "p4": p1, "p5": order[2],
+                "p7": order[3]}, "top"
+    front, second = sorted(upright, key=lambda f: -f.area)
+    (i, j), (ki, kj) = _shared(front, second)  # type: ignore[misc]
+    upper, _ = (i, j) if front.corners[i, 1] < front.corners[j, 1] else (j, i)
+    s_upper = ki if upper == i else kj
+    s_lower = kj if upper == i else ki
+    s = second.corners
+    if s[:, 0].mean() > front.corners[:, 0].mean():
+        f = _from(front.corners, (upper - 1) % 4)  # TL, TR (upper), BR (lower), BL
+        side = _from(s, s_upper)  # TL (shared upper), TR, BR, BL (shared lower)
+        p2, p3 = (f[1] + s[s_upper]) / 2, (f[2] + s[s_lower]) / 2
+        return {"p1": f[0], "p2": p2, "p3": p3, "p6": f[3], "p4": p2, "p5": side[1],
+                "p7": side[2]}, "right"
+    f = _from(front.corners, upper)  # TL (upper), TR, BR, BL (lower)
+    side = _from(s, (s_upper - 1) % 4)  # TL, TR (shared upper), BR (shared lower), BL
+    p1, p6 = (f[0] + s[s_upper]) / 2, (f[3] + s[s_lower]) / 2
+    return {"p1": p1, "p2": f[1], "p3": f[2], "p6": p6, "p4": p1, "p5": side[0],
+            "p7": side[3]}, "left"
+
+
+# --------------------------------------------------------------------------- search
+
+
+def _parse_roi(roi: tuple[float, float, float, float] | None, shape: tuple[int, ...]
+               ) -> tuple[int, int, int, int]:
+    h, w = shape[:2]
+    if roi is None:
+        return 0, 0, w, h
+    x0, y0, x1, y1 = (float(v) for v in roi)
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+        raise InputError(f"roi {roi!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1")
+    ix0, iy0 = max(0, math.floor(x0)), max(0, math.floor(y0))
+    ix1, iy1 = min(w, math.ceil(x1) + 1), min(h, math.ceil(y1) + 1)
+    if ix1 - ix0 < 16 or iy1 - iy0 < 16:
+        raise InputError(f"roi {roi!r} leaves less than 16x16 px of the {w}x{h} image")
+    return ix0, iy0, ix1, iy1
+
+
+def _contains(box: _Box, xy: np.ndarray) -> float:
+    """Signed distance (px, positive inside) of xy from the box's outline."""
+    return float(cv2.pointPolygonTest(box.hull.astype(np.float32), (float(xy[0]), float(xy[1])), True))
+
+
+def _focal_guess(points: dict[str, np.ndarray], side_face: SideFace, shape: tuple[int, ...]) -> float:
+    """A focal length (px) for the first pass: the vanishing points', within typical bounds."""
+    from .faces import clicked_quads
+    from .perspective import focal_from_vanishing_points
+
+    h, w = shape[:2]
+    ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
+    quads = clicked_quads(ref, two_photo=False, side_face=side_face)
+    principal = np.array([(w - 1) / 2, (h - 1) / 2])
+    closed = focal_from_vanishing_points(quads.front, quads.side, principal, 8.0 * w, side_face)
+    guess = float(np.median(closed)) if closed else 1.2 * w
+    return float(np.clip(guess, 0.5 * w, 4.0 * w))
+
+
+_PNP_MAX = 0.03  # reprojection RMS over the box's image size: above it, not a box
+
+
+def _box_model(width: float, depth: float, side_face: SideFace) -> dict[str, np.ndarray]:
+    """Model corners (height 1; X right, Y down, Z into the object) by point name."""
+    pts = {"p1": [0, 0, 0], "p2": [width, 0, 0], "p3": [width, 1, 0], "p6": [0, 1, 0]}
+    far = {"right": ([width, 0, depth], [width, 1, depth]), "left": ([0, 0, depth], [0, 1, depth]),
+           "top": ([0, 0, depth], [width, 0, depth])}[side_face]
+    pts.update(p5=far[0], p7=far[1])
+    return {k: np.asarray(v, dtype=np.float64) for k, v in pts.items()}
+
+
+def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tuple[int, ...]) -> float:
+    """How far (relative to the box's image size) the points are from any box's projection.
+
+    A quick screen before the engine's fit, which on points that fit no box can take seconds:
+    the faces' aspects from their homographies, then a PnP pose for a few focal lengths.
+    """
+    from .faces import clicked_quads
+    from .perspective import _closed_form
+
+    h, w = shape[:2]
+    ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
+    quads = clicked_quads(ref, two_photo=False, side_face=side_face)
+    names = ("p1", "p2", "p3", "p6", "p5", "p7")
+    image_pts = np.array([points[n] for n in names])
+    size = float(np.linalg.norm(np.ptp(image_pts, axis=0)))
+    best = math.inf
+    for f in (0.8 * w, 1.2 * w, 2.0 * w, 4.0 * w):
+        K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+        try:
+            width = _closed_form(K, quads.front)[0]
+            aspect = _closed_form(K, quads.side)[0]
+        except (np.linalg.LinAlgError, cv2.error):
+            continue
+        depth = width / aspect if side_face == "top" else aspect
+        if not (math.isfinite(width) and math.isfinite(depth) and width > 0 and depth > 0):
+            continue
+        model = _box_model(width, depth, side_face)
+        obj = np.array([model[n] for n in names])
+        ok, rvec, tvec = cv2.solvePnP(obj, image_pts, K, None, flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok:
+            continue
+        proj = cv2.projectPoints(obj, rvec, tvec, K, None)[0].reshape(-1, 2)
+        best = min(best, float(np.sqrt(np.mean(np.sum((proj - image_pts) ** 2, axis=1)))) / size)
+    return best
+
+
+def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace,
+             focal_px: float | None = None) -> tuple[dict[str, np.ndarray], dict]:
+    """The engine's plan from these points: the fitted box's corners and the plan's fit/edges.
+
+    With `focal_px` the box fit keeps it (two starts); without, it fits the focal length too,
+    which from points far from any box can take the solver seconds: the first pass gives one.
+
+    Raises InputError when the plan refuses the points (a fit guard, a degenerate face).
+    """
+    from .pipeline import plan_scan
+
+    ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
+    spec = ScanSpec(image="auto", points=ref, side_face=side_face, focal_px=focal_px)
+    plan = plan_scan(spec, image)
+    front, side = plan.faces[0].region, plan.faces[1].region
+    if side_face == "right":
+        named = {"p4": side[0], "p5": side[1], "p7": side[2]}
+    elif side_face == "left":
+        named = {"p4": side[1], "p5": side[0], "p7": side[3]}
+    else:
+        named = {"p4": side[3], "p5": side[0], "p7": side[1]}
+    out = {"p1": front[0], "p2": front[1], "p3": front[2], "p6": front[3], **named}
+    supports = [f.support if f.fitted else 0.0 for fits in plan.edges.values() for f in fits]
+    info = {"fit": plan.fit, "supports": supports, "focal_px": plan.camera.get("focal_px"),
+            "perspective": plan.dimensions.perspective}
+    return {k: np.asarray(v, dtype=np.float64) for k, v in out.items()}, info
+
+
+def _confidence(first: dict[str, np.ndarray], second: dict[str, np.ndarray], info: dict,
+                width: int) -> tuple[float, float]:
+    """Confidence 0-1 and the RMS (px) between the two passes' corners."""
+    moved = np.array([np.linalg.norm(first[k] - second[k]) for k in first])
+    rms = float(np.sqrt(np.mean(moved ** 2)))
+    supports = np.asarray(info["supports"], dtype=np.float64)
+    weakest = float(np.clip((supports.min() - 0.4) / 0.4, 0, 1))
+    c_edges = weakest ** 0.5 * float(np.clip(supports.mean(), 0, 1))
+    c_fit = math.exp(-((rms / 1.5) ** 2))
+    c_resid = math.exp(-((float(info["fit"].get("rms_px", 0.0)) / 2.5) ** 2))
+    focal = info.get("focal_px")
+    c_focal = 1.0 if focal is None or 0.25 * width <= focal <= 6 * width else 0.3
+    return float(np.clip(c_edges * c_fit * c_resid * c_focal, 0, 1)), rms
+
+
+def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
+                roi: tuple[float, float, float, float] | None = None,
+                threshold: float = CONFIDENCE_MIN) -> Found:
+    """Find a box in a photo and its reference points P1..P7.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3)
+        RGB, uint8 (or float 0-255).
+    hint : (float, float), optional
+        Image (x, y) px on the box wanted: the box whose outline holds it is chosen.
+    roi : (x0, y0, x1, y1), optional
+        Image px: only a box inside this region is looked for.
+    threshold : float
+        Results below this confidence carry a reason (are refused).
+
+    Returns
+    -------
+    Found
+        Points in full-image px; `reason` set when the result must not be measured.
+
+    Raises
+    ------
+    InputError
+        For an image that is not RGB, or a hint/roi outside the image.
+    """
+    timings: dict[str, float] = {}
+    start = time.perf_counter()
+    if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 16:
+        raise InputError(f"image must be RGB of shape (H, W, 3), at least 16x16, got {image.shape}")
+    h, w = image.shape[:2]
+    if hint is not None:
+        hx, hy = (float(v) for v in hint)
+        if not (math.isfinite(hx) and math.isfinite(hy) and 0 <= hx < w and 0 <= hy < h):
+            raise InputError(f"hint {hint!r} is outside the {w}x{h} image")
+    x0, y0, x1, y1 = _parse_roi(roi, image.shape)
+    crop = image[y0:y1, x0:x1]
+    scale = min(1.0, WORK_WIDTH / max(crop.shape[1], 1))
+    small = crop if scale == 1.0 else cv2.resize(crop, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    small = np.clip(small, 0, 255).astype(np.uint8)
+    offset = np.array([x0, y0], dtype=np.float64)
+
+    def full(p: np.ndarray) -> np.ndarray:  # work px -> image px (pixel centres)
+        return (p + 0.5) / scale - 0.5 + offset
+
+    quads = _all_faces(small)
+    boxes = _boxes(quads)
+    timings["search"] = (time.perf_counter() - start) * 1000
+    found_faces = tuple(full(q.corners) for q in quads)
+    if hint is not None and boxes:
+        hint_work = (np.array(hint) - offset + 0.5) * scale - 0.5
+        boxes = [b for b in boxes if _contains(b, hint_work) > -3.0]
+        if not boxes:
+            return Found(None, None, 0.0, f"no box found around the hint ({hint[0]:g},{hint[1]:g})",
+                         found_faces, 0, timings_ms=timings)
+    if not boxes:
+        return Found(None, None, 0.0, _nothing(quads, small.shape), found_faces, 0, timings_ms=timings)
+    # The quick screen first: pairs of flat shapes that share an edge are no box.
+    labelled = []
+    for box in boxes:
+        work, side_face = _label(box)
+        first_in = {k: full(v) for k, v in work.items()}
+        if _box_likeness(first_in, side_face, image.shape) < _PNP_MAX:
+            labelled.append((box, first_in, side_face))
+    timings["search"] = (time.perf_counter() - start) * 1000
+    if not labelled:
+        return Found(None, None, 0.0, _nothing(quads, small.shape), found_faces, 0, timings_ms=timings)
+    labelled.sort(key=lambda item: -_score(item[0], small.shape[:2]))
+    # Boxes built from the same faces (two of a box's three) are one box, not two.
+    distinct = [labelled[0]]
+    for item in labelled[1:]:
+        if all(_contains(d[0], item[0].centre) < 0 and _contains(item[0], d[0].centre) < 0 for d in distinct):
+            distinct.append(item)
+    result: Found | None = None
+    chosen = 0
+    for rank, (box, first_in, side_face) in enumerate(distinct[:_ATTEMPTS]):
+        attempt = _measure(image, first_in, side_face, box, full, timings, threshold, len(distinct))
+        if result is None or (not result.ok and attempt.confidence > result.confidence):
+            result, chosen = attempt, rank
+        if attempt.ok:
+            break
+    assert result is not None
+    if result.ok and hint is None:
+        best = _score(distinct[chosen][0], small.shape[:2])
+        for box, first_in, side_face in distinct[chosen + 1:chosen + 2]:
+            if _score(box, small.shape[:2]) < _AMBIGUOUS * best:
+                break
+            other = _measure(image, first_in, side_face, box, full, timings, threshold, len(distinct))
+            if other.ok:
+                # A second box that fits as well: which one is meant is the caller's to say.
+                what = "region" if roi is not None else "photo"
+                result = Found(result.points, result.side_face, min(result.confidence, threshold * 0.99),
+                               f"2 candidate boxes in the {what}: give a hint (a point on the box "
+                               "wanted) or a region", result.faces, len(distinct), result.fit_rms_px,
+                               timings)
+    timings["total"] = (time.perf_counter() - start) * 1000
+    return result
+
+
+def _nothing(quads: list[_Quad], shape: tuple[int, ...]) -> str:
+    big = [q for q in quads if q.area > 0.02 * shape[0] * shape[1]]
+    if big:
+        return "only one face visible: a box needs two faces in the photo (front and a side or the top)"
+    return "no box found"
+
+
+def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: SideFace, box: _Box,
+             full, timings: dict[str, float], threshold: float, candidates: int) -> Found:
+    """Place the corners with the engine's plan (twice) and rate them."""
+    t0 = time.perf_counter()
+    faces = tuple(full(f.corners) for f in box.faces)
+    try:
+        first, _ = _refined(image, first_in, side_face, _focal_guess(first_in, side_face, image.shape))
+        second, info = _refined(image, first, side_face)
+    except InputError as exc:
+        timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
+        pts = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in first_in.items()})
+        return Found(pts, side_face, 0.0, f"the box found does not fit a box model ({exc})", faces,
+                     candidates, None, timings)
+    timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
+    confidence, rms = _confidence(first, second, info, image.shape[1])
+    h, w = image.shape[:2]
+    inside = all(-0.5 <= p[0] <= w - 0.5 and -0.5 <= p[1] <= h - 0.5 for p in second.values())
+    if not inside:
+        confidence = 0.0
+    pts = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in second.items()})
+    reason = None
+    if confidence < threshold:
+        reason = (f"the box found is uncertain (confidence {confidence:.2f} < {threshold:g}): its "
+                  "edges are weak or a box does not explain them; give a hint or a region, or "
+                  "click the points")
+    warnings: tuple[str, ...] = ()
+    if reason is None and confidence < CONFIDENCE_WARN:
+        warnings = (f"points found automatically with a modest confidence ({confidence:.2f}): "
+                    "check them on overlay.png",)
+    return Found(pts, side_face, confidence, reason, faces, candidates, rms, timings, warnings)
