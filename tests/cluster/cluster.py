@@ -26,10 +26,11 @@ WEBHOOK_SECRET = "webhook-secret-for-the-cluster"
 BUCKET = "cluster"
 HOSTS = {"client": 2, "api": 10, "w1": 21, "w2": 22, "redis": 30, "store": 40}
 REDIS_PORT, S3_PORT, API_PORT, HOOK_PORT = 6379, 8333, 8000, 9000
-# Short timeouts so faults heal in seconds, in proportion to the defaults: a task's time limit
-# (plus margin) stays under the visibility timeout, and above what boto3 spends on a store that
-# does not answer (5 s connect timeout, 5 attempts, its back-off).
-SETTINGS = {"VISIBILITY_TIMEOUT_S": "60", "TASK_TIME_LIMIT_S": "45", "TASK_HARD_MARGIN_S": "10",
+# Shorter than the defaults so faults heal in a minute or two, in the same order: a task's time
+# limit (plus margin) under the visibility timeout, and above how long a request to a store that
+# drops packets for 30 s can hang (TCP retransmits, backing off, reach it up to ~50 s after the
+# cut; with a 45 s limit, tasks did hit it).
+SETTINGS = {"VISIBILITY_TIMEOUT_S": "90", "TASK_TIME_LIMIT_S": "70", "TASK_HARD_MARGIN_S": "10",
             "WATCHDOG_INTERVAL_S": "2", "JOB_STALL_TIMEOUT_S": "15", "JOB_STALL_RESTARTS": "3",
             "TILES_PER_FACE": "2", "ITEMS_IN_FLIGHT_PER_JOB": "2"}
 
