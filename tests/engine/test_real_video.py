@@ -49,8 +49,22 @@ def test_marks_cover_enough_frames() -> None:
     assert all(len(rvd.points_of(f)) == 7 for f in MARKED)
 
 
-@pytest.mark.xfail(strict=False, reason="right-side marks: median height 9.8 %, depth 10.7 % "
-                   "(free focal), frame 159 refused")
+CONSISTENT = (164, 172, 184)
+"""Frames whose marks fit the true 258 x 75 x 189 box within 1 px RMS (free focal, cv2 pose fit):
+there the error is the engine's alone."""
+
+
+def test_frames_with_consistent_marks_measure_within_three_percent(frames: dict) -> None:
+    # The edge refinement took printed borders and the background for the box's edges on these
+    # frames (10-17 % off); the engine now catches that and uses the clicks.
+    for frame in (f for f in MARKED if f["index"] in CONSISTENT):
+        errors = _errors(frame, frames[frame["index"]])
+        assert max(errors.values()) <= 0.03, (frame["index"], errors)
+
+
+@pytest.mark.xfail(strict=False, reason="right-side marks, free focal: median height 1.4 %, depth 2.7 %; "
+                   "frames 141 (D +13.8 %), 196 (H +8.4 %) over 5 % and 159 refused: their marks miss "
+                   "the true box by 3-7 px RMS (P3/P5/P7, pale end wall on pale cloth), to be re-marked")
 def test_known_width_no_focal_within_issue_bounds(frames: dict) -> None:
     errors = {f["index"]: _errors(f, frames[f["index"]]) for f in MARKED}
     for axis in ("height", "depth"):
