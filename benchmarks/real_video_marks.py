@@ -1,0 +1,70 @@
+"""Check the hand marks of the real box video against the true box, independently of the engine.
+
+Run: .venv/bin/python benchmarks/real_video_marks.py [marks.json]
+For each marked frame, fits the 258 x 75 x 189 mm box (pose and focal length free, principal point
+at the image centre) to the six distinct points by least squares (OpenCV's projection, SciPy's
+solver) and prints each point's residual (px), then the same with height and depth free. Marks
+that fit the true box within about 1 px RMS are consistent; a point with a large residual is
+wrongly marked, or the frame's truth assignment is. Use it to find marks to look at again, never
+to move a mark: a re-mark is decided from the picture alone.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from real_video_data import MARKS, load_marks, truth_mm
+
+NAMES = ("P1", "P2", "P3", "P5", "P6", "P7")
+
+
+def box_points(side: str, w: float, h: float, d: float) -> np.ndarray:
+    """World corners of NAMES (X along P1->P2, Y down the front, Z into the box), mm."""
+    far = {"right": ((w, 0, d), (w, h, d)), "left": ((0, 0, d), (0, h, d)),
+           "top": ((0, 0, d), (w, 0, d))}[side]
+    return np.array([(0, 0, 0), (w, 0, 0), (w, h, 0), far[0], (0, h, 0), far[1]], dtype=np.float64)
+
+
+def fit(image_pts: np.ndarray, side: str, truth: dict[str, float], dims_free: bool, centre=(319.5, 239.5)):
+    """Least-squares pose + focal (+ height/depth when `dims_free`); best of several focal starts."""
+    def residual(x: np.ndarray) -> np.ndarray:
+        h, d = (x[7], x[8]) if dims_free else (truth["height"], truth["depth"])
+        K = np.array([[x[6], 0, centre[0]], [0, x[6], centre[1]], [0, 0, 1.0]])
+        proj, _ = cv2.projectPoints(box_points(side, truth["width"], h, d), x[:3], x[3:6], K, None)
+        return (proj.reshape(-1, 2) - image_pts).ravel()
+
+    best = None
+    for f in (400.0, 550.0, 700.0, 900.0, 1200.0):
+        K = np.array([[f, 0, centre[0]], [0, f, centre[1]], [0, 0, 1.0]])
+        obj = box_points(side, truth["width"], truth["height"], truth["depth"])
+        _, r, t = cv2.solvePnP(obj, image_pts, K, None, flags=cv2.SOLVEPNP_SQPNP)
+        sol = least_squares(residual, np.r_[r.ravel(), t.ravel(), f, truth["height"], truth["depth"]],
+                            x_scale="jac")
+        if best is None or sol.cost < best.cost:
+            best = sol
+    assert best is not None
+    return best
+
+
+def main(argv: list[str]) -> int:
+    marks = load_marks(Path(argv[0]) if argv else MARKS)
+    for frame in marks["frames"]:
+        pts = np.array([frame["points"][n] for n in NAMES], dtype=np.float64)
+        truth = truth_mm(frame)
+        fixed, free = fit(pts, frame["side"], truth, False), fit(pts, frame["side"], truth, True)
+        res = np.linalg.norm(fixed.fun.reshape(-1, 2), axis=1)
+        rms = float(np.sqrt(np.mean(res**2)))
+        print(f"{frame['index']:4d} {frame['side']:5s} true box: f {fixed.x[6]:5.0f} px, RMS {rms:4.1f} px, "
+              + " ".join(f"{n} {v:4.1f}" for n, v in zip(NAMES, res, strict=True))
+              + f" | height, depth free: f {free.x[6]:5.0f}, {free.x[7]:5.1f} x {free.x[8]:5.1f} mm")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
