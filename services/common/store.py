@@ -23,11 +23,13 @@ A state never goes backwards: transitions run in one Lua script that compares ra
 
 from __future__ import annotations
 
+import builtins
 import hashlib
 import json
 from datetime import UTC, datetime
 
 import redis
+from redis.typing import EncodableT, FieldT
 
 from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord, State
 from .upload_records import UploadRecords
@@ -89,7 +91,10 @@ def _now() -> datetime:
 
 
 class JobStore(UploadRecords):
-    """Job records in Redis. Pass a client (tests give their own server's)."""
+    """Job records in Redis. Pass a client (tests give their own server's).
+
+    (`builtins.list` in annotations: the `list` method shadows it in the class body.)
+    """
 
     def __init__(self, client: redis.Redis) -> None:
         self._r = client
@@ -216,11 +221,11 @@ class JobStore(UploadRecords):
         value = self._r.hget(f"{_P}job:{job_id}", "state")
         return State(value) if value else None
 
-    def ended_before(self, when: float, limit: int = 200) -> list[str]:
+    def ended_before(self, when: float, limit: int = 200) -> builtins.list[str]:
         """Ids of up to `limit` ended jobs (succeeded, failed, cancelled) submitted before
         `when` (s since the epoch), oldest first."""
         top = f"({when * 1e6!r}"
-        ids: list[str] = []
+        ids: builtins.list[str] = []
         for state in FINAL_STATES:
             ids += self._r.zrangebyscore(f"{_P}state:{state.value}", "-inf", top, start=0, num=limit)
         return ids[:limit]
@@ -284,7 +289,7 @@ class JobStore(UploadRecords):
     def put_frame(self, job_id: str, item: int, frame: FrameRecord) -> None:
         self._r.hset(f"{_P}job:{job_id}", f"frame:{item}:{frame.index}", frame.model_dump_json())
 
-    def get_frames(self, job_id: str, item: int, indices: list[int]) -> dict[int, FrameRecord]:
+    def get_frames(self, job_id: str, item: int, indices: builtins.list[int]) -> dict[int, FrameRecord]:
         """The recorded frames among `indices` (a frame not recorded yet is left out)."""
         values = self._r.hmget(f"{_P}job:{job_id}", [f"frame:{item}:{n}" for n in indices])
         return {n: FrameRecord.model_validate_json(v) for n, v in zip(indices, values, strict=True) if v}
@@ -298,7 +303,7 @@ class JobStore(UploadRecords):
             return int(pipe.execute()[1])
 
     # -- what the watchdog asks --------------------------------------------------------------
-    def unfinished(self) -> list[tuple[str, int, float]]:
+    def unfinished(self) -> builtins.list[tuple[str, int, float]]:
         """(id, units_done, created at in s since the epoch) of every queued and running job."""
         ids = [*self._r.zrange(f"{_P}state:queued", 0, -1), *self._r.zrange(f"{_P}state:running", 0, -1)]
         with self._r.pipeline(transaction=False) as pipe:
@@ -318,13 +323,14 @@ class JobStore(UploadRecords):
 
     def get_watch(self, job_id: str) -> dict[str, str]:
         """What the watchdog noted of the job ({} if nothing): units, since, restarts."""
-        return dict(self._r.hgetall(f"{_P}watch:{job_id}"))
+        found = self._r.hgetall(f"{_P}watch:{job_id}")
+        return {_text(k): _text(v) for k, v in found.items()}
 
     def set_watch(self, job_id: str, *, since: float, units: int | None = None,
                   restarts: int | None = None, ttl_s: int | None = None) -> None:
         """Note what the watchdog saw at `since` (s); `ttl_s` lets the note expire."""
         key = f"{_P}watch:{job_id}"
-        mapping: dict[str, float | int] = {"since": since}
+        mapping: dict[FieldT, EncodableT] = {"since": since}
         if units is not None:
             mapping["units"] = units
         if restarts is not None:
@@ -347,6 +353,11 @@ class JobStore(UploadRecords):
             for s in State:
                 pipe.zcard(f"{_P}state:{s.value}")
             return dict(zip([s.value for s in State], pipe.execute(), strict=True))
+
+def _text(value: bytes | str) -> str:
+    """A reply as text (the store's clients decode replies; a raw client's bytes are UTF-8)."""
+    return value if isinstance(value, str) else value.decode()
+
 
 def _job_fields(values: list[str | None]) -> dict[str, str]:
     """The job hash's own fields (_JOB_FIELDS) from an HMGET of them, the missing left out."""

@@ -31,7 +31,7 @@ import tempfile
 import time
 from collections import OrderedDict
 from collections.abc import Callable
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Any, BinaryIO
 
 import numpy as np
@@ -99,7 +99,7 @@ def _face(f: FacePlan) -> dict[str, Any]:
 def _unface(d: dict[str, Any]) -> FacePlan:
     seed = None if d["seed"] is None else tuple(d["seed"])
     return FacePlan(d["name"], d["image"], _unarray(d["region"]), _unarray(d["marked"]),
-                    tuple(d["window"]), d["method"], seed, d["tolerance"])  # type: ignore[arg-type]
+                    tuple(d["window"]), d["method"], seed, d["tolerance"])
 
 
 def _edge(e: EdgeFit) -> dict[str, Any]:
@@ -208,14 +208,14 @@ def write_outputs(ctx: WorkerContext, job_id: str, item: int, spec: ScanSpec, re
     keys = {kind: item_key(job_id, item, FILE_NAMES[kind]) if frame is None
             else frame_key(job_id, item, frame, FILE_NAMES[kind]) for kind in kinds}
     for kind in spec.formats:
-        ms = _put(ctx, keys[kind], kind, lambda f, kind=kind: write_format(kind, f, cloud, spec))
+        ms = _put(ctx, keys[kind], kind, partial(write_format, kind, cloud=cloud, spec=spec))
         report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     preview = decimate(cloud)
     _put(ctx, keys["preview"], "preview", lambda f: write_ply(f, preview.points, preview.colors))
     started = time.perf_counter()
-    for kind, photo in overlays.items():
+    for overlay, photo in overlays.items():
         picture = overlay_from_report(images[0 if photo == "front" else 1], report, photo=photo)
-        ctx.objects.put_bytes(keys[kind], encode_png(picture), _CONTENT_TYPES[kind])
+        ctx.objects.put_bytes(keys[overlay], encode_png(picture), _CONTENT_TYPES[overlay])
     report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
     text = (json.dumps(report, indent=2) + "\n").encode()
     ctx.objects.put_bytes(keys["report"], text, _CONTENT_TYPES["report"])

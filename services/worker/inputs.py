@@ -181,7 +181,8 @@ def _read_s3(ctx: WorkerContext, bucket: str, key: str, text: str, limit: int,
         if obj.get("ContentLength", 0) > limit:
             raise ReferenceError(f"{text!r} is {obj['ContentLength']} bytes, over the limit of {limit}")
         if dest is None:
-            return body.read()
+            data: bytes = body.read()
+            return data
         shutil.copyfileobj(body, dest, _CHUNK)
         return b""
 

@@ -71,7 +71,7 @@ class RetryingTask(Task):
     retry_jitter = True
 
     @property
-    def retry_backoff_max(self) -> int:  # type: ignore[override]
+    def retry_backoff_max(self) -> int:
         # A retry waits as an unacked message: past the visibility timeout the broker would hand
         # out a second copy, so back-off stays below it.
         return max(1, min(600, worker_context().settings.visibility_timeout_s // 2))

@@ -204,7 +204,9 @@ def _finish_video(ctx: WorkerContext, job_id: str, item: int, frames: dict[str, 
         else:
             # The same document as the CLI's summary.json; the video named by its reference.
             summary["video"] = {"reference": view.item.spec.image, **frames["video"]}
-            summary["selection"] = view.item.spec.frames.model_dump(mode="json", exclude_none=True)
+            selection = view.item.spec.frames
+            assert selection is not None  # a video item's spec has one
+            summary["selection"] = selection.model_dump(mode="json", exclude_none=True)
             if (pooled := _pooled(ctx, item_key(job_id, item, FOCAL_NAME))) is not None:
                 summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
                                     "frames": [frames["frames"][i] for i in pooled.used]}
