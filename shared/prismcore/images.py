@@ -8,8 +8,12 @@ Everything a caller can get wrong raises :class:`~prismcore.errors.InputError` w
 message quoting the file name (or ``name=``), the size or the format at fault:
 
 * The format is recognised from the content, never from the file name, and only the five
-  formats above are handed to a decoder (Pillow's plugins are called directly, so no other
-  Pillow plugin ever parses untrusted bytes).
+  formats above are handed to a decoder: the one format's Pillow plugin is called directly, so
+  no other plugin ever parses untrusted bytes. ``Image.open(fp, formats=[...])`` restricts the
+  plugins the same way but does not do this job: it applies Pillow's global bomb limit while
+  opening (a 100000 x 100000 PNG header raises DecompressionBombError before its size can be
+  reported against ``max_pixels``, or probed), and it replaces a plugin's reason for refusing
+  a damaged header with "cannot identify image file <_io.BytesIO object at 0x...>".
 * Decompression bombs: the dimensions are read from the header first (by Pillow's lazy open, or
   by our own parse for WebP, whose Pillow open already allocates the canvas), and an image of
   more than ``max_pixels`` pixels is refused before anything of its size is allocated.
@@ -23,7 +27,12 @@ message quoting the file name (or ``name=``), the size or the format at fault:
 * EXIF orientation (JPEG APP1, PNG eXIf, WebP EXIF, the TIFF Orientation tag) is applied, so the
   array is upright the way a browser shows the photo. EXIF blocks are read by this module, and a
   malformed one is ignored; Pillow is given a JPEG whose EXIF segments are renamed, because its
-  own EXIF reader warns on a malformed block while opening the file.
+  own EXIF reader warns on a malformed block while opening the file. Pillow's reader
+  (``getexif``, ``Image.Exif``) is not used for the orientation: one tag's data past the end
+  of the block (``OSError("Truncated File Read")``) makes it drop the whole directory, the
+  Orientation tag with it, where browsers still turn the photo. ``ImageOps.exif_transpose`` is
+  not used either: the turn here is a view of the array (no copy), and the 16-bit colour path
+  has no Pillow image to turn.
 
 Known gap: damaged *compressed data* inside a complete file is found only as far as the codec
 finds it. A JPEG with scrambled entropy-coded data decodes to scrambled pixels without an error
