@@ -3,7 +3,7 @@
 Everything is checked before a connection is made: the scheme, no credentials in the URL, the
 host on an allow-list, and every address the host resolves to public (loopback and private
 ones only where a setting allows them). The worker then connects to the very addresses checked
-(`prism_worker.egress`), so a DNS answer that changes in between cannot point it inside.
+(`prism_worker.inputs`), so a DNS answer that changes in between cannot point it inside.
 
 Webhooks have one policy, `check_webhook_url`, applied by the API when a job is submitted (422)
 and by the worker before each delivery:
