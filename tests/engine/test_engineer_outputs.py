@@ -15,7 +15,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from prismcore import Cloud, InputError, ScanSpec, run_scan
-from prismcore.box_model import box_to_gltf
+from prismcore.box_model import box_glb, box_to_gltf
 from prismcore.las import SCALE_M, box_to_las, write_las
 from prismcore.spacing import thin_to_spacing
 from prismcore.writers import write_format
@@ -229,3 +229,99 @@ def test_gltf_axes_are_a_proper_rotation():
     assert np.linalg.det(axes) == pytest.approx(1.0)
     las = box_to_las(p) * 1000
     assert np.linalg.det(las[1:] - las[0]) == pytest.approx(1.0)
+
+
+def _texture_middle_matches_photo(model, index: int, corners, photo: np.ndarray) -> None:
+    blob = model.binary_blob()
+    view = model.bufferViews[model.images[index].bufferView]
+    data = np.frombuffer(blob[view.byteOffset:view.byteOffset + view.byteLength], np.uint8)
+    tex = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    h, w = tex.shape[:2]
+    quad = np.asarray(corners, np.float32)
+    # the texture's middle is where the face's diagonals cross in the photo
+    H = cv2.getPerspectiveTransform(
+        np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]], np.float32), quad)
+    x, y = np.rint(cv2.perspectiveTransform(np.array([[[w / 2 - 0.5, h / 2 - 0.5]]]), H)[0, 0]).astype(int)
+    seen = photo[y - 2:y + 3, x - 2:x + 3].reshape(-1, 3).mean(axis=0)
+    texel = tex[h // 2 - 2:h // 2 + 3, w // 2 - 2:w // 2 + 3].reshape(-1, 3).mean(axis=0)
+    assert np.abs(seen - texel).max() < 12
+
+
+@pytest.mark.parametrize(("face", "yaw", "pitch", "axis", "where"), [
+    ("left", -30.0, 15.0, 0, "low"),  # the left side at gx = 0
+    ("top", 15.0, 35.0, 1, "high"),  # the top at gy = H
+    ("right", 30.0, 15.0, 0, "high"),  # the right side at gx = W
+])
+def test_glb_textures_the_second_face_where_it_was_photographed(face, yaw, pitch, axis, where):
+    scene = render_oblique_view(BOX, yaw_deg=yaw, pitch_deg=pitch, seed=3, side_face=face)
+    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
+                                    "focal_px": scene.focal_px, "side_face": face,
+                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
+    result = run_scan(spec, scene.image)
+    buf = io.BytesIO()
+    write_format("glb", buf, result.cloud, spec, report=result.report, images=[scene.image])
+    model = pygltflib.GLTF2.load_from_bytes(buf.getvalue())
+    second = model.meshes[0].primitives[1]  # front, second face, then the grey ones
+    assert second.attributes.TEXCOORD_0 is not None
+    pos = model.accessors[second.attributes.POSITION]
+    dims = result.report["dimensions"]
+    plane = {("low", 0): 0.0, ("high", 0): dims["width"] / 1000, ("high", 1): dims["height"] / 1000}
+    assert pos.min[axis] == pytest.approx(plane[where, axis], abs=1e-6)
+    assert pos.max[axis] == pytest.approx(plane[where, axis], abs=1e-6)
+    _texture_middle_matches_photo(model, 1, result.report["faces"]["side"]["corners"], scene.image)
+    _texture_middle_matches_photo(model, 0, result.report["faces"]["front"]["corners"], scene.image)
+
+
+def _primitive_arrays(model, prim) -> tuple[np.ndarray, np.ndarray]:
+    blob = model.binary_blob()
+
+    def read(index: int, width: int) -> np.ndarray:
+        acc = model.accessors[index]
+        view = model.bufferViews[acc.bufferView]
+        raw = blob[view.byteOffset:view.byteOffset + view.byteLength]
+        return np.frombuffer(raw, np.float32).reshape(-1, width)
+
+    return read(prim.attributes.POSITION, 3), read(prim.attributes.TEXCOORD_0, 2)
+
+
+@pytest.mark.parametrize("face", ["right", "left", "top"])
+def test_glb_texels_come_from_where_the_camera_saw_that_spot(face):
+    """Independent oracle: the model is textured from a picture whose colour encodes the pixel
+    position (red = column, green = row); a spot of a textured face, placed on the true box and
+    projected by the camera that rendered the photo, must land where its texel's colour says it
+    was taken from (a flipped or turned texture lands hundreds of pixels away)."""
+    yaw, pitch = {"right": (30.0, 15.0), "left": (-30.0, 15.0), "top": (15.0, 35.0)}[face]
+    scene = render_oblique_view(BOX, yaw_deg=yaw, pitch_deg=pitch, seed=11, side_face=face)
+    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
+                                    "focal_px": scene.focal_px, "side_face": face,
+                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
+    result = run_scan(spec, scene.image)
+    h_img, w_img = scene.image.shape[:2]
+    cols, rows = np.meshgrid(np.arange(w_img), np.arange(h_img))
+    coded = np.zeros_like(scene.image)
+    coded[..., 0] = np.rint(cols * 255 / (w_img - 1))
+    coded[..., 1] = np.rint(rows * 255 / (h_img - 1))
+    model = pygltflib.GLTF2.load_from_bytes(box_glb(result.report, coded))
+    dims = result.report["dimensions"]
+    to_true = np.array([BOX.width_mm, BOX.height_mm, BOX.depth_mm]) / np.array(
+        [dims["width"], dims["height"], dims["depth"]])
+    blob = model.binary_blob()
+    misses = []
+    for index, prim in enumerate(model.meshes[0].primitives[:2]):
+        pos, uv = _primitive_arrays(model, prim)
+        view = model.bufferViews[model.images[index].bufferView]
+        tex = cv2.cvtColor(cv2.imdecode(np.frombuffer(
+            blob[view.byteOffset:view.byteOffset + view.byteLength], np.uint8), cv2.IMREAD_COLOR),
+            cv2.COLOR_BGR2RGB).astype(float)
+        h, w = tex.shape[:2]
+        assert np.allclose(uv, [[0, 0], [1, 0], [1, 1], [0, 1]])
+        for s, t in np.random.default_rng(index).uniform(0.1, 0.9, (40, 2)):
+            g = (pos[0] * (1 - s) * (1 - t) + pos[1] * s * (1 - t) + pos[2] * s * t
+                 + pos[3] * (1 - s) * t) * 1000.0
+            box_point = np.array([g[0], dims["height"] - g[1], -g[2]]) * to_true
+            cam = scene.rotation @ box_point + scene.translation
+            projected = (scene.camera_matrix @ cam)[:2] / cam[2]
+            red, green = tex[int(t * h), int(s * w), :2]
+            decoded = np.array([red * (w_img - 1) / 255, green * (h_img - 1) / 255])
+            misses.append(np.linalg.norm(projected - decoded))
+    assert np.median(misses) < 12 and np.max(misses) < 30
