@@ -325,3 +325,23 @@ def test_glb_texels_come_from_where_the_camera_saw_that_spot(face):
             decoded = np.array([red * (w_img - 1) / 255, green * (h_img - 1) / 255])
             misses.append(np.linalg.norm(projected - decoded))
     assert np.median(misses) < 12 and np.max(misses) < 30
+
+
+def test_glb_two_photos_textures_the_side_from_the_side_photo():
+    from prismsynth import render_front_view, render_side_view
+
+    front = render_front_view(BOX, seed=2)
+    side = render_side_view(BOX, seed=102)
+    spec = ScanSpec(image="front", side_image="side",
+                    points=[front.points[n] for n in ("p1", "p2", "p3")]
+                    + [side.points[n] for n in ("p4", "p5")],
+                    scale={"kind": "mm_per_px", "front": front.mm_per_px, "side": side.mm_per_px})
+    result = run_scan(spec, front.image, side.image)
+    with pytest.raises(InputError, match="side photo"):
+        box_glb(result.report, front.image)
+    model = pygltflib.GLTF2.load_from_bytes(box_glb(result.report, front.image, side.image))
+    _texture_middle_matches_photo(model, 0, result.report["faces"]["front"]["corners"], front.image)
+    _texture_middle_matches_photo(model, 1, result.report["faces"]["side"]["corners"], side.image)
+    scene = trimesh.load(io.BytesIO(b"".join(model.save_to_bytes())), file_type="glb", force="scene")
+    dims = result.report["dimensions"]
+    assert np.allclose(scene.extents, [dims[k] / 1000 for k in ("width", "height", "depth")], atol=1e-6)
