@@ -30,7 +30,9 @@ class Cloud:
     colors: np.ndarray
 
 
-def face_points(scan: FaceScan, image: np.ndarray, size: tuple[float, float]):
+def face_points(
+    scan: FaceScan, image: np.ndarray, size: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
     """Map a face's object pixels onto the face rectangle.
 
     Parameters
@@ -115,7 +117,7 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
     f32 = f_uv.astype(np.float32)
     s32 = s_uv.astype(np.float32)
 
-    def face(x, y, z, count: int) -> np.ndarray:
+    def face(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float, count: int) -> np.ndarray:
         block = np.empty((count, 3), dtype=np.float32)
         block[:, 0], block[:, 1], block[:, 2] = x, y, z
         return block
@@ -132,6 +134,7 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
         parts += [face(0.0, s32[:, 1], z, len(s32)),  # left side, as seen
                   face(width, s32[:, 1], z, len(s32))]  # right side
     else:
+        assert height is not None  # a top face's height was checked on entry
         z = np.float32(depth) - s32[:, 1]
         parts += [face(s32[:, 0], 0.0, z, len(s32)),  # top, as seen
                   face(s32[:, 0], height, z, len(s32))]  # bottom

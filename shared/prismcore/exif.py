@@ -206,7 +206,8 @@ def read_camera_exif(data: bytes | bytearray | memoryview) -> CameraExif | None:
         raise InputError(f"EXIF source must be bytes, got {type(data).__name__}")
     data = bytes(data)
     if data.startswith(b"Exif\x00\x00"):
-        block, orientation = data, None
+        block: bytes | None = data
+        orientation: int | None = None
     else:
         try:
             info = probe_image(data)
@@ -329,7 +330,7 @@ def _positive_size(width: object, height: object) -> tuple[int, int]:
         try:
             if isinstance(value, bool):
                 raise TypeError
-            size = operator.index(value)  # int or numpy integer, never a float
+            size = operator.index(value)  # type: ignore[arg-type]  # int or numpy integer; else TypeError
         except TypeError:
             size = 0
         if size < 1:

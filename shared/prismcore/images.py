@@ -62,7 +62,7 @@ import warnings
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import BinaryIO
+from typing import BinaryIO, Literal
 
 import cv2
 import numpy as np
@@ -89,7 +89,7 @@ DEFAULT_MAX_PIXELS = 50_000_000
 FORMATS = ("BMP", "PNG", "JPEG", "TIFF", "WEBP")
 """Formats :func:`load_image` and :func:`probe_image` accept, as :attr:`ImageInfo.format` names them."""
 
-Source = str | os.PathLike | bytes | bytearray | memoryview
+Source = str | os.PathLike[str] | bytes | bytearray | memoryview
 
 _PLUGINS: dict[str, type[ImageFile.ImageFile]] = {
     "BMP": BmpImagePlugin.BmpImageFile,
@@ -236,13 +236,15 @@ def load_image(
         # older versions leave both the pixels and the tag alone.
         orientation = 1
 
+    planes: np.ndarray
     if colour16:
         # Pillow decodes 16-bit colour to 8 bits (it has already proved the file complete), so
         # decode again with OpenCV, which keeps 16 bits. IMREAD_UNCHANGED keeps the depth and
         # the channels, and ignores EXIF orientation (applied below, as for every format).
-        planes = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-        if planes is None or planes.shape[:2] != (info.height, info.width) or planes.dtype != np.uint16:
+        decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if decoded is None or decoded.shape[:2] != (info.height, info.width) or decoded.dtype != np.uint16:
             raise InputError(f"{label} is truncated or corrupt ({info.format}: 16-bit decode failed)")
+        planes = decoded
         if planes.ndim == 3 and planes.shape[2] in (3, 4):
             # OpenCV returns channels in BGR(A) order; convert to RGB, dropping alpha.
             code = cv2.COLOR_BGRA2RGB if planes.shape[2] == 4 else cv2.COLOR_BGR2RGB
@@ -627,7 +629,7 @@ def _tiff_ifd0(
     head = bytes(buf[:16])
     if len(head) < 8 or head[:2] not in (b"II", b"MM"):
         raise _CorruptError("no TIFF header")
-    bo = "<" if head[:2] == b"II" else ">"
+    bo: Literal["<", ">"] = "<" if head[:2] == b"II" else ">"
     (magic,) = struct.unpack_from(bo + "H", head, 2)
     if magic == 42:
         (ifd,) = struct.unpack_from(bo + "I", head, 4)
@@ -649,7 +651,7 @@ def _tiff_ifd0(
 def _tiff_ifd(
     buf: bytes | mmap.mmap,
     ifd: int,
-    bo: str,
+    bo: Literal["<", ">"],
     big: bool,
     wanted: frozenset[int],
     strict: bool,

@@ -43,7 +43,7 @@ def box_to_las(points: np.ndarray) -> np.ndarray:
     return np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=1) / 1000.0
 
 
-def write_las(dest: str | os.PathLike | BinaryIO, points: np.ndarray, colors: np.ndarray | None = None,
+def write_las(dest: str | os.PathLike[str] | BinaryIO, points: np.ndarray, colors: np.ndarray | None = None,
               *, compressed: bool = True) -> int:
     """Write the cloud as LAZ (``compressed=True``) or LAS; return the number of bytes written.
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import statistics
 from collections.abc import Mapping
+from typing import Any
 
 __all__ = ["DECIMALS", "DIMENSIONS", "frame_info", "summarize"]
 
@@ -35,7 +36,7 @@ def frame_info(index: int, fps: float | None) -> dict[str, int | float | None]:
     return {"index": int(index), "time_s": round(index / fps, 6) if fps else None}
 
 
-def summarize(per_frame: Mapping[int, Mapping], *, fps: float | None = None) -> dict:
+def summarize(per_frame: Mapping[int, Mapping[str, Any]], *, fps: float | None = None) -> dict[str, Any]:
     """Median and spread of each dimension over the frames of one video.
 
     Parameters
@@ -71,7 +72,7 @@ def summarize(per_frame: Mapping[int, Mapping], *, fps: float | None = None) -> 
         dims = report.get("dimensions")
         if not isinstance(dims, Mapping):
             raise ValueError(f"frame {index}: the report has no dimensions and no error")
-        row: dict = {"frame": int(index)}
+        row: dict[str, Any] = {"frame": int(index)}
         if fps:
             row["time_s"] = frame_info(index, fps)["time_s"]
         row.update({k: float(dims[k]) for k in DIMENSIONS})

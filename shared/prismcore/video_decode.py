@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass
 
@@ -29,7 +29,7 @@ SEEK_GAP = 48
 """Frames: a longer jump forward is made by seeking, a shorter one by decoding through it
 (a seek decodes from the previous key frame anyway)."""
 
-PathLike = str | os.PathLike
+PathLike = str | os.PathLike[str]
 
 
 @dataclass(frozen=True)
@@ -195,7 +195,7 @@ def iter_frames(path: PathLike, indices: Iterable[int], *,
 
 
 def decode_bgr(path: PathLike, indices: Iterable[int], *,
-               seek_gap: int = SEEK_GAP) -> Iterator[tuple[int, np.ndarray]]:
+               seek_gap: int = SEEK_GAP) -> Generator[tuple[int, np.ndarray], None, None]:
     """As :func:`iter_frames`, but each frame is OpenCV's BGR array, reused for the next frame.
 
     For passes that reduce each frame at once (the sharpness rating); keep nothing it yields.
