@@ -49,6 +49,19 @@ def figures(pytestconfig: pytest.Config) -> Counter:
     return pytestconfig.stash[_FIGURES]
 
 
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    # Under pytest-xdist each worker process counts its own tests' figures: it hands them to
+    # the controller, which prints the totals.
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["figures"] = dict(session.config.stash[_FIGURES])
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error) -> None:
+    node.config.stash[_FIGURES].update(getattr(node, "workeroutput", {}).get("figures", {}))
+
+
 def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:
     counts = config.stash.get(_FIGURES, Counter())
     if not counts:

@@ -34,6 +34,7 @@ def _two_view_spec(front, side, clicks_f, clicks_s) -> ScanSpec:
                     scale={"kind": "mm_per_px", "front": front.mm_per_px, "side": side.mm_per_px})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("box", BOXES, ids=str)
 @pytest.mark.parametrize("style", list(STYLES), ids=str)
 @pytest.mark.parametrize("seed", [0, 1])
@@ -48,6 +49,7 @@ def test_two_square_views_within_half_percent(box, style, seed):
     assert max(errors.values()) < 0.005, errors
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("box", BOXES, ids=str)
 @pytest.mark.parametrize("yaw,pitch", [(30.0, 15.0), (40.0, 20.0), (25.0, 10.0)])
 @pytest.mark.parametrize("scale", ["distance", "width"])
@@ -77,6 +79,7 @@ def test_oblique_without_perspective_correction_is_wrong():
     assert max(errors.values()) > 0.05, errors
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 def test_clicks_four_px_off_change_dimensions_under_half_percent(seed):
     box = BOXES[seed % len(BOXES)]
@@ -94,6 +97,7 @@ def test_clicks_four_px_off_change_dimensions_under_half_percent(seed):
         assert abs(a - b) / a < 0.005, (key, a, b)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(3))
 def test_oblique_clicks_four_px_off_change_dimensions_under_half_percent(seed):
     box = BOXES[seed]

@@ -18,6 +18,7 @@ from prismcore.pipeline import plan_scan
 from prismsynth import PhotoLikeScene, photo_like_scene
 
 SEEDS = tuple(range(12))
+pytestmark = pytest.mark.slow  # twelve photo-like scenes fitted twice each
 DIMENSIONS = ("width", "height", "depth")
 
 

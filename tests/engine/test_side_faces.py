@@ -94,6 +94,7 @@ def _random_scene(i: int, face: str):
 FREE_SCENES = 12
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("face", FACES)
 def test_seven_points_without_focal_within_the_free_focal_bounds(face):
     # test_uncertainty's bounds: median under 1 %, every scene under 3 %, scenes where a face is

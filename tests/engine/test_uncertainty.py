@@ -41,6 +41,7 @@ def free_focal_runs():
     return out
 
 
+@pytest.mark.slow
 def test_free_focal_accuracy_over_random_oblique_scenes(free_focal_runs):
     # A face seen nearly edge-on (a few tens of px wide) cannot be measured to 3 %: such scenes
     # must say so through their sigma (next test), and are left out of the accuracy target.
@@ -51,6 +52,7 @@ def test_free_focal_accuracy_over_random_oblique_scenes(free_focal_runs):
     assert errors.max() < 0.03, np.round(errors * 100, 2)
 
 
+@pytest.mark.slow
 def test_true_error_lies_within_two_sigma_in_90_percent(free_focal_runs):
     errors = np.concatenate([e for e, _, _ in free_focal_runs])
     sigmas = np.concatenate([s for _, s, _ in free_focal_runs])
