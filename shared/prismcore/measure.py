@@ -25,17 +25,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .perspective import (
-    DISTORTION_PRIOR,
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
     ROUNDING_RMS_MM,
     BoxFit,
     FaceEvidence,
     RadialDistortion,
+    box_edge_samples,
     centre_depth,
+    estimate_distortion,
     fit_box,
     fit_rectangle,
     model_error_cov,
+    undistort_evidence,
 )
 from .spec import KnownEdge, MmPerPx, Pinhole, Scale
 
@@ -295,15 +297,14 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     The shooting distance (or mm-per-pixel, read as distance / focal) is the depth of the front
     face's centre along the optical axis.
 
-    Unless the lens is known (its distortion already removed from the evidence), an unknown
-    radial distortion of 1-sigma DISTORTION_PRIOR is carried in the uncertainty. (Reading it from
-    how the edges bend, `perspective.estimate_distortion`, and removing it brings the photo-like
-    median error from 1.0 to 0.9 %, but compressed video frames' blocky edges still fool it:
-    not applied until it is robust to them.) The uncertainty adds to the click and edge noise
-    what the model leaves out (`perspective.model_error_cov`): the lens's distortion, and edges
-    rounded by an
-    unknown radius (ROUNDING_RMS_MM; only when the scale is in mm, which says how large a
-    millimetre is in the model).
+    Unless the lens is known (its distortion already removed from the evidence), its radial
+    distortion is read from how the box's edges bend (`perspective.estimate_distortion`, a
+    plumb-line estimate that stays at none while the bend is one the edges' noise explains) and
+    removed from the evidence before the fit. The uncertainty adds to the click and edge noise
+    what the model leaves out (`perspective.model_error_cov`): the estimate's error (the prior's,
+    DISTORTION_PRIOR, when the edges say little), and edges rounded by an unknown radius
+    (ROUNDING_RMS_MM; only when the scale is in mm, which says how large a millimetre is in the
+    model).
 
     Parameters
     ----------
@@ -326,10 +327,13 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     if lens_known:
         lens = RadialDistortion(0.0, 0.0, principal)
     else:
-        # Not removed yet (see the docstring): its prior's error is carried in the uncertainty.
         # The corner radius of an image whose centre is the principal point.
         radius = float(np.hypot(*(principal + 0.5)))
-        lens = RadialDistortion(0.0, DISTORTION_PRIOR / radius**2, principal)
+        # Read from how the box's long straight edges bend; the estimate's own error (the prior's
+        # when the edges say little) is carried in the uncertainty.
+        lens = estimate_distortion(box_edge_samples(front, side, side_face), principal, radius)
+        if lens.kappa != 0.0:
+            front, side = undistort_evidence(front, lens), undistort_evidence(side, lens)
     fit = fit_box(K, front, side, free_focal=free_focal, side_face=side_face)
     k, unit = _scale_factor(scale, fit.width, fit.depth, fit.centre_depth, fit.focal_px)
     cov = fit.shape_cov + model_error_cov(fit, front, side, side_face=side_face,

@@ -60,8 +60,6 @@ def no_focal(scenes: list[PhotoLikeScene]) -> tuple[np.ndarray, np.ndarray]:
     return _errors(scenes, with_camera=False)
 
 
-@pytest.mark.xfail(strict=True, reason="lens distortion is carried in the uncertainty, not removed yet "
-                   "(perspective.estimate_distortion reaches 0.9 % but is fooled by compressed video frames)")
 def test_median_error_within_one_percent(no_focal: tuple[np.ndarray, np.ndarray]) -> None:
     errors, _ = no_focal
     assert np.median(np.abs(errors)) <= 0.01, np.round(errors * 100, 2)
