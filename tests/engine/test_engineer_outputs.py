@@ -16,10 +16,11 @@ from scipy.spatial import cKDTree
 
 from prismcore import Cloud, InputError, ScanSpec, run_scan
 from prismcore.box_model import box_glb, box_to_gltf
+from prismcore.camera import CameraModel
 from prismcore.las import SCALE_M, box_to_las, write_las
 from prismcore.spacing import thin_to_spacing
 from prismcore.writers import write_format
-from prismsynth import Box, render_oblique_view
+from prismsynth import Box, Realism, distort_points, render_oblique_view
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -284,18 +285,10 @@ def _primitive_arrays(model, prim) -> tuple[np.ndarray, np.ndarray]:
     return read(prim.attributes.POSITION, 3), read(prim.attributes.TEXCOORD_0, 2)
 
 
-@pytest.mark.parametrize("face", ["right", "left", "top"])
-def test_glb_texels_come_from_where_the_camera_saw_that_spot(face):
-    """Independent oracle: the model is textured from a picture whose colour encodes the pixel
-    position (red = column, green = row); a spot of a textured face, placed on the true box and
-    projected by the camera that rendered the photo, must land where its texel's colour says it
-    was taken from (a flipped or turned texture lands hundreds of pixels away)."""
-    yaw, pitch = {"right": (30.0, 15.0), "left": (-30.0, 15.0), "top": (15.0, 35.0)}[face]
-    scene = render_oblique_view(BOX, yaw_deg=yaw, pitch_deg=pitch, seed=11, side_face=face)
-    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
-                                    "focal_px": scene.focal_px, "side_face": face,
-                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
-    result = run_scan(spec, scene.image)
+def _texel_misses(scene, result, lens: np.ndarray | None = None) -> np.ndarray:
+    """How far (px) each sampled texel's source pixel, read from a position-coded picture (red =
+    column, green = row) textured onto the model, is from where the rendering camera (with its
+    lens distortion `lens`) sees the same spot of the true box."""
     h_img, w_img = scene.image.shape[:2]
     cols, rows = np.meshgrid(np.arange(w_img), np.arange(h_img))
     coded = np.zeros_like(scene.image)
@@ -321,10 +314,42 @@ def test_glb_texels_come_from_where_the_camera_saw_that_spot(face):
             box_point = np.array([g[0], dims["height"] - g[1], -g[2]]) * to_true
             cam = scene.rotation @ box_point + scene.translation
             projected = (scene.camera_matrix @ cam)[:2] / cam[2]
+            if lens is not None:
+                projected = distort_points(projected[None], scene.camera_matrix, lens)[0]
             red, green = tex[int(t * h), int(s * w), :2]
             decoded = np.array([red * (w_img - 1) / 255, green * (h_img - 1) / 255])
             misses.append(np.linalg.norm(projected - decoded))
+    return np.array(misses)
+
+
+@pytest.mark.parametrize("face", ["right", "left", "top"])
+def test_glb_texels_come_from_where_the_camera_saw_that_spot(face):
+    """Independent oracle: the rendering camera (a flipped or turned texture lands hundreds of
+    pixels away)."""
+    yaw, pitch = {"right": (30.0, 15.0), "left": (-30.0, 15.0), "top": (15.0, 35.0)}[face]
+    scene = render_oblique_view(BOX, yaw_deg=yaw, pitch_deg=pitch, seed=11, side_face=face)
+    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
+                                    "focal_px": scene.focal_px, "side_face": face,
+                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
+    misses = _texel_misses(scene, run_scan(spec, scene.image))
     assert np.median(misses) < 12 and np.max(misses) < 30
+
+
+def test_glb_of_an_undistorted_scan_is_textured_from_the_undistorted_photo():
+    realism = Realism(k1=-0.3)  # strong barrel distortion: a few px where the box is
+    scene = render_oblique_view(BOX, realism=realism, seed=3)
+    h, w = scene.image.shape[:2]
+    camera = CameraModel(fx=scene.focal_px, fy=scene.focal_px, cx=(w - 1) / 2, cy=(h - 1) / 2,
+                         dist=list(realism.distortion()), image_width=w, image_height=h)
+    spec = ScanSpec.model_validate({"image": "b.png", "points": [scene.points[n] for n in NAMES],
+                                    "camera": camera.model_dump(),
+                                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
+    result = run_scan(spec, scene.image)
+    assert result.report["camera"]["undistorted"] is True
+    misses = _texel_misses(scene, result, lens=realism.distortion())
+    assert np.median(misses) < 12 and np.max(misses) < 30
+    # the texture agrees with the real lens better than with a lens-free camera
+    assert np.median(misses) < np.median(_texel_misses(scene, result)) - 0.5
 
 
 def test_glb_two_photos_textures_the_side_from_the_side_photo():
