@@ -27,6 +27,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -219,13 +220,14 @@ def _blend_box(canvas: np.ndarray, panel: _Panel, radius: int) -> None:
     a = (mask[y0 - panel.y0:y1 - panel.y0, x0 - panel.x0:x1 - panel.x0].astype(np.float32)
          * (panel.alpha / 255.0))[:, :, None]
     region = canvas[y0:y1, x0:x1].astype(np.float32)
-    canvas[y0:y1, x0:x1] = np.rint(region * (1 - a) + np.float32(panel.color) * a).astype(np.uint8)
+    color = np.asarray(panel.color, np.float32)
+    canvas[y0:y1, x0:x1] = np.rint(region * (1 - a) + color * a).astype(np.uint8)
 
 
 def _cross(center: np.ndarray, sizes: _Sizes) -> list[np.ndarray]:
     out = []
-    for d in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        d = np.asarray(d, np.float64)
+    for step in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        d = np.asarray(step, np.float64)
         out.append(np.stack([center + d * sizes.gap, center + d * sizes.arm]))
     return out
 
@@ -351,10 +353,10 @@ def draw_overlay(
             raise InputError(f"unknown click name {name!r} (expected one of {', '.join(CORNER_OF)})")
         pts[name] = _point(name, value)
     quads: dict[str, np.ndarray] = {}
-    for name, value in faces.items():
+    for name, corners in faces.items():
         if name not in FACE_COLORS:
             raise InputError(f"unknown face name {name!r} (expected front or side)")
-        quads[name] = _quad(name, value)
+        quads[name] = _quad(name, corners)
     if side_face not in SECOND_FACE_CORNERS:
         raise InputError(f"side_face must be right, left or top, got {side_face!r}")
     corner_of = {**CORNER_OF, **SECOND_FACE_CORNERS[side_face]}
@@ -388,13 +390,13 @@ def draw_overlay(
     r16 = round(sizes.radius * _ONE)
     for color_pass in (False, True):
         for geometry, kind, color, thick in marks:
-            ink = color if color_pass else HALO_COLOR
+            stroke = color if color_pass else HALO_COLOR
             width = thick + (0 if color_pass else 2 * sizes.halo)
             if kind == "ring":
-                cv2.circle(canvas, tuple(int(v) for v in _fx(geometry)), r16, ink, width,
+                cv2.circle(canvas, tuple(int(v) for v in _fx(geometry)), r16, stroke, width,
                            cv2.LINE_AA, _SHIFT)
             else:
-                cv2.polylines(canvas, [_fx(geometry).reshape(-1, 1, 2)], kind == "closed", ink, width,
+                cv2.polylines(canvas, [_fx(geometry).reshape(-1, 1, 2)], kind == "closed", stroke, width,
                               cv2.LINE_AA, _SHIFT)
 
     layout = _Layout(sizes, (H, W))
@@ -490,7 +492,7 @@ def _sigma(uncertainty: object, name: str) -> float | None:
     return _number(value)
 
 
-def report_notes(report: Mapping) -> list[str]:
+def report_notes(report: Mapping[str, Any]) -> list[str]:
     """The legend's lines for a report: dimensions (± one standard deviation when the report
     has `uncertainty`), focal length (`camera`), fit RMS (`fit`), method and video frame.
 
@@ -532,7 +534,9 @@ def _residuals(fit: object, given: list[str]) -> dict[str, float] | None:
     return None
 
 
-def _undistorted(image: np.ndarray, clicks: dict, model: object) -> tuple[np.ndarray, dict]:
+def _undistorted(
+    image: np.ndarray, clicks: dict[str, Any], model: object
+) -> tuple[np.ndarray, dict[str, Any]]:
     from pydantic import ValidationError
 
     from .camera import CameraModel, undistort_image, undistort_points
@@ -570,7 +574,7 @@ def photo_points(two_photo: bool, photo: str) -> tuple[tuple[str, ...], tuple[st
     return tuple(n for n in CORNER_OF if n not in _SIDE_PHOTO_POINTS), ("front",)
 
 
-def overlay_from_report(image: np.ndarray, report: Mapping, *, photo: str = "front",
+def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: str = "front",
                         warn_px: float = 3.0) -> np.ndarray:
     """The overlay of one photo of a scan, from the scan's report.json content.
 
@@ -606,6 +610,7 @@ def overlay_from_report(image: np.ndarray, report: Mapping, *, photo: str = "fro
     points = inputs.get("points") if isinstance(inputs, Mapping) else None
     if not isinstance(points, Mapping):
         raise InputError("report has no inputs.points (the clicked reference points)")
+    assert isinstance(inputs, Mapping)  # points came from it
     two_photo = bool(inputs.get("side_image"))
     names, face_names = photo_points(two_photo, photo)
     sizes = report.get("images")
