@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from pydantic import ValidationError
@@ -16,6 +17,7 @@ from prismcore import InputError, ScanSpec, parse_points, run_scan
 from prismcore.camera import CameraModel
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
+from prismcore.locate import resolve_points
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
 from .outputs import report_path, write_outputs, write_overlays
@@ -67,7 +69,7 @@ def _mm_values(flag: str, text: str, counts: tuple[int, ...], expected: str) -> 
     return values
 
 
-def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict:
+def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict[str, Any]:
     """The spec's `nominal` and `tolerance_mm` from ``--nominal W,H,D --tolerance-mm T|Tw,Th,Td``."""
     if (nominal is None) != (tolerance_mm is None):
         raise InputError("--nominal and --tolerance-mm go together: give both")
@@ -89,18 +91,42 @@ def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec
     formats = [f.strip() for f in flags.pop("formats", "csv,ply").split(",") if f.strip()]
     scale = _scale(*(flags.pop(k, None) for k in ("mm_per_px", "distance_mm", "width_mm",
                                                    "height_mm", "depth_mm")))
-    try:
-        ref = parse_points(points)
-    except ValueError as exc:
-        raise InputError(f"--points: {exc}") from None
     side = flags.pop("side", None)
+    auto = _auto_points(points, flags.pop("hint", None), flags.pop("roi", None))
     flags.update(quality_flags(flags.pop("nominal", None), flags.pop("tolerance_mm", None)))
     return ScanSpec.model_validate({
         "image": str(image), "side_image": str(side) if side else None,
-        "points": ref.model_dump(), "scale": scale, "formats": formats,
+        **auto, "scale": scale, "formats": formats,
         "csv": {"header": flags.pop("csv_header", False), "colors": flags.pop("csv_colors", False)},
         **flags,
     })
+
+
+def _numbers(flag: str, text: str, count: int) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        shape = "X,Y" if count == 2 else "X0,Y0,X1,Y1"
+        raise InputError(f"{flag} {text!r}: expected {shape} in image pixels")
+    return values
+
+
+def _auto_points(points: str, hint: str | None, roi: str | None) -> dict:
+    """The spec's points (and auto_points) from --points, --hint and --roi."""
+    if points.strip() != "auto":
+        if hint is not None or roi is not None:
+            raise InputError("--hint and --roi go with --points auto")
+        try:
+            return {"points": parse_points(points).model_dump()}
+        except ValueError as exc:
+            raise InputError(f"--points: {exc}") from None
+    if hint is not None and roi is not None:
+        raise InputError("give --hint or --roi, not both")
+    return {"points": "auto", "auto_points": {
+        "hint": None if hint is None else _numbers("--hint", hint, 2),
+        "roi": None if roi is None else _numbers("--roi", roi, 4)}}
 
 
 def summary_line(report: dict) -> str:
@@ -121,7 +147,7 @@ def summary_line(report: dict) -> str:
 _VERDICT_STYLE = {"pass": "green", "fail": "red", "uncertain": "yellow"}
 
 
-def quality_lines(quality: dict | None) -> list[str]:
+def quality_lines(quality: Mapping[str, Any] | None) -> list[str]:
     """One line per dimension and the part's verdict (rich markup), or none without a nominal:
     'width   120.05 mm  nominal 120.00 ± 0.10  deviation +0.05 (± 0.04 at k=2)  pass'."""
     if not quality:
@@ -170,7 +196,11 @@ def scan(
                                            "(a video: one folder per frame and summary.json).")],
     image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo), or a video.")] = None,
     points: Annotated[str | None, typer.Option(
-        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels.')] = None,
+        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels, or auto (found in '
+             'the photo; refused, exit 2, when not sure).')] = None,
+    hint: Annotated[str | None, typer.Option(help="--points auto: X,Y px on the box wanted.")] = None,
+    roi: Annotated[str | None, typer.Option(
+        help="--points auto: X0,Y0,X1,Y1 px, the region to look in.")] = None,
     side: Annotated[Path | None, typer.Option(help="Side photo (two-photo mode).")] = None,
     side_face: Annotated[str | None, typer.Option(
         help="One photo: the face P4, P5 (P7) mark besides the front: right (P4 = P2), left "
@@ -236,7 +266,7 @@ def scan(
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
                 side_face=side_face or "auto", spacing_mm=spacing_mm, nominal=nominal,
-                tolerance_mm=tolerance_mm), Path(".")
+                tolerance_mm=tolerance_mm, hint=hint, roi=roi), Path(".")
         if camera is not None:
             spec = spec.model_copy(update={"camera": _camera_file(camera)})
         if spec.is_video or is_video(base / spec.image):
@@ -248,8 +278,19 @@ def scan(
                     if spec.side_image else None)
         found = exif_focal(_head(base / spec.image), front.shape[1], front.shape[0])
         load_ms = (time.perf_counter() - load_start) * 1000
-        result = run_scan(spec, front, side_img, tiles=tiles,
-                          exif_focal_px=found.focal_px if found else None)
+        auto = None
+        if spec.auto_points is not None:
+            spec, auto = resolve_points(spec, front)
+        try:
+            result = run_scan(spec, front, side_img, tiles=tiles,
+                              exif_focal_px=found.focal_px if found else None)
+        except InputError as exc:
+            if auto is None:
+                raise
+            raise InputError(f"points auto: the box found fails the fit guards: {exc}") from None
+        if auto is not None:
+            result.report.update(points_source="auto", auto_points=auto.report())
+            result.report["warnings"] += list(auto.warnings)
     except ValidationError as exc:
         raise InputError(_one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)

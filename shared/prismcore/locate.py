@@ -28,11 +28,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from .edges import intersect
 from .errors import InputError
 from .faces import SideFace, quad_area
 from .spec import ReferencePoints, ScanSpec
 
-__all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points"]
+__all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points", "resolve_points"]
 
 CONFIDENCE_MIN = 0.6
 CONFIDENCE_WARN = 0.8  # accepted below this: with a warning to check the points
@@ -334,20 +335,6 @@ def _contains(box: _Box, xy: np.ndarray) -> float:
     return float(cv2.pointPolygonTest(box.hull.astype(np.float32), (float(xy[0]), float(xy[1])), True))
 
 
-def _focal_guess(points: dict[str, np.ndarray], side_face: SideFace, shape: tuple[int, ...]) -> float:
-    """A focal length (px) for the first pass: the vanishing points', within typical bounds."""
-    from .faces import clicked_quads
-    from .perspective import focal_from_vanishing_points
-
-    h, w = shape[:2]
-    ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
-    quads = clicked_quads(ref, two_photo=False, side_face=side_face)
-    principal = np.array([(w - 1) / 2, (h - 1) / 2])
-    closed = focal_from_vanishing_points(quads.front, quads.side, principal, 8.0 * w, side_face)
-    guess = float(np.median(closed)) if closed else 1.2 * w
-    return float(np.clip(guess, 0.5 * w, 4.0 * w))
-
-
 _PNP_MAX = 0.03  # reprojection RMS over the box's image size: above it, not a box
 
 
@@ -396,19 +383,19 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
     return best
 
 
-def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace,
-             focal_px: float | None = None) -> tuple[dict[str, np.ndarray], dict]:
+def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace
+             ) -> tuple[dict[str, np.ndarray], dict]:
     """The engine's plan from these points: the fitted box's corners and the plan's fit/edges.
 
-    With `focal_px` the box fit keeps it (two starts); without, it fits the focal length too,
-    which from points far from any box can take the solver seconds: the first pass gives one.
+    The focal length is fitted too (from points far from any box that can take the solver
+    seconds: `_box_likeness` screens them out first).
 
     Raises InputError when the plan refuses the points (a fit guard, a degenerate face).
     """
     from .pipeline import plan_scan
 
     ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
-    spec = ScanSpec(image="auto", points=ref, side_face=side_face, focal_px=focal_px)
+    spec = ScanSpec(image="auto", points=ref, side_face=side_face)
     plan = plan_scan(spec, image)
     front, side = plan.faces[0].region, plan.faces[1].region
     if side_face == "right":
@@ -419,8 +406,20 @@ def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFa
         named = {"p4": side[3], "p5": side[0], "p7": side[1]}
     out = {"p1": front[0], "p2": front[1], "p3": front[2], "p6": front[3], **named}
     supports = [f.support if f.fitted else 0.0 for fits in plan.edges.values() for f in fits]
+    # Where the fitted edges meet against where the box model puts the corners: the clicks
+    # (the previous pass's model corners) cannot tell whether a box explains the edges.
+    gaps = []
+    for face, region in (("front", front), ("side", side)):
+        fits = plan.edges.get(face, [])
+        for i in range(len(fits)):
+            a, b = fits[i - 1], fits[i]
+            if a.fitted and b.fitted:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    corner = intersect(a.line, b.line)
+                gaps.append(float(np.linalg.norm(corner - region[i])) if np.isfinite(corner).all()
+                            else math.inf)
     info = {"fit": plan.fit, "supports": supports, "focal_px": plan.camera.get("focal_px"),
-            "perspective": plan.dimensions.perspective}
+            "perspective": plan.dimensions.perspective, "gaps": gaps}
     return {k: np.asarray(v, dtype=np.float64) for k, v in out.items()}, info
 
 
@@ -434,9 +433,12 @@ def _confidence(first: dict[str, np.ndarray], second: dict[str, np.ndarray], inf
     c_edges = weakest ** 0.5 * float(np.clip(supports.mean(), 0, 1))
     c_fit = math.exp(-((rms / 1.5) ** 2))
     c_resid = math.exp(-((float(info["fit"].get("rms_px", 0.0)) / 2.5) ** 2))
+    gaps = np.asarray(info["gaps"] or [math.inf])
+    gap_rms = float(np.sqrt(np.mean(gaps ** 2)))
+    c_model = math.exp(-((gap_rms / 1.5) ** 2)) * math.exp(-((float(gaps.max()) / 4.0) ** 2))
     focal = info.get("focal_px")
     c_focal = 1.0 if focal is None or 0.25 * width <= focal <= 6 * width else 0.3
-    return float(np.clip(c_edges * c_fit * c_resid * c_focal, 0, 1)), rms
+    return float(np.clip(c_edges * c_fit * c_resid * c_model * c_focal, 0, 1)), rms
 
 
 def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
@@ -551,7 +553,7 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
     t0 = time.perf_counter()
     faces = tuple(full(f.corners) for f in box.faces)
     try:
-        first, _ = _refined(image, first_in, side_face, _focal_guess(first_in, side_face, image.shape))
+        first, _ = _refined(image, first_in, side_face)
         second, info = _refined(image, first, side_face)
     except InputError as exc:
         timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
@@ -575,3 +577,23 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
         warnings = (f"points found automatically with a modest confidence ({confidence:.2f}): "
                     "check them on overlay.png",)
     return Found(pts, side_face, confidence, reason, faces, candidates, rms, timings, warnings)
+
+
+def resolve_points(spec: ScanSpec, image: np.ndarray) -> tuple[ScanSpec, Found]:
+    """A spec with points "auto" made into one with the points found in `image`.
+
+    Returns the spec to measure (points and side face filled in, `auto_points` cleared) and
+    what the search found.
+
+    Raises
+    ------
+    InputError
+        With the search's reason when it refuses (no box, two boxes, one face, uncertain).
+    """
+    if spec.auto_points is None:
+        raise InputError("resolve_points needs a spec with points \"auto\"")
+    found = find_points(image, hint=spec.auto_points.hint, roi=spec.auto_points.roi)
+    if not found.ok or found.points is None:
+        raise InputError(f"points auto: {found.reason}")
+    return spec.model_copy(update={"points": found.points, "side_face": found.side_face,
+                                   "auto_points": None}), found

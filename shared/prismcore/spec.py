@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 from collections import Counter
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -28,6 +28,7 @@ __all__ = [
     "FILE_NAMES",
     "FORMATS",
     "SUMMARY_NAME",
+    "AutoPoints",
     "FrameSelection",
     "KnownEdge",
     "MmPerPx",
@@ -60,9 +61,11 @@ def frame_folder(index: int) -> str:
 
 
 OutputFormat = Literal["csv", "ply", "las", "laz", "glb"]
-FORMATS: tuple[str, ...] = ("csv", "ply", "las", "laz", "glb")
+FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb")
 """The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
 and the fitted box as a textured binary glTF model (glb)."""
+
+_DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
 
 PositiveMm = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
 NonNegativeMm = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
@@ -191,6 +194,20 @@ class FrameSelection(_Strict):
 
 
 
+def _auto_schema(schema: dict[str, Any]) -> None:
+    options = schema.get("anyOf")
+    if isinstance(options, list):
+        options.insert(0, {"const": "auto"})
+
+
+class AutoPoints(_Strict):
+    """Where the zero-click search looks: the box around `hint`, or inside `roi`."""
+
+    hint: Point | None = Field(default=None, description="(x, y) px on the box wanted.")
+    roi: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] | None = Field(
+        default=None, description="(x0, y0, x1, y1) px: look for the box inside this region only.")
+
+
 class ScanSpec(_Strict):
     """Everything needed to turn one photo (or a front and a side photo) into a point cloud."""
 
@@ -205,8 +222,11 @@ class ScanSpec(_Strict):
     )
     points: ReferencePoints | None = Field(
         default=None, description="Reference points (every frame of a video); required unless "
-        "frame_points is given."
+        "frame_points is given. \"auto\" (one photo): found in the photo (prismcore.locate), see "
+        "auto_points.", json_schema_extra=_auto_schema,
     )
+    auto_points: AutoPoints | None = Field(
+        default=None, description="Set when points is \"auto\": where to look for the box.")
     frames: FrameSelection | None = Field(
         default=None, description="Set when `image` is a video: the frames to measure."
     )
@@ -232,7 +252,7 @@ class ScanSpec(_Strict):
         "right side (p4 = p2), the left side (p4 = p1, p5 left of it) or the top (p4 = p1, p5 "
         "above it); auto reads it from the points. Two photos: the side photo's face (right).")
     cloud: Literal["surface", "volume"] = "surface"
-    formats: list[OutputFormat] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
+    formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
     spacing_mm: PositiveMm | None = Field(
         default=None, description="Thin the cloud so neighbouring points are about this far apart, "
         "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")
@@ -247,6 +267,15 @@ class ScanSpec(_Strict):
     ply_ascii: bool = False
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
     max_points: int = Field(default=20_000_000, gt=0, description="Refuse larger clouds.")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _auto_points(cls, data: object) -> object:
+        # "points": "auto" is kept as points None plus auto_points, so that code past the
+        # search (which fills points) sees reference points or nothing.
+        if isinstance(data, dict) and data.get("points") == "auto":
+            return {**data, "points": None, "auto_points": data.get("auto_points") or {}}
+        return data
 
     @model_validator(mode="before")
     @classmethod
@@ -279,6 +308,11 @@ class ScanSpec(_Strict):
             if self.frames is None or self.frames.indices is None or sorted(self.frames.indices) != listed:
                 raise ValueError(f"frame_points measures exactly frames {listed}: drop frames or "
                                  f"give frames.indices equal to them, got frames={self._frames_text()}")
+        elif self.auto_points is not None:
+            if self.points is not None:
+                raise ValueError("auto_points goes with points \"auto\": drop one of them")
+            if self.side_image is not None or self.frames is not None:
+                raise ValueError("points \"auto\" is for one photo: not with side_image or frames")
         elif self.points is None:
             raise ValueError("points: the reference points are missing (give points, or "
                              "frame_points for a video)")
@@ -305,6 +339,8 @@ class ScanSpec(_Strict):
         """One photo with all seven points: the box fit finds the focal length itself."""
         if self.two_photo:
             return False
+        if self.auto_points is not None:
+            return True  # the search finds all seven points
         marks = [self.points] if self.points is not None else list((self.frame_points or {}).values())
         return bool(marks) and all(p.p6 is not None and p.p7 is not None for p in marks)
 

@@ -184,3 +184,42 @@ def clutter_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE,
     assert ok
     out = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     return ClutterScene(out, scene, verts, px, visible, n_faces, largest <= box_area, close, drawn)
+
+
+def empty_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE) -> np.ndarray:
+    """(H, W, 3) uint8 RGB: a cluttered background (shapes, lines, text) and no box, JPEG'd."""
+    from .render import _background, _jpeg_round_trip
+
+    rng = np.random.default_rng(np.random.SeedSequence([13, int(seed)]))
+    style = Style()
+    bg = _background(rng, image_size, style, rng.uniform(40, 215, 3))
+    img = np.clip(np.rint(bg), 0, 255).astype(np.uint8)
+    return _jpeg_round_trip(img, 90)
+
+
+def two_box_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE
+                  ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Two equal boxes side by side, the second the first's mirror image, on a plain background.
+
+    The first box is photographed left of the image centre; the picture mirrored about its
+    vertical centre line is another pinhole photo (of the mirrored world), so the right half
+    shows an equal box, seen from the other side, through the same camera.
+
+    Returns the (H, W, 3) uint8 RGB image and, per box, its (8, 2) corners in it (px).
+    """
+    from .render import _camera_matrix, _jpeg_round_trip, _oblique_pose, _principal, _render
+
+    w = image_size[0]
+    box = Box(120.0, 90.0, 70.0)
+    focal, distance = 0.8 * w, 600.0
+    R, t = _oblique_pose(box, distance, 30.0, 25.0)
+    t = t + np.array([-0.27 * w * distance / focal, 0.0, 0.0])  # the box left of the centre
+    K = _camera_matrix(focal, _principal(image_size))
+    image = _render(box, K, R, t, image_size, Style(clutter=False, jpeg_quality=None), int(seed), "front")
+    scene = Scene(image=image, points={}, box=box, focal_px=focal, distance_mm=distance,
+                  mm_per_px=None, view="oblique", camera_matrix=K, rotation=R, translation=t)
+    left = box_vertices_px(scene)[1]
+    right = np.column_stack([(w - 1) - left[:, 0], left[:, 1]])
+    # The left half as rendered, the right half its mirror (the background stays continuous).
+    img = np.ascontiguousarray(np.where(np.arange(w)[None, :, None] < w // 2, image, image[:, ::-1]))
+    return _jpeg_round_trip(img, 90), [left, right]
