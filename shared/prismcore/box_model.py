@@ -22,6 +22,7 @@ outward normals, counter-clockwise front faces.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,8 @@ def _rgb8(image: np.ndarray) -> np.ndarray:
         raise InputError(f"a photo must be (H, W, 3) RGB, got shape {image.shape}")
     if image.dtype == np.uint8:
         return image
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    rgb: np.ndarray = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    return rgb
 
 
 def _texture(photo: np.ndarray, quad: np.ndarray, aspect: float) -> bytes:
@@ -101,7 +103,7 @@ def _texture(photo: np.ndarray, quad: np.ndarray, aspect: float) -> bytes:
     return data.tobytes()
 
 
-def _undistorted(report: Mapping, photos: list[np.ndarray]) -> list[np.ndarray]:
+def _undistorted(report: Mapping[str, Any], photos: list[np.ndarray]) -> list[np.ndarray]:
     """The photos as the fit saw them: undistorted with the report's camera when it was."""
     if not (report.get("camera") or {}).get("undistorted"):
         return photos
@@ -117,7 +119,7 @@ def _undistorted(report: Mapping, photos: list[np.ndarray]) -> list[np.ndarray]:
     return out
 
 
-def box_glb(report: Mapping, front: np.ndarray, side: np.ndarray | None = None) -> bytes:
+def box_glb(report: Mapping[str, Any], front: np.ndarray, side: np.ndarray | None = None) -> bytes:
     """The bytes of a ``.glb`` of the fitted box, textured from the photo(s).
 
     Parameters
@@ -157,8 +159,9 @@ def box_glb(report: Mapping, front: np.ndarray, side: np.ndarray | None = None) 
     centre = corners.mean(axis=0)
 
     blob = bytearray()
-    views: list[g.BufferView] = []
-    accessors: list[g.Accessor] = []
+    # pygltflib is untyped: its objects are Any here
+    views: list[Any] = []
+    accessors: list[Any] = []
 
     def add_view(data: bytes, target: int | None = None) -> int:
         while len(blob) % 4:
@@ -177,7 +180,10 @@ def box_glb(report: Mapping, front: np.ndarray, side: np.ndarray | None = None) 
         return len(accessors) - 1
 
     def geometry(names: list[str], uv: bool) -> dict[str, int]:
-        pos, nrm, tex, idx = [], [], [], []
+        pos: list[np.ndarray] = []
+        nrm: list[np.ndarray] = []
+        tex: list[np.ndarray] = []
+        idx: list[int] = []
         for name in names:
             quad = box_to_gltf(corners[list(_FACES[name])], H)
             d = corners[list(_FACES[name])].mean(axis=0) - centre  # outward, box frame
@@ -201,9 +207,9 @@ def box_glb(report: Mapping, front: np.ndarray, side: np.ndarray | None = None) 
                                         g.ELEMENT_ARRAY_BUFFER)
         return attrs
 
-    images: list[g.Image] = []
-    materials: list[g.Material] = []
-    primitives: list[g.Primitive] = []
+    images: list[Any] = []
+    materials: list[Any] = []
+    primitives: list[Any] = []
     for name, (key, photo, (fw, fh)) in seen.items():
         face = faces.get(key)
         if not isinstance(face, Mapping) or "corners" not in face:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Literal, TypedDict
+from typing import Any, Literal, TypedDict
 
 from .errors import InputError
 
@@ -110,7 +110,7 @@ def _triple(value: float | Sequence[float], name: str) -> tuple[float, float, fl
     values = tuple(float(v) for v in value)
     if len(values) != 3:
         raise InputError(f"{name} needs 3 values (width, height, depth), got {len(values)}")
-    return values  # type: ignore[return-value]
+    return values[0], values[1], values[2]
 
 
 def quality_block(measured: Mapping[str, float], sigma: Mapping[str, float] | None,
@@ -153,7 +153,7 @@ def quality_block(measured: Mapping[str, float], sigma: Mapping[str, float] | No
     return {"verdict": overall, "k": k, "counts": counts, "dimensions": rows}
 
 
-def quality_from_report(report: Mapping, nominal: Sequence[float] | None,
+def quality_from_report(report: Mapping[str, Any], nominal: Sequence[float] | None,
                         tolerance: float | Sequence[float] | None) -> QualityBlock | None:
     """The quality block of a report dict (its rounded ``dimensions`` and ``uncertainty``, so the
     verdicts agree with the figures shown), or None when no nominal is given.
