@@ -1,0 +1,114 @@
+"""Zero-click search (prismcore.locate) on rendered scenes whose box corners are known.
+
+The truth is the renderer's projection of the box's eight corners (prismsynth.scenes), not
+anything the search computes; the search may name the faces its own way, so each found point
+is checked against the nearest true corner and the seven must land on six distinct corners.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prismcore import InputError, ScanSpec
+from prismcore.locate import CONFIDENCE_MIN, find_points, resolve_points
+from prismsynth import Box, render_front_view
+from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
+
+
+def _worst(found, corners: np.ndarray) -> tuple[float, int]:
+    """Worst distance (px) of a found point to its nearest true corner; corners hit."""
+    hit, worst = set(), 0.0
+    for xy in found.points.as_dict().values():
+        d = np.linalg.norm(corners - np.asarray(xy), axis=1)
+        hit.add(int(np.argmin(d)))
+        worst = max(worst, float(d.min()))
+    return worst, len(hit)
+
+
+@pytest.fixture(scope="module")
+def two_boxes():
+    return two_box_scene(0)
+
+
+@pytest.mark.parametrize("seed", [2, 4, 8])
+def test_finds_the_points_within_3_px_in_clutter(seed):
+    scene = clutter_scene(seed)
+    found = find_points(scene.image)
+    assert found.ok, found.reason
+    assert found.confidence >= CONFIDENCE_MIN
+    worst, corners = _worst(found, scene.vertices_px)
+    assert worst <= 3.0
+    assert corners == 6  # P4 is P1 or P2; the other six are six corners
+    assert found.side_face in ("right", "left", "top")
+
+
+def test_refuses_an_empty_background():
+    found = find_points(empty_scene(0))
+    assert not found.ok
+    assert found.reason == "no box found"
+    assert found.points is None
+
+
+def test_refuses_one_face():
+    scene = render_front_view(Box(120, 90, 70))
+    found = find_points(scene.image)
+    assert not found.ok
+    assert found.reason.startswith("only one face visible")
+
+
+def test_two_equal_boxes_need_a_hint(two_boxes):
+    image, _ = two_boxes
+    found = find_points(image)
+    assert not found.ok
+    assert found.reason.startswith("2 candidate boxes")
+    assert found.confidence < CONFIDENCE_MIN
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_hint_and_roi_choose_the_box(two_boxes, which):
+    image, corners = two_boxes
+    box = corners[which]
+    by_hint = find_points(image, hint=tuple(box.mean(axis=0)))
+    lo, hi = box.min(axis=0) - 40, box.max(axis=0) + 40
+    by_roi = find_points(image, roi=(lo[0], lo[1], hi[0], hi[1]))
+    for found in (by_hint, by_roi):
+        assert found.ok, found.reason
+        worst, hit = _worst(found, box)
+        assert worst <= 3.0 and hit == 6
+
+
+def test_hint_away_from_any_box(two_boxes):
+    image, _ = two_boxes
+    found = find_points(image, hint=(640.0, 20.0))
+    assert not found.ok and found.reason.startswith("no box found around the hint")
+
+
+@pytest.mark.parametrize(("kwargs", "words"), [
+    ({"hint": (5000.0, 3.0)}, "outside"),
+    ({"roi": (100.0, 100.0, 50.0, 400.0)}, "X0 < X1"),
+    ({"roi": (0.0, 0.0, 10.0, 10.0)}, "16x16"),
+])
+def test_bad_hint_or_roi_is_an_input_error(two_boxes, kwargs, words):
+    image, _ = two_boxes
+    with pytest.raises(InputError, match=words):
+        find_points(image, **kwargs)
+
+
+def test_spec_points_auto_resolves_to_the_found_points(two_boxes):
+    image, corners = two_boxes
+    hint = [float(v) for v in corners[1].mean(axis=0)]
+    spec = ScanSpec.model_validate({"image": "x.png", "points": "auto", "auto_points": {"hint": hint}})
+    assert spec.points is None and spec.auto_points is not None
+    resolved, found = resolve_points(spec, image)
+    assert resolved.points == found.points and resolved.auto_points is None
+    assert resolved.side_face == found.side_face
+    assert found.report()["points_source"] == "auto"
+    with pytest.raises(InputError, match="2 candidate boxes"):
+        resolve_points(spec.model_copy(update={"auto_points": spec.auto_points.model_copy(
+            update={"hint": None})}), image)
+
+
+def test_spec_points_auto_is_for_one_photo():
+    with pytest.raises(ValueError, match="one photo"):
+        ScanSpec.model_validate({"image": "x.png", "points": "auto", "side_image": "y.png"})
