@@ -63,16 +63,18 @@ def ctx(tmp_path_factory) -> Iterator[Ctx]:
 
 def _run(ctx: Ctx, figures, name: str, inject: Callable[[], None], heal: Callable[[], None] | None,
          hold: float, *, after: float = 3.0) -> None:
-    """Jobs stream in (one every 1.5 s, under what the two workers take here, so the recovery
+    """Jobs stream in (one every 2.5 s, under what the two workers take here, so the recovery
     time is the fault's, not a backlog's); `inject` the fault once some are in flight, `hold` s
     later `heal` it (None: the fault is for good, e.g. a dead host, and ends when injected),
     keep submitting `after` s, then wait for every acknowledged job and audit them."""
     load = Load(ctx.api, f"{name}-{os.urandom(3).hex()}", ctx.items, ctx.cluster.hook_url,
-                interval=1.5).start()
+                interval=2.5).start()
     try:
-        time.sleep(3)
-        in_flight = sum(ctx.api.job(job_id)["state"] not in ("succeeded", "failed")
-                        for job_id, _ in list(load.acked.values()))
+        deadline = time.monotonic() + 60
+        while (in_flight := sum(ctx.api.job(job_id)["state"] not in ("succeeded", "failed")
+                                for job_id, _ in list(load.acked.values()))) < 2:
+            assert time.monotonic() < deadline, "no jobs in flight after 60 s"
+            time.sleep(0.2)
         inject()
         ended = time.monotonic()
         if heal is not None:
