@@ -113,7 +113,7 @@ def _numbers(flag: str, text: str, count: int) -> list[float]:
     return values
 
 
-def _auto_points(points: str, hint: str | None, roi: str | None) -> dict:
+def _auto_points(points: str, hint: str | None, roi: str | None) -> dict[str, object]:
     """The spec's points (and auto_points) from --points, --hint and --roi."""
     if points.strip() != "auto":
         if hint is not None or roi is not None:

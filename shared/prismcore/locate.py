@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -86,7 +88,7 @@ class Found:
     def ok(self) -> bool:
         return self.reason is None
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """The JSON-ready summary report.json keeps."""
         return {"points_source": "auto", "confidence": round(self.confidence, 3),
                 "side_face": self.side_face, "reason": self.reason,
@@ -118,10 +120,11 @@ _LEVELS = ((20.0, 50.0), (8.0, 20.0))  # Canny thresholds on L (a, b: 0.4 of the
 
 def _edges(lab: np.ndarray, low: float, high: float) -> np.ndarray:
     """(h, w) uint8 edge map (255 on edges) from all three channels of a blurred Lab image."""
-    edges = cv2.Canny(lab[..., 0], low, high, L2gradient=True)
+    edges = np.asarray(cv2.Canny(lab[..., 0], low, high, L2gradient=True), dtype=np.uint8)
     for c in (1, 2):
-        edges |= cv2.Canny(lab[..., c], 0.4 * low, 0.4 * high, L2gradient=True)
-    return cv2.dilate(edges, np.ones((_EDGE_DILATE, _EDGE_DILATE), np.uint8))
+        edges = edges | np.asarray(cv2.Canny(lab[..., c], 0.4 * low, 0.4 * high, L2gradient=True),
+                                   dtype=np.uint8)
+    return np.asarray(cv2.dilate(edges, np.ones((_EDGE_DILATE, _EDGE_DILATE), np.uint8)), dtype=np.uint8)
 
 
 def _all_faces(small: np.ndarray) -> list[_Quad]:
@@ -148,7 +151,7 @@ def _meet(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     x = np.cross(a, b)
     if abs(x[2]) < 1e-9:
         return None
-    return x[:2] / x[2]
+    return np.asarray(x[:2] / x[2], dtype=np.float64)
 
 
 def _quad_of(contour: np.ndarray) -> np.ndarray | None:
@@ -258,7 +261,7 @@ def _boxes(quads: list[_Quad]) -> list[_Box]:
 def _score(box: _Box, shape: tuple[int, int]) -> float:
     h, w = shape
     off = np.linalg.norm(box.centre - np.array([w / 2, h / 2])) / math.hypot(w / 2, h / 2)
-    return box.area * (1.0 - 0.6 * off) * (1.1 if len(box.faces) == 3 else 1.0)
+    return float(box.area * (1.0 - 0.6 * off) * (1.1 if len(box.faces) == 3 else 1.0))
 
 
 # --------------------------------------------------------------------------- labels
@@ -384,7 +387,7 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
 
 
 def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace
-             ) -> tuple[dict[str, np.ndarray], dict]:
+             ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """The engine's plan from these points: the fitted box's corners and the plan's fit/edges.
 
     The focal length is fitted too (from points far from any box that can take the solver
@@ -423,7 +426,7 @@ def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFa
     return {k: np.asarray(v, dtype=np.float64) for k, v in out.items()}, info
 
 
-def _confidence(first: dict[str, np.ndarray], second: dict[str, np.ndarray], info: dict,
+def _confidence(first: dict[str, np.ndarray], second: dict[str, np.ndarray], info: dict[str, Any],
                 width: int) -> tuple[float, float]:
     """Confidence 0-1 and the RMS (px) between the two passes' corners."""
     moved = np.array([np.linalg.norm(first[k] - second[k]) for k in first])
@@ -484,7 +487,7 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
     offset = np.array([x0, y0], dtype=np.float64)
 
     def full(p: np.ndarray) -> np.ndarray:  # work px -> image px (pixel centres)
-        return (p + 0.5) / scale - 0.5 + offset
+        return np.asarray((p + 0.5) / scale - 0.5 + offset, dtype=np.float64)
 
     quads = _all_faces(small)
     boxes = _boxes(quads)
@@ -548,7 +551,8 @@ def _nothing(quads: list[_Quad], shape: tuple[int, ...]) -> str:
 
 
 def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: SideFace, box: _Box,
-             full, timings: dict[str, float], threshold: float, candidates: int) -> Found:
+             full: Callable[[np.ndarray], np.ndarray], timings: dict[str, float], threshold: float,
+             candidates: int) -> Found:
     """Place the corners with the engine's plan (twice) and rate them."""
     t0 = time.perf_counter()
     faces = tuple(full(f.corners) for f in box.faces)

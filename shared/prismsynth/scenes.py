@@ -96,7 +96,7 @@ def _objects(rng: np.random.Generator, img: np.ndarray, hull: np.ndarray, box_ar
     h, w = img.shape[:2]
     keep_out = np.zeros((h, w), np.uint8)
     cv2.fillConvexPoly(keep_out, np.round(hull).astype(np.int32), 255)
-    keep_out = cv2.dilate(keep_out, np.ones((41, 41), np.uint8))
+    keep_out = np.asarray(cv2.dilate(keep_out, np.ones((41, 41), np.uint8)), dtype=np.uint8)
     drawn, largest = 0, 0.0
     for _ in range(int(rng.integers(1, 6))):
         for _attempt in range(20):
@@ -182,8 +182,9 @@ def clutter_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE,
     quality = int(rng.integers(75, 96))
     ok, buf = cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
     assert ok
-    out = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-    return ClutterScene(out, scene, verts, px, visible, n_faces, largest <= box_area, close, drawn)
+    image = np.asarray(cv2.cvtColor(np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)), cv2.COLOR_BGR2RGB),
+                       dtype=np.uint8)
+    return ClutterScene(image, scene, verts, px, visible, n_faces, largest <= box_area, close, drawn)
 
 
 def empty_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE) -> np.ndarray:
