@@ -60,16 +60,20 @@ class EdgeFit:
 def line_through(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """The normalised line (a, b, c) through two image points."""
     line = np.cross(np.append(p, 1.0), np.append(q, 1.0))
-    return line / np.hypot(line[0], line[1])
+    normalised: np.ndarray = line / np.hypot(line[0], line[1])
+    return normalised
 
 
 def intersect(l1: np.ndarray, l2: np.ndarray) -> np.ndarray:
     """Intersection (x, y) of two lines in (a, b, c) form."""
     h = np.cross(l1, l2)
-    return h[:2] / h[2]
+    point: np.ndarray = h[:2] / h[2]
+    return point
 
 
-def _profiles(image: np.ndarray, p: np.ndarray, q: np.ndarray, search_px: float):
+def _profiles(
+    image: np.ndarray, p: np.ndarray, q: np.ndarray, search_px: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     length = float(np.linalg.norm(q - p))
     d = (q - p) / length
     n = np.array([-d[1], d[0]])
@@ -100,7 +104,9 @@ def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out if out.ndim == 3 else out[..., None]
 
 
-def _candidates(samples: np.ndarray, t: np.ndarray, margin: int, colour: np.ndarray):
+def _candidates(
+    samples: np.ndarray, t: np.ndarray, margin: int, colour: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Sub-pixel edge positions (profiles, K) along t, with their strengths; NaN when absent."""
     # JPEG keeps chroma at half resolution, which blurs and shifts colour edges by up to half a
     # pixel; luminance is kept at full resolution. So luminance locates the edge, and chroma,
@@ -126,7 +132,9 @@ def _candidates(samples: np.ndarray, t: np.ndarray, margin: int, colour: np.ndar
     return np.where(valid, pos, np.nan), np.where(valid, mid[rows, order], 0.0)
 
 
-def _consensus(s: np.ndarray, pos: np.ndarray, weight: np.ndarray, tol: float):
+def _consensus(
+    s: np.ndarray, pos: np.ndarray, weight: np.ndarray, tol: float
+) -> tuple[float, float] | None:
     """Offset and slope (a, b) of the line t = a + b*s that most profiles support."""
     rng = np.random.default_rng(0)  # deterministic: the same image always gives the same line
     rows, cols = np.nonzero(np.isfinite(pos))
@@ -155,9 +163,11 @@ def _consensus(s: np.ndarray, pos: np.ndarray, weight: np.ndarray, tol: float):
     return float(a[best]), float(b[best])
 
 
-def _refine(s, pos, weight, a, b):
+def _refine(
+    s: np.ndarray, pos: np.ndarray, weight: np.ndarray, a: float, b: float
+) -> tuple[float, float, float, float] | None:
     filled = np.where(np.isfinite(pos), pos, np.inf)
-    resid = None
+    resid = np.empty(0)  # set by the first pass
     for tol in (1.0, 0.6, 0.6):
         resid = np.abs(filled - (a + b * s)[:, None])
         k = np.argmin(resid, axis=1)
@@ -236,7 +246,7 @@ def _curve_points(s: np.ndarray, pos: np.ndarray, p: np.ndarray, d: np.ndarray, 
     """
     filled = np.where(np.isfinite(pos), pos, np.inf)
     rows = np.arange(len(s))
-    guess = a + b * s
+    guess: np.ndarray = a + b * s
     for tol in (_CURVE_REACH_PX, _CURVE_TOL_PX, _CURVE_TOL_PX):
         k = np.argmin(np.abs(filled - guess[:, None]), axis=1)
         t = filled[rows, k]
@@ -248,7 +258,8 @@ def _curve_points(s: np.ndarray, pos: np.ndarray, p: np.ndarray, d: np.ndarray, 
         u = (s - mid) / half
         coef = np.polyfit(u[use], t[use], 2)
         guess = np.polyval(coef, u)
-    return p + s[use, None] * d + t[use, None] * n
+    points: np.ndarray = p + s[use, None] * d + t[use, None] * n
+    return points
 
 
 def inward(line: np.ndarray, inside: np.ndarray) -> np.ndarray:

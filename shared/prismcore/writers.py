@@ -56,7 +56,7 @@ _PLY_DTYPE_XYZRGB = np.dtype(
     [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
 )
 
-Dest = str | os.PathLike | BinaryIO
+Dest = str | os.PathLike[str] | BinaryIO
 
 
 # --------------------------------------------------------------------------------------------
@@ -180,7 +180,7 @@ def write_ply(
                 rec["red"], rec["green"], rec["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
             # _write_blocks has handed a block to write() before the generator resumes, and
             # write() may not keep a buffer after it returns, so the one buffer is refilled.
-            yield memoryview(rec.view(np.uint8))
+            yield rec.view(np.uint8).data
 
     return _emit(dest, blocks())
 
@@ -189,8 +189,9 @@ def write_ply(
 # validation
 
 
-def write_format(kind: str, dest: str | os.PathLike | BinaryIO, cloud: Cloud, spec: ScanSpec, *,
-                 report: Mapping | None = None, images: Sequence[np.ndarray] | None = None) -> float:
+def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Cloud, spec: ScanSpec, *,
+                 report: Mapping[str, Any] | None = None,
+                 images: Sequence[np.ndarray] | None = None) -> float:
     """Write `kind` (one of `prismcore.spec.FORMATS`) with the spec's options; returns the ms taken.
 
     The one place that maps a spec's output options (CSV header and colours, ASCII PLY) onto
@@ -327,10 +328,11 @@ def _two_product_error(a: np.ndarray, b: float, p: np.ndarray) -> np.ndarray:
     t = a * split
     a_hi = t - (t - a)
     a_lo = a - a_hi
-    t = b * split
-    b_hi = t - (t - b)
+    tb = b * split
+    b_hi = tb - (tb - b)
     b_lo = b - b_hi
-    return ((a_hi * b_hi - p) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo
+    error: np.ndarray = ((a_hi * b_hi - p) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo
+    return error
 
 
 def _rounds_to_negative_zero(x: np.ndarray, decimals: int) -> np.ndarray:
@@ -340,7 +342,8 @@ def _rounds_to_negative_zero(x: np.ndarray, decimals: int) -> np.ndarray:
     num, den = half.as_integer_ratio()
     half_prints_zero = num * 10 ** (decimals + 1) <= 5 * den  # at or below: tie-to-even or less
     inside = (x >= -half) if half_prints_zero else (x > -half)
-    return np.signbit(x) & inside
+    negative_zero: np.ndarray = np.signbit(x) & inside
+    return negative_zero
 
 
 def _ply_ascii_block(block: np.ndarray, colors: np.ndarray | None) -> memoryview:
