@@ -18,7 +18,7 @@ from prismcore import Cloud, InputError, ScanSpec, run_scan
 from prismcore.box_model import box_glb, box_to_gltf
 from prismcore.camera import CameraModel
 from prismcore.las import SCALE_M, box_to_las, write_las
-from prismcore.spacing import thin_to_spacing
+from prismcore.spacing import thin_to_count, thin_to_spacing
 from prismcore.writers import write_format
 from prismsynth import Box, Realism, distort_points, render_oblique_view
 
@@ -370,3 +370,18 @@ def test_glb_two_photos_textures_the_side_from_the_side_photo():
     scene = trimesh.load(io.BytesIO(b"".join(model.save_to_bytes())), file_type="glb", force="scene")
     dims = result.report["dimensions"]
     assert np.allclose(scene.extents, [dims[k] / 1000 for k in ("width", "height", "depth")], atol=1e-6)
+
+
+def test_thin_to_count_fits_and_leaves_no_stripes(scan):
+    cloud = scan[1].cloud
+    preview = thin_to_count(cloud, 100_000)
+    assert 50_000 <= len(preview.points) <= 100_000
+    assert thin_to_count(preview, 100_000) is preview
+    front = _front(preview)
+    w, h = scan[1].report["dimensions"]["width"], scan[1].report["dimensions"]["height"]
+    spacing = np.median(cKDTree(front).query(front, k=2)[0][:, 1])
+    gx, gy = np.meshgrid(np.linspace(1, w - 1, 300), np.linspace(1, h - 1, 200))
+    gap, _ = cKDTree(front).query(np.stack([gx.ravel(), gy.ravel()], axis=1))
+    assert gap.max() <= 1.1 * spacing  # no hole wider than about two spacings
+    with pytest.raises(InputError):
+        thin_to_count(cloud, 0)
