@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -132,7 +133,8 @@ def project(K: np.ndarray, rvec: np.ndarray, tvec: np.ndarray, pts: np.ndarray) 
     """Project world points (N, 3) to image (x, y) px, shape (N, 2)."""
     cam = pts @ cv2.Rodrigues(rvec)[0].T + tvec
     uv = cam @ K.T
-    return uv[:, :2] / uv[:, 2:3]
+    xy: np.ndarray = uv[:, :2] / uv[:, 2:3]
+    return xy
 
 
 def centre_depth(rvec: np.ndarray, tvec: np.ndarray, width: float) -> float:
@@ -203,7 +205,7 @@ def _solve(residual: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
            bounds: tuple[np.ndarray, np.ndarray] | None = None) -> OptimizeResult:
     # A robust loss: one side fitted to the wrong edge (it happens on a face seen nearly
     # edge-on) must not drag the box, which the other sides and the clicks hold in place.
-    kw = {} if bounds is None else {"bounds": bounds}
+    kw: dict[str, Any] = {} if bounds is None else {"bounds": bounds}
     return least_squares(residual, x0, method="trf", x_scale="jac", loss="cauchy",
                          f_scale=_F_SCALE, **kw)
 
@@ -224,7 +226,8 @@ def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
     A = J.T @ Jw
     A_inv = np.linalg.pinv(A, rcond=1e-12)
     B = Jw.T @ (Jw * noise[:, None])
-    return A_inv @ B @ A_inv
+    cov: np.ndarray = A_inv @ B @ A_inv
+    return cov
 
 
 def _influence(res: OptimizeResult) -> np.ndarray:
@@ -233,7 +236,8 @@ def _influence(res: OptimizeResult) -> np.ndarray:
     J = np.asarray(res.jac, dtype=np.float64)
     w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
     Jw = J * w[:, None]
-    return -np.linalg.pinv(J.T @ Jw, rcond=1e-12) @ Jw.T
+    influence: np.ndarray = -np.linalg.pinv(J.T @ Jw, rcond=1e-12) @ Jw.T
+    return influence
 
 
 def _line_rms(res: OptimizeResult, n_lines: int) -> float:
@@ -242,7 +246,7 @@ def _line_rms(res: OptimizeResult, n_lines: int) -> float:
     return float(np.sqrt(np.mean((res.fun[:n_lines] * SIGMA_LINE_PX) ** 2)))
 
 
-def fit_rectangle(K: np.ndarray, face: FaceEvidence):
+def fit_rectangle(K: np.ndarray, face: FaceEvidence) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """Aspect (width / height) and pose of a rectangle, its height = 1.
 
     Returns
@@ -327,7 +331,8 @@ def _vanishing_point(segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarra
     s = 1e-3
     L = np.array(rows) * np.array([1.0, 1.0, s])
     v = np.linalg.svd(L)[2][-1]
-    return v * np.array([1 / s, 1 / s, 1.0])
+    point: np.ndarray = v * np.array([1 / s, 1 / s, 1.0])
+    return point
 
 
 def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: np.ndarray,
@@ -517,7 +522,8 @@ class RadialDistortion:
     def distort(self, pts: np.ndarray) -> np.ndarray:
         """Pinhole image points (N, 2) px -> where the lens puts them."""
         d = np.asarray(pts, dtype=np.float64) - self.centre
-        return self.centre + d * (1 + self.kappa * (d**2).sum(axis=-1, keepdims=True))
+        moved: np.ndarray = self.centre + d * (1 + self.kappa * (d**2).sum(axis=-1, keepdims=True))
+        return moved
 
     def undistort(self, pts: np.ndarray) -> np.ndarray:
         """Image points (N, 2) px as photographed -> where a pinhole puts them."""
@@ -531,7 +537,8 @@ def _undistort(pts: np.ndarray, centre: np.ndarray, kappa: float) -> np.ndarray:
     # r_d = r_u (1 + kappa r_u^2): fixed point in the scale r_u / r_d (contracts for |kappa r^2| < 1/3).
     for _ in range(12):
         scale = 1.0 / (1.0 + kappa * r2d * scale**2)
-    return centre + d * scale
+    undone: np.ndarray = centre + d * scale
+    return undone
 
 
 def _tls_cost(pts: np.ndarray) -> float:
@@ -664,14 +671,15 @@ def box_edge_samples(front: FaceEvidence, side: FaceEvidence, side_face: str = "
     is the front's)."""
     out = [e for e in front.samples if e is not None]
     if side.samples:
-        out += [side.samples[s] for s in _SECOND[side_face].sides if side.samples[s] is not None]
+        out += [e for e in (side.samples[s] for s in _SECOND[side_face].sides) if e is not None]
     return out
 
 
-def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray | None, int]]:
+def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
     """The line residuals' layout as `_residual_fn` makes it: (face, side, line, model corner)."""
-    return [(f, s, face.lines[s], idx[e])
-            for f, (face, idx, sides) in enumerate(faces) for s in sides if face.lines[s] is not None
+    return [(f, s, line, idx[e])
+            for f, (face, idx, sides) in enumerate(faces) for s in sides
+            if (line := face.lines[s]) is not None
             for e in (s, (s + 1) % 4)]
 
 
@@ -733,11 +741,11 @@ def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, sid
             else:
                 inset = FOLD_FRACTION * rounding_radius
             moved = project(K, fit.rvec, fit.tvec, (model[corner] - inset * out)[None])[0]
-            dr = -float(line[:2] @ (moved - image[corner])) / SIGMA_LINE_PX
+            shift = -float(line[:2] @ (moved - image[corner])) / SIGMA_LINE_PX
             if dm < 0 and dn > 0:
-                silhouettes[k] = dr
+                silhouettes[k] = shift
             else:
-                folds.setdefault((f, s), np.zeros(n))[k] = dr
+                folds.setdefault((f, s), np.zeros(n))[k] = shift
         patterns += [silhouettes, *folds.values()]
     cov = np.zeros((4, 4))
     for dr in patterns:
