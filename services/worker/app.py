@@ -93,7 +93,7 @@ def _task_started(task_id: str | None = None, **_: Any) -> None:
 
 
 @task_postrun.connect
-def _task_ended(task_id: str | None = None, task: Task | None = None, **_: Any) -> None:
+def _task_ended(task_id: str | None = None, task: Task[Any, Any] | None = None, **_: Any) -> None:
     start = _started.pop(task_id or "", None)
     if start is None or task is None:
         return

@@ -27,7 +27,7 @@ runs forever.
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import httpx
 import redis
@@ -58,11 +58,16 @@ __all__ = ["deliver_webhook", "extract_frame", "finish_item", "plan_item", "run_
 
 log = logging.getLogger(__name__)
 
+if TYPE_CHECKING:  # Task is generic in its stubs (celery-types), not at run time
+    AnyTask = Task[Any, Any]
+else:
+    AnyTask = Task
+
 RETRYABLE = (BotoCoreError, ClientError, redis.ConnectionError, redis.TimeoutError)
 INPUT_ERRORS = (InputError, ReferenceError, FetchError)  # the item's own fault: never retried
 
 
-class RetryingTask(Task):
+class RetryingTask(AnyTask):
     """Waits of up to 5, 10, 20, 40, 80 s (random below each: retries of many tasks spread out),
     so five retries ride out a store restarting, not only a dropped connection. Late acks are
     app-wide (prism_common.queue)."""
@@ -77,13 +82,13 @@ class RetryingTask(Task):
         return max(1, min(600, worker_context().settings.visibility_timeout_s // 2))
 
 
-def _maybe_repeat(task: Task) -> bool:
+def _maybe_repeat(task: AnyTask) -> bool:
     """Did an earlier run of this very task possibly get part way (retry or redelivery)?"""
     delivery = task.request.delivery_info or {}
     return bool(task.request.retries or delivery.get("redelivered"))
 
 
-def _reason(task: Task, exc: BaseException) -> str:
+def _reason(task: AnyTask, exc: BaseException) -> str:
     return lifecycle.failure_reason(exc, task.request.retries, task.soft_time_limit)
 
 
@@ -127,13 +132,13 @@ class FrameTask(RetryingTask):
 
 @app.task(name=TASK_RUN_JOB, base=JobTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
           ignore_result=True)
-def run_job(self: Task, job_id: str) -> None:
+def run_job(self: AnyTask, job_id: str) -> None:
     lifecycle.start_job(worker_context(), job_id, maybe_repeat=_maybe_repeat(self))
 
 
 @app.task(name=TASK_PLAN_ITEM, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
           ignore_result=True)
-def plan_item(self: Task, job_id: str, item: int) -> None:
+def plan_item(self: AnyTask, job_id: str, item: int) -> None:
     ctx, repeat = worker_context(), _maybe_repeat(self)
     view = lifecycle.open_item(ctx, job_id, item, repeat=repeat)
     if view is None:
@@ -184,7 +189,7 @@ def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
 
 
 @app.task(name=TASK_SCAN_TILE, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5)
-def scan_tile(self: Task, job_id: str, item: int, face: str, r0: int, r1: int) -> str | None:
+def scan_tile(self: AnyTask, job_id: str, item: int, face: str, r0: int, r1: int) -> str | None:
     ctx = worker_context()
     if ctx.store.state(job_id) != State.running:
         return None
@@ -195,7 +200,7 @@ def scan_tile(self: Task, job_id: str, item: int, face: str, r0: int, r1: int) -
 
 @app.task(name=TASK_SCAN_FRAME, base=FrameTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
           ignore_result=True)
-def scan_frame(self: Task, job_id: str, item: int, frame: int) -> None:
+def scan_frame(self: AnyTask, job_id: str, item: int, frame: int) -> None:
     ctx, repeat = worker_context(), _maybe_repeat(self)
     view = lifecycle.open_item(ctx, job_id, item, repeat=repeat)
     if view is None:
@@ -206,7 +211,7 @@ def scan_frame(self: Task, job_id: str, item: int, frame: int) -> None:
 
 @app.task(name=TASK_FINISH_ITEM, base=ItemTask, bind=True, job_arg=1, ignore_result=True, max_retries=5,
           autoretry_for=(*RETRYABLE, steps.TilesMissingError))
-def finish_item(self: Task, tile_keys: list[str | None], job_id: str, item: int) -> None:
+def finish_item(self: AnyTask, tile_keys: list[str | None], job_id: str, item: int) -> None:
     # tile_keys (the chord's results) are not needed: plan.json lists the tiles to merge.
     ctx, repeat = worker_context(), _maybe_repeat(self)
     view = ctx.store.get_item(job_id, item)
@@ -226,7 +231,7 @@ def finish_item(self: Task, tile_keys: list[str | None], job_id: str, item: int)
 
 @app.task(name=TASK_DELIVER_WEBHOOK, base=RetryingTask, bind=True, ignore_result=True, max_retries=8,
           autoretry_for=(*RETRYABLE, webhooks.WebhookError, httpx.HTTPError))
-def deliver_webhook(self: Task, job_id: str) -> None:
+def deliver_webhook(self: AnyTask, job_id: str) -> None:
     try:
         webhooks.deliver(worker_context(), job_id)
     except ReferenceError as exc:  # a URL we may not call will not become callable: no retry
@@ -235,5 +240,5 @@ def deliver_webhook(self: Task, job_id: str) -> None:
 
 @app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
           ignore_result=True)
-def extract_frame(self: Task, upload_id: str, frame: int) -> None:
+def extract_frame(self: AnyTask, upload_id: str, frame: int) -> None:
     video.extract_frame(worker_context(), upload_id, frame)
