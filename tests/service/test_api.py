@@ -111,8 +111,10 @@ def fresh_tenant(make_client: MakeClient, settings: Settings, **changes) -> tupl
 
 
 # -- authentication and tenants ---------------------------------------------------------------
-V1_CALLS = [("GET", "/v1/jobs"), ("POST", "/v1/jobs"), ("GET", f"/v1/jobs/{uuid.uuid4().hex}"),
-            ("POST", f"/v1/jobs/{uuid.uuid4().hex}/cancel"), ("POST", "/v1/uploads")]
+# A fixed unknown id (real ones are uuid4's): the test ids must be the same in every
+# pytest-xdist process.
+V1_CALLS = [("GET", "/v1/jobs"), ("POST", "/v1/jobs"), ("GET", f"/v1/jobs/{'5' * 32}"),
+            ("POST", f"/v1/jobs/{'6' * 32}/cancel"), ("POST", "/v1/uploads")]
 
 
 @pytest.mark.parametrize(("method", "path"), V1_CALLS)
