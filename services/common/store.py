@@ -27,6 +27,7 @@ import builtins
 import hashlib
 import json
 from datetime import UTC, datetime
+from typing import cast
 
 import redis
 from redis.typing import EncodableT, FieldT
@@ -93,7 +94,8 @@ def _now() -> datetime:
 class JobStore(UploadRecords):
     """Job records in Redis. Pass a client (tests give their own server's).
 
-    (`builtins.list` in annotations: the `list` method shadows it in the class body.)
+    The client must decode replies (``decode_responses=True``, as `from_url` makes it): replies
+    are cast to str here. (`builtins.list` in annotations: the `list` method shadows it.)
     """
 
     def __init__(self, client: redis.Redis) -> None:
@@ -148,7 +150,7 @@ class JobStore(UploadRecords):
 
         Raises IdempotencyConflictError if the key was used with a different body.
         """
-        found = self._r.get(_idem_key(tenant, idempotency_key))
+        found = cast("str | None", self._r.get(_idem_key(tenant, idempotency_key)))
         if found is None:
             return None
         existing_id, existing_digest = found.split(" ", 1)
@@ -159,34 +161,34 @@ class JobStore(UploadRecords):
 
     def get(self, job_id: str) -> JobRecord | None:
         """The job as it stands now, or None."""
-        fields = self._r.hgetall(f"{_P}job:{job_id}")
+        fields = cast("dict[str, str]", self._r.hgetall(f"{_P}job:{job_id}"))
         return _job(fields) if fields else None
 
     def get_page(self, job_id: str, offset: int, limit: int) -> tuple[JobRecord, int] | None:
         """The job with only its items offset..offset+limit-1 (fewer past the end), and how many
         items it has: a poll of a large job reads and parses only the page asked for."""
         key = f"{_P}job:{job_id}"
-        fields = _job_fields(self._r.hmget(key, _JOB_FIELDS))
+        fields = _job_fields(cast("builtins.list[str | None]", self._r.hmget(key, _JOB_FIELDS)))
         if "doc" not in fields:
             return None
         n = int(fields["n_items"])
         indices = range(min(offset, n), min(offset + limit, n))
         if indices:
             names = [f"item:{i}" for i in indices]
-            fields.update(zip(names, self._r.hmget(key, names), strict=True))
+            fields.update(zip(names, cast("builtins.list[str]", self._r.hmget(key, names)), strict=True))
         job = _job(fields, indices)
         if any(item.spec.is_video for item in job.items):
             # Frames are fields of their own: one pass over the hash for the whole page (a scan
             # may return a field twice; the dict keeps it once), then only this page's are read.
             _attach_frames({item.index: item for item in job.items},
-                           dict(self._r.hscan_iter(key, match="frame:*", count=1000)))
+                           cast("dict[str, str]", dict(self._r.hscan_iter(key, match="frame:*", count=1000))))
         return job, n
 
     def get_item(self, job_id: str, index: int) -> ItemView | None:
         """One item and the job facts its tasks need, without reading the rest of the job."""
-        state, tenant, n_items, item = self._r.hmget(
-            f"{_P}job:{job_id}", ["state", "tenant", "n_items", f"item:{index}"])
-        if state is None or item is None:
+        state, tenant, n_items, item = cast("builtins.list[str | None]", self._r.hmget(
+            f"{_P}job:{job_id}", ["state", "tenant", "n_items", f"item:{index}"]))
+        if state is None or item is None or tenant is None or n_items is None:
             return None
         return ItemView(job_id=job_id, tenant=tenant, state=State(state), n_items=int(n_items),
                         item=ItemRecord.model_validate_json(item))
@@ -198,7 +200,8 @@ class JobStore(UploadRecords):
         cursor. Without `items` the records hold none (a listing of big jobs stays small)."""
         key = f"{_P}tenant:{tenant}:state:{state.value}" if state else f"{_P}tenant:{tenant}:jobs"
         top = f"({cursor!r}" if cursor is not None else "+inf"
-        rows = self._r.zrevrangebyscore(key, top, "-inf", start=0, num=limit + 1, withscores=True)
+        rows = cast("builtins.list[tuple[str, float]]", self._r.zrevrangebyscore(
+            key, top, "-inf", start=0, num=limit + 1, withscores=True))
         with self._r.pipeline(transaction=False) as pipe:
             for job_id, _ in rows[:limit]:
                 if items:
@@ -218,7 +221,7 @@ class JobStore(UploadRecords):
             state.value, _now().isoformat(), error or "", job_id, _P]))
 
     def state(self, job_id: str) -> State | None:
-        value = self._r.hget(f"{_P}job:{job_id}", "state")
+        value = cast("str | None", self._r.hget(f"{_P}job:{job_id}", "state"))
         return State(value) if value else None
 
     def ended_before(self, when: float, limit: int = 200) -> builtins.list[str]:
@@ -227,15 +230,17 @@ class JobStore(UploadRecords):
         top = f"({when * 1e6!r}"
         ids: builtins.list[str] = []
         for state in FINAL_STATES:
-            ids += self._r.zrangebyscore(f"{_P}state:{state.value}", "-inf", top, start=0, num=limit)
+            ids += cast("builtins.list[str]", self._r.zrangebyscore(
+                f"{_P}state:{state.value}", "-inf", top, start=0, num=limit))
         return ids[:limit]
 
     def delete_job(self, job_id: str) -> bool:
         """Remove an ended job's record and every key and listing entry of it; False if there
         was no such job or it has not ended (a running job's record is never removed)."""
         key = f"{_P}job:{job_id}"
-        tenant, state, n_items = self._r.hmget(key, "tenant", "state", "n_items")
-        if tenant is None or State(state) not in FINAL_STATES:
+        tenant, state, n_items = cast("builtins.list[str | None]",
+                                      self._r.hmget(key, "tenant", "state", "n_items"))
+        if tenant is None or state is None or State(state) not in FINAL_STATES:
             return False
         per_item = [f"{key}:{kind}:{i}" for i in range(int(n_items or 0)) for kind in ("tiles", "frames")]
         with self._r.pipeline() as pipe:
