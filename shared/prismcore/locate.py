@@ -45,6 +45,7 @@ _SHRINK_PX = 1.5  # px (work scale): how far inside its edges a region's outline
 _MIN_FACE_FRACTION = 0.002  # of the work image's area
 _SOLIDITY = 0.88
 _AMBIGUOUS = 0.6  # a runner-up this large (relative) is a second box
+_FOLD_SUPPORT = 0.6  # a silhouette's folds must lie on edges this much
 _ATTEMPTS = 3  # candidates given the full fit before giving up
 
 
@@ -127,18 +128,50 @@ def _edges(lab: np.ndarray, low: float, high: float) -> np.ndarray:
     return np.asarray(cv2.dilate(edges, np.ones((_EDGE_DILATE, _EDGE_DILATE), np.uint8)), dtype=np.uint8)
 
 
-def _all_faces(small: np.ndarray) -> list[_Quad]:
+_LSD = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD)
+_LONG_PX = 30.0  # work px: a fold this long and straight is drawn even where Canny misses it
+_EXTEND_PX = 8.0  # work px added at both ends of such a segment
+
+
+def _long_lines(gray: np.ndarray) -> np.ndarray:
+    """(h, w) uint8: the long straight segments LSD finds (a faint fold between two faces of
+    nearly the same shade is long and straight; texture and print are short), thickened."""
+    out = np.zeros(gray.shape, np.uint8)
+    lines = _LSD.detect(gray)[0]
+    if lines is None:
+        return out
+    seg = lines.reshape(-1, 4)
+    long = seg[np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]) >= _LONG_PX]
+    for x0, y0, x1, y1 in long:
+        # Lengthened: a fold's ends fade where it meets the outline; bridging that gap is what
+        # separates the two faces' regions.
+        d = np.array([x1 - x0, y1 - y0]) / math.hypot(x1 - x0, y1 - y0) * _EXTEND_PX
+        a, b = np.array([x0, y0]) - d, np.array([x1, y1]) + d
+        cv2.line(out, (round(a[0]), round(a[1])), (round(b[0]), round(b[1])), 255, _EDGE_DILATE)
+    return out
+
+
+def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box]]:
     """Face quads at each edge sensitivity (a faint fold needs the lower one, a textured face
     the higher), the same face found twice kept once."""
     lab = cv2.cvtColor(cv2.GaussianBlur(small, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
     quads: list[_Quad] = []
-    for low, high in _LEVELS:
-        for q in _faces(_edges(lab, low, high)):
+    maps = [_edges(lab, low, high) for low, high in _LEVELS]
+    maps.append(maps[0] | _long_lines(lab[..., 0]))
+    folds = cv2.dilate(np.maximum.reduce(maps), np.ones((3, 3), np.uint8))
+    silhouettes: list[_Box] = []
+    for edges in maps:
+        found, hexagons = _faces(edges)
+        for hexagon in hexagons:
+            box = _hexagon_box(hexagon, folds)
+            if box is not None:
+                silhouettes.append(box)
+        for q in found:
             tol = 0.05 * math.sqrt(q.area) + 2.0
             if not any(np.linalg.norm(p.corners[:, None] - q.corners[None], axis=2).min(axis=1).max() < tol
                        for p in quads):
                 quads.append(q)
-    return quads
+    return quads, silhouettes
 
 
 def _line(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -154,24 +187,25 @@ def _meet(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     return np.asarray(x[:2] / x[2], dtype=np.float64)
 
 
-def _quad_of(contour: np.ndarray) -> np.ndarray | None:
-    """(4, 2) corners of a region's outline when it is a convex quadrilateral, else None.
+def _polygon_of(contour: np.ndarray, sides: int = 4) -> np.ndarray | None:
+    """(sides, 2) corners, clockwise on screen, of a region's outline when it is a convex
+    polygon of that many sides (a face: 4; a box's silhouette: 6), else None.
 
-    The approximate corners split the outline into four sides; each side's line is fitted to
-    the outline points of its middle 80 % and moved out by _SHRINK_PX.
+    The approximate corners split the outline into sides; each side's line is fitted to the
+    outline points of its middle 80 % and moved out by _SHRINK_PX.
     """
     hull = cv2.convexHull(contour)
     peri = cv2.arcLength(hull, True)
     approx = cv2.approxPolyDP(hull, 0.03 * peri, True).reshape(-1, 2).astype(np.float64)
-    if len(approx) != 4:
+    if len(approx) != sides:
         return None
     if quad_area(approx) < 0:
         approx = approx[::-1]
     pts = contour.reshape(-1, 2).astype(np.float64)
     centre = approx.mean(axis=0)
     lines = []
-    for i in range(4):
-        p, q = approx[i], approx[(i + 1) % 4]
+    for i in range(sides):
+        p, q = approx[i], approx[(i + 1) % sides]
         d = q - p
         length = float(np.linalg.norm(d))
         if length < 6:
@@ -189,8 +223,8 @@ def _quad_of(contour: np.ndarray) -> np.ndarray | None:
         line[2] += _SHRINK_PX  # the region lies inside its thickened edges: move the side out
         lines.append(line)
     corners = []
-    for i in range(4):
-        x = _meet(lines[(i - 1) % 4], lines[i])
+    for i in range(sides):
+        x = _meet(lines[(i - 1) % sides], lines[i])
         if x is None or np.linalg.norm(x - approx[i]) > 0.1 * peri:
             return None
         corners.append(x)
@@ -198,11 +232,13 @@ def _quad_of(contour: np.ndarray) -> np.ndarray | None:
     return quad if quad_area(quad) > 0 else None
 
 
-def _faces(edges: np.ndarray) -> list[_Quad]:
+def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[np.ndarray]]:
+    """The face quads among the regions the edges enclose, and the hexagons (a box whose
+    faces' regions merged where a fold is too faint: its silhouette)."""
     h, w = edges.shape
     n, labels, stats, _ = cv2.connectedComponentsWithStats((edges == 0).astype(np.uint8), connectivity=4)
     min_area = _MIN_FACE_FRACTION * h * w
-    quads = []
+    quads, hexagons = [], []
     for i in range(1, n):
         x, y, bw, bh, area = stats[i]
         if area < min_area or area > 0.6 * h * w:
@@ -216,10 +252,64 @@ def _faces(edges: np.ndarray) -> list[_Quad]:
         hull_area = cv2.contourArea(cv2.convexHull(contour))
         if hull_area <= 0 or outer / hull_area < _SOLIDITY:
             continue
-        quad = _quad_of(contour)
+        quad = _polygon_of(contour, 4)
         if quad is not None:
             quads.append(_Quad(quad, quad_area(quad)))
-    return quads
+            continue
+        hexagon = _polygon_of(contour, 6)
+        if hexagon is not None:
+            hexagons.append(hexagon)
+    return quads, hexagons
+
+
+def _support(edges: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
+    """Fraction of the segment p-q (its middle 80 %) lying on edge pixels."""
+    t = np.linspace(0.1, 0.9, 24)[:, None]
+    xy = np.rint(p + t * (q - p)).astype(int)
+    h, w = edges.shape
+    inside = (xy[:, 0] >= 0) & (xy[:, 0] < w) & (xy[:, 1] >= 0) & (xy[:, 1] < h)
+    if not inside.all():
+        return 0.0
+    return float(np.mean(edges[xy[:, 1], xy[:, 0]] > 0))
+
+
+def _clockwise(corners: np.ndarray) -> _Quad:
+    quad = corners if quad_area(corners) > 0 else corners[::-1]
+    return _Quad(np.ascontiguousarray(quad), abs(quad_area(quad)))
+
+
+def _hexagon_box(hexagon: np.ndarray, edges: np.ndarray) -> _Box | None:
+    """The box whose silhouette is `hexagon`: three faces around an inner corner (the corner
+    completing the parallelograms of alternate vertices), or two faces split by a diagonal;
+    whichever folds the edge map shows best."""
+    v = hexagon
+    best: tuple[float, list[_Quad]] | None = None
+    for start in (0, 1):  # three faces: the folds run from the inner corner to v[start::2]
+        ends = [start, start + 2, start + 4]
+        guess = np.mean([v[k % 6] + v[(k + 2) % 6] - v[(k + 1) % 6] for k in ends], axis=0)
+        # Perspective moves the inner corner off the parallelograms' guess: search around it
+        # for the point whose three folds lie on edges best.
+        reach = 0.08 * math.sqrt(abs(quad_area(v))) + 4.0
+        score, inner = -1.0, guess
+        for dx in np.linspace(-reach, reach, 9):
+            for dy in np.linspace(-reach, reach, 9):
+                c = guess + np.array([dx, dy])
+                got = min(_support(edges, c, v[k % 6]) for k in ends)
+                if got > score:
+                    score, inner = got, c
+        faces = [_clockwise(np.array([inner, v[k % 6], v[(k + 1) % 6], v[(k + 2) % 6]])) for k in ends]
+        if best is None or score > best[0]:
+            best = (score, faces)
+    for i in range(3):  # two faces: a fold from v[i] to v[i + 3]
+        score = _support(edges, v[i], v[i + 3])
+        faces = [_clockwise(v[[i, i + 1, i + 2, i + 3]]),
+                 _clockwise(v[[(i + 3) % 6, (i + 4) % 6, (i + 5) % 6, i]])]
+        if best is None or score > best[0]:
+            best = (score, faces)
+    if best is None or best[0] < _FOLD_SUPPORT:
+        return None
+    hull = hexagon.astype(np.float64)
+    return _Box(best[1], abs(quad_area(hull)), hull.mean(axis=0), hull)
 
 
 # --------------------------------------------------------------------------- boxes
@@ -489,8 +579,8 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
     def full(p: np.ndarray) -> np.ndarray:  # work px -> image px (pixel centres)
         return np.asarray((p + 0.5) / scale - 0.5 + offset, dtype=np.float64)
 
-    quads = _all_faces(small)
-    boxes = _boxes(quads)
+    quads, silhouettes = _all_faces(small)
+    boxes = _boxes(quads) + silhouettes
     timings["search"] = (time.perf_counter() - start) * 1000
     found_faces = tuple(full(q.corners) for q in quads)
     if hint is not None and boxes:
