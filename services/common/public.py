@@ -17,8 +17,12 @@ from prismcore.spec import FILE_NAMES, frame_folder
 
 from .records import ItemResult, JobRecord, State
 
-__all__ = ["DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic", "ResultPublic",
-           "download_name", "to_public"]
+__all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic",
+           "ResultPublic", "download_name", "to_public"]
+
+
+VERDICTS = ("pass", "fail", "uncertain")
+"""A part's verdicts against its nominal size (prismcore.verdicts.Verdict)."""
 
 
 class DimensionsPublic(BaseModel):
@@ -49,6 +53,11 @@ class ResultPublic(BaseModel):
                                      "fitted box and the edges and clicks it was fitted to.")
     side_face: str | None = Field(default=None, description="Which face beside the front was "
                                   "measured: right, left or top.")
+    quality: dict[str, Any] | None = Field(
+        default=None, description="With a nominal size in the spec: the part's verdict (pass, fail, "
+        "or uncertain when the measurement's interval of ±k sigma straddles a tolerance limit), "
+        "counts per verdict, and per dimension (width, height, depth) nominal_mm, measured_mm, "
+        "deviation_mm, tolerance_mm, sigma_mm, interval_mm and verdict. Null without a nominal.")
 
 
 class FramePublic(BaseModel):
@@ -86,6 +95,10 @@ class JobPublic(BaseModel):
     error: str | None
     item_count: int = Field(ge=0, description="How many items the job has; `items` holds those "
                                               "asked for with item_offset and item_limit (all by default).")
+    verdicts: dict[str, int] = Field(
+        default_factory=lambda: dict.fromkeys(VERDICTS, 0),
+        description="How many finished items got each verdict against their nominal size: pass, "
+                    "fail, uncertain (items without a nominal, and video items, are not counted).")
     items: list[ItemPublic]
 
 

@@ -41,6 +41,8 @@ class ItemResult(BaseModel):
     focal_source: str | None = None  # given, camera, exif, pooled, fitted, none
     fit_rms_px: float | None = None
     side_face: str | None = None
+    # report.json's quality block (prismcore.verdicts.QualityBlock) when the spec gave a nominal
+    quality: dict[str, Any] | None = None
 
 
 class FrameRecord(BaseModel):
@@ -81,6 +83,8 @@ class JobRecord(BaseModel):
     state: State = State.queued
     progress: int = 0
     items_done: int = 0  # items finished (succeeded or failed), each counted once
+    # finished items per verdict against their nominal size (pass, fail, uncertain), each once
+    verdicts: dict[str, int] = Field(default_factory=lambda: {"pass": 0, "fail": 0, "uncertain": 0})
     created_at: datetime
     started_at: datetime | None = None
     finished_at: datetime | None = None

@@ -7,6 +7,8 @@ from functools import lru_cache
 from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from prismcore.spec import OutputFormat
+
 from .webhook_secret import signing_key
 
 __all__ = ["Settings", "get_settings"]
@@ -66,6 +68,10 @@ class Settings(BaseSettings):
     task_time_limit_s: float = Field(default=240.0, gt=0)
     task_hard_margin_s: float = Field(default=30.0, gt=0)
     public_base_url: str | None = None  # for Location headers behind a proxy
+    # The outputs of an item whose spec names no formats (a spec's own list wins), e.g.
+    # PRISM_DEFAULT_FORMATS='["laz","glb"]' for compact storage; the metric ones (las, laz, glb)
+    # go to items with a scale only, and an item left with none gets csv and ply.
+    default_formats: list[OutputFormat] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
 
     @field_validator("webhook_secret")
     @classmethod

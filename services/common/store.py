@@ -39,8 +39,9 @@ __all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictE
 
 _P = "prism:"
 # A job hash's fields other than its items and frames.
+_VERDICT_FIELDS = ["verdict:pass", "verdict:fail", "verdict:uncertain"]
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
-               "units_done", "items_done"]
+               "units_done", "items_done", *_VERDICT_FIELDS]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 WATCHDOG_LOCK_KEY = f"{_P}watchdog:lock"
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
@@ -74,10 +75,11 @@ return 0
 
 
 # The set says which items finished (a redelivered task finds its item there); the job hash's
-# count is what a poll reads without touching the set.
+# count is what a poll reads without touching the set; so is the count of its verdict (ARGV[2]).
 _ITEM_DONE = """
 if redis.call('SADD', KEYS[2], ARGV[1]) == 1 then
   redis.call('HINCRBY', KEYS[1], 'items_done', 1)
+  if ARGV[2] ~= '' then redis.call('HINCRBY', KEYS[1], 'verdict:' .. ARGV[2], 1) end
 end
 return redis.call('SCARD', KEYS[2])
 """
@@ -274,9 +276,11 @@ class JobStore(UploadRecords):
         return bool(self._tile_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:tiles:{item}"],
                                     args=[tile]))
 
-    def item_done(self, job_id: str, item: int) -> int:
-        """Mark an item finished (once); returns how many items of the job are finished."""
-        return int(self._item_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:done"], args=[item]))
+    def item_done(self, job_id: str, item: int, verdict: str | None = None) -> int:
+        """Mark an item finished (once), counting its `verdict` (pass, fail, uncertain) if it
+        has one; returns how many items of the job are finished."""
+        return int(self._item_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:done"],
+                                   args=[item, verdict or ""]))
 
     # -- video frames -----------------------------------------------------------------------
     def claim_frames(self, job_id: str, item: int, count: int) -> int:
@@ -395,6 +399,7 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
             setattr(job, name, datetime.fromisoformat(fields[name]))
     job.error = fields.get("error") or None
     job.items_done = int(fields.get("items_done", 0))
+    job.verdicts = {name.split(":")[1]: int(fields.get(name, 0)) for name in _VERDICT_FIELDS}
     total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
     if job.state == State.cancelled:
         # Progress counts finished work only, and what had not finished never will: its items

@@ -4,19 +4,22 @@ tile's masks, an item's outputs, and the per-process caches of decoded photos an
 Keys are deterministic, so a task that runs twice rewrites, never adds. ``jobs/{job}/job.json``
 the final job document; under ``jobs/{job}/items/{i}/``: ``front`` and ``side`` (the inputs,
 copied), ``plan.json``, ``tiles/{face}-{r0}-{r1}.npz``, ``cloud.csv``, ``cloud.ply``,
-``preview.ply``, ``report.json``. Items of a batch, scanned whole, have only their outputs. A
-video item has ``frames.json`` (the frames selected), ``summary.json`` and per frame
-``frame_000123/`` with ``frame.png`` (the decoded frame) and the frame's outputs.
+``preview.ply``, ``overlay.png``, ``report.json`` (and ``cloud.las``, ``cloud.laz``, ``box.glb``
+when asked). Items of a batch, scanned whole, have only their outputs. A video item has
+``frames.json`` (the frames selected), ``summary.json`` and per frame ``frame_000123/`` with
+``frame.png`` (the decoded frame) and the frame's outputs.
 
 plan.json: the round trip is exact (floats as their shortest repr, arrays keep their dtype), so
 tiles scanned from a reloaded plan are the very tiles the engine would scan from the original.
 A tile is its two boolean masks, one bit per pixel (np.packbits along rows), in a small .npz.
 
-Outputs: the cloud (CSV, PLY), its display preview (``preview.ply``, at most
-``prismcore.cloud.PREVIEW_POINTS`` points: a 20-million-point cloud would not fit a browser),
-the overlay picture of the fit and report.json. Each file is written to a spooled temporary file
-(in memory while small, on disk beyond), then streamed to the object store, so a large cloud
-does not sit in memory twice.
+Outputs: the formats the spec asks for (the cloud as CSV, PLY, LAS or LAZ; the textured box
+as glb), its display preview (``preview.ply``, at most ``prismcore.cloud.PREVIEW_POINTS``
+points, by an even stride: a 20-million-point cloud would not fit a browser, and
+`prismcore.spacing.thin_to_count`, stripe-free, costs more than the scan itself), the overlay
+picture of the fit (at most OVERLAY_MAX_SIDE px) and report.json. Each file is written to a
+spooled temporary file (in memory while small, on disk beyond), then streamed to the object
+store, so a large cloud does not sit in memory twice.
 
 Caches: the tiles of one item usually land on the same few processes, and decoding the photo
 again for every band would cost more than scanning it. Objects under a job's prefix never change
@@ -34,6 +37,7 @@ from collections.abc import Callable
 from functools import lru_cache, partial
 from typing import Any, BinaryIO
 
+import cv2
 import numpy as np
 from prism_common.records import ItemResult
 from prism_common.storage import object_key
@@ -181,7 +185,11 @@ def unpack_tile(data: bytes) -> tuple[np.ndarray, np.ndarray]:
 # -- outputs ------------------------------------------------------------------------------------
 _SPOOL_BYTES = 64 * 2**20
 _CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "preview": "application/octet-stream",
-                  "report": "application/json", "overlay": "image/png", "overlay_side": "image/png"}
+                  "report": "application/json", "overlay": "image/png", "overlay_side": "image/png",
+                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary"}
+# The stored overlay is a picture to look at, not a measurement: at most this many pixels along
+# its longer side (a 1280x1024 photo's full-size PNG is 1.4 MB, more than a compact LAZ cloud).
+OVERLAY_MAX_SIDE = 800
 
 
 def _put(ctx: WorkerContext, key: str, kind: str, write: Callable[[BinaryIO], object]) -> float:
@@ -208,14 +216,15 @@ def write_outputs(ctx: WorkerContext, job_id: str, item: int, spec: ScanSpec, re
     keys = {kind: item_key(job_id, item, FILE_NAMES[kind]) if frame is None
             else frame_key(job_id, item, frame, FILE_NAMES[kind]) for kind in kinds}
     for kind in spec.formats:
-        ms = _put(ctx, keys[kind], kind, partial(write_format, kind, cloud=cloud, spec=spec))
+        ms = _put(ctx, keys[kind], kind, partial(write_format, kind, cloud=cloud, spec=spec,
+                                                 report=report, images=images))
         report["timings_ms"][f"write_{kind}"] = round(ms, 3)
     preview = decimate(cloud)
     _put(ctx, keys["preview"], "preview", lambda f: write_ply(f, preview.points, preview.colors))
     started = time.perf_counter()
     for overlay, photo in overlays.items():
         picture = overlay_from_report(images[0 if photo == "front" else 1], report, photo=photo)
-        ctx.objects.put_bytes(keys[overlay], encode_png(picture), _CONTENT_TYPES[overlay])
+        ctx.objects.put_bytes(keys[overlay], encode_png(_display_size(picture)), _CONTENT_TYPES[overlay])
     report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
     text = (json.dumps(report, indent=2) + "\n").encode()
     ctx.objects.put_bytes(keys["report"], text, _CONTENT_TYPES["report"])
@@ -230,7 +239,18 @@ def item_result(report: dict[str, Any]) -> ItemResult:
                       uncertainty=report.get("uncertainty"),
                       focal_px=camera.get("focal_px"), focal_source=camera.get("focal_source"),
                       fit_rms_px=(report.get("fit") or {}).get("rms_px"),
-                      side_face=report.get("side_face"))
+                      side_face=report.get("side_face"), quality=report.get("quality"))
+
+
+def _display_size(picture: np.ndarray, max_side: int = OVERLAY_MAX_SIDE) -> np.ndarray:
+    """`picture` (H, W, 3) uint8 shrunk (area-averaged) to at most `max_side` px along its
+    longer side; as it is when already that small."""
+    h, w = picture.shape[:2]
+    if max(h, w) <= max_side:
+        return picture
+    scale = max_side / max(h, w)
+    return cv2.resize(picture, (max(1, round(w * scale)), max(1, round(h * scale))),
+                      interpolation=cv2.INTER_AREA)
 
 
 # -- per-process caches ------------------------------------------------------------------------

@@ -152,8 +152,9 @@ def complete_item(ctx: WorkerContext, job_id: str, item: int, *, maybe_repeat: b
     if store.state(job_id) is None:
         return
     first = store.tile_done(job_id, item, "complete")
-    done = store.item_done(job_id, item)
     view = store.get_item(job_id, item)
+    quality = view.item.result.quality if view is not None and view.item.result else None
+    done = store.item_done(job_id, item, verdict=(quality or {}).get("verdict"))
     if view is None or view.state == State.cancelled:
         return
     if view.state == State.running and (first or maybe_repeat):

@@ -22,6 +22,8 @@ from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import ItemRecord, JobRecord, State
 from prism_common.store import IdempotencyConflictError, JobStore
 
+from prismcore.spec import OutputFormat, ScanSpec
+
 from ..backpressure import check_queue_depth
 from ..deps import CeleryDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
 from ..presign import Presigner
@@ -70,7 +72,8 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
     uploads = check_job(job_in, settings, store, tenant, raw=body)
     check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
-        update={"max_pixels": min(spec.max_pixels, settings.max_pixels)}))
+        update={"max_pixels": min(spec.max_pixels, settings.max_pixels),
+                "formats": _formats(spec, settings.default_formats)}))
         for i, spec in enumerate(job_in.items)]
     record = JobRecord(id=uuid4().hex, tenant=tenant, items=items, created_at=datetime.now(UTC),
                        client_reference=job_in.client_reference, webhook_url=job_in.webhook_url)
@@ -92,6 +95,15 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
                                 f"the job queue is unavailable; job {job.id} was not started") from None
     response.headers["Location"] = _location(settings.public_base_url, job.id)
     return to_public(job, presigner)
+
+
+def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]:
+    """The item's formats: its own, else the operator's defaults it can have (las, laz and glb
+    need a scale), else csv and ply."""
+    if "formats" in spec.model_fields_set:
+        return spec.formats
+    usable = [f for f in defaults if spec.scale is not None or f not in ("las", "laz", "glb")]
+    return usable or ["csv", "ply"]
 
 
 def _location(base_url: str | None, job_id: str) -> str:
