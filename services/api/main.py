@@ -17,7 +17,7 @@ from prism_common.settings import get_settings
 from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
-from .routes import health, jobs, previews, upload_video, uploads
+from .routes import health, jobs, previews, results, upload_video, uploads
 from .webapp import mount_docs, mount_web
 
 __all__ = ["app", "create_app"]
@@ -54,6 +54,7 @@ def create_app() -> FastAPI:
     v1.include_router(upload_video.router)
     v1.include_router(jobs.router)
     v1.include_router(previews.router)
+    v1.include_router(results.router)
     app.include_router(v1)
     app.include_router(health.router)
     mount_web(app)

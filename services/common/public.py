@@ -58,6 +58,10 @@ class ResultPublic(BaseModel):
         "or uncertain when the measurement's interval of ±k sigma straddles a tolerance limit), "
         "counts per verdict, and per dimension (width, height, depth) nominal_mm, measured_mm, "
         "deviation_mm, tolerance_mm, sigma_mm, interval_mm and verdict. Null without a nominal.")
+    points_source: str | None = Field(default=None, description="Where the reference points came "
+                                      "from: clicked (given in the spec) or auto (found).")
+    reference_points: dict[str, list[float] | None] | None = Field(
+        default=None, description="The reference points p1..p7 the scan used, (x, y) px.")
 
 
 class FramePublic(BaseModel):

@@ -43,6 +43,8 @@ class ItemResult(BaseModel):
     side_face: str | None = None
     # report.json's quality block (prismcore.verdicts.QualityBlock) when the spec gave a nominal
     quality: dict[str, Any] | None = None
+    points_source: str | None = None  # clicked, or auto (found by the zero-click search)
+    reference_points: dict[str, list[float] | None] | None = None  # p1..p7 (x, y) the scan used, px
 
 
 class FrameRecord(BaseModel):

@@ -239,7 +239,9 @@ def item_result(report: dict[str, Any]) -> ItemResult:
                       uncertainty=report.get("uncertainty"),
                       focal_px=camera.get("focal_px"), focal_source=camera.get("focal_source"),
                       fit_rms_px=(report.get("fit") or {}).get("rms_px"),
-                      side_face=report.get("side_face"), quality=report.get("quality"))
+                      side_face=report.get("side_face"), quality=report.get("quality"),
+                      points_source=report.get("points_source", "clicked"),
+                      reference_points=(report.get("inputs") or {}).get("points"))
 
 
 def _display_size(picture: np.ndarray, max_side: int = OVERLAY_MAX_SIDE) -> np.ndarray:

@@ -51,6 +51,14 @@ def own_job(store: JobStore, job_id: str, tenant: str) -> JobRecord:
     return job
 
 
+def own_page(store: JobStore, job_id: str, tenant: str, offset: int, limit: int) -> tuple[JobRecord, int]:
+    """The job with only its items offset..offset+limit-1, and its number of items (404 as own_job)."""
+    page = store.get_page(job_id, offset, limit) if _JOB_ID.match(job_id) else None
+    if page is None or page[0].tenant != tenant:
+        raise _not_found(job_id)
+    return page
+
+
 async def _raw_body(request: Request) -> bytes:
     return await request.body()  # already read for the JobCreate parameter: served from memory
 
@@ -149,11 +157,9 @@ def get_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: Presigne
     (item_limit=0: none, for a cheap poll of a large job's state and progress)."""
     if item_offset == 0 and item_limit is None:
         return to_public(own_job(store, job_id, tenant), presigner)
-    page = store.get_page(job_id, item_offset, 10**9 if item_limit is None else item_limit) \
-        if _JOB_ID.match(job_id) else None
-    if page is None or page[0].tenant != tenant:
-        raise _not_found(job_id)
-    return to_public(page[0], presigner, page[1])
+    job, n_items = own_page(store, job_id, tenant, item_offset,
+                            10**9 if item_limit is None else item_limit)
+    return to_public(job, presigner, n_items)
 
 
 @router.post("/{job_id}/cancel", response_model=JobPublic,

@@ -1,0 +1,132 @@
+"""One table per job: a row per item, and a row per frame of a video item (after its item's row).
+
+The rows of ``GET /v1/jobs/{id}/results.csv`` and ``results.json``, built from the job store's
+records (the item results the worker recorded), never from the reports in the bucket. A job is
+read a page of items at a time, so a 10,000-item job's table streams without being held whole.
+
+Columns (`COLUMNS`; the JSON rows have the same keys, with numbers as numbers and null for
+empty): the job and its client reference, the item and frame (empty on an item's row), the
+input (the item's image reference), state and error; width, height, depth, their unit and one
+standard deviation each; the cloud's point count, the point loss, where the reference points
+came from (clicked or auto) and the points p1..p7 (x, y px; those of the spec when the scan did
+not record its own); the part's verdict and each dimension's verdict and deviation (mm) against
+the nominal size (empty without one).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+from prism_common.records import ItemRecord, ItemResult, JobRecord, State
+
+from prismcore.spec import ReferencePoints, ScanSpec
+
+__all__ = ["COLUMNS", "PAGE_ITEMS", "csv_chunks", "item_rows", "json_chunks", "pages"]
+
+PAGE_ITEMS = 200
+"""Items read from the store per page (a video item brings its frames along)."""
+
+_DIMS = ("width", "height", "depth")
+_POINTS = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+COLUMNS: tuple[str, ...] = (
+    "job_id", "client_reference", "item", "frame", "input", "state", "error",
+    *_DIMS, "unit", *(f"{d}_sigma" for d in _DIMS),
+    "cloud_points", "point_loss", "points_source", *(f"{p}_{c}" for p in _POINTS for c in "xy"),
+    "verdict", *(f"{d}_verdict" for d in _DIMS), *(f"{d}_deviation_mm" for d in _DIMS),
+)
+
+Row = dict[str, Any]
+PageReader = Callable[[int, int], JobRecord | None]
+"""(offset, limit) -> the job holding only those items, or None if the job is gone."""
+
+
+def pages(first: JobRecord, n_items: int, read: PageReader, page_items: int = PAGE_ITEMS
+          ) -> Iterator[JobRecord]:
+    """`first` (the page at offset 0, read to answer 404 before streaming), then the following
+    pages of `page_items` items through `read`, until `n_items` (stops early if the job is gone)."""
+    yield first
+    for offset in range(len(first.items), n_items, page_items):
+        page = read(offset, page_items)
+        if page is None or not page.items:
+            return
+        yield page
+
+
+def item_rows(job: JobRecord) -> Iterator[Row]:
+    """The rows of the items `job` holds: each item's, then its frames' in frame order."""
+    for item in job.items:
+        yield _row(job, item, None, item.state, item.error, item.result)
+        for frame in item.frames:
+            yield _row(job, item, frame.index, frame.state, frame.error, frame.result)
+
+
+def _spec_points(spec: ScanSpec, frame: int | None) -> ReferencePoints | None:
+    if frame is not None and spec.frame_points:
+        return spec.frame_points.get(frame, spec.points)
+    return spec.points
+
+
+def _row(job: JobRecord, item: ItemRecord, frame: int | None, state: State, error: str | None,
+         result: ItemResult | None) -> Row:
+    spec = item.spec
+    row: Row = dict.fromkeys(COLUMNS)
+    row.update(job_id=job.id, client_reference=job.client_reference, item=item.index, frame=frame,
+               input=spec.image, state=state.value, error=error)
+    points: dict[str, Any] | None = result.reference_points if result else None
+    if points is None and (given := _spec_points(spec, frame)) is not None:
+        points = {k: list(v) for k, v in given.as_dict().items()}
+    for name, xy in (points or {}).items():
+        if name in _POINTS and xy is not None:
+            row[f"{name}_x"], row[f"{name}_y"] = xy[0], xy[1]
+    row["points_source"] = (result.points_source if result and result.points_source
+                            else "auto" if spec.auto_points is not None else "clicked")
+    if result is None:
+        return row
+    row.update(cloud_points=result.points, point_loss=result.point_loss,
+               unit=result.dimensions.get("unit"))
+    for d in _DIMS:
+        row[d] = result.dimensions.get(d)
+        row[f"{d}_sigma"] = (result.uncertainty or {}).get(d)
+    quality = result.quality or {}
+    row["verdict"] = quality.get("verdict")
+    for d, judged in (quality.get("dimensions") or {}).items():
+        if d in _DIMS:
+            row[f"{d}_verdict"] = judged.get("verdict")
+            row[f"{d}_deviation_mm"] = judged.get("deviation_mm")
+    return row
+
+
+def csv_chunks(jobs: Iterable[JobRecord]) -> Iterator[str]:
+    """The table as CSV text, a header line then one chunk per page of items."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\r\n")  # RFC 4180's
+
+    def flush() -> str:
+        text = buffer.getvalue()
+        buffer.seek(0)
+        buffer.truncate()
+        return text
+
+    writer.writeheader()
+    yield flush()
+    for job in jobs:
+        writer.writerows(item_rows(job))
+        yield flush()
+
+
+def json_chunks(head: dict[str, Any], jobs: Iterable[JobRecord]) -> Iterator[str]:
+    """The table as one JSON document: `head`'s keys, ``columns`` and ``rows`` (a list of row
+    objects), written a page at a time."""
+    opening = json.dumps({**head, "columns": list(COLUMNS)})
+    yield opening[:-1] + ', "rows": ['
+    first = True
+    for job in jobs:
+        parts = [json.dumps(row) for row in item_rows(job)]
+        if parts:
+            yield ("" if first else ", ") + ", ".join(parts)
+            first = False
+    yield "]}"

@@ -1,0 +1,133 @@
+"""The results table's logic (`prism_api.results_table`) over the job store on fakeredis: rows of
+items and video frames, CSV and JSON telling the same table, a 10,000-item job read in pages
+(never whole), and the verdict counts the store keeps with each item's completion."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import uuid
+from datetime import UTC, datetime
+
+import fakeredis
+import pytest
+from prism_common.records import FrameRecord, ItemRecord, ItemResult, JobRecord, State
+from prism_common.store import JobStore
+
+from prism_api.results_table import COLUMNS, PAGE_ITEMS, csv_chunks, json_chunks, pages
+from prismcore.spec import ScanSpec
+
+POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
+PHOTO = ScanSpec.model_validate({"image": "upload:" + "a" * 32, "points": POINTS})
+VIDEO = ScanSpec.model_validate({"image": "upload:" + "b" * 32, "points": POINTS,
+                                 "frames": {"indices": [3, 7]}})
+
+
+def _quality(verdict: str, deviations: tuple[float, float, float]) -> dict:
+    return {"verdict": verdict, "k": 2.0, "counts": {},
+            "dimensions": {d: {"verdict": verdict, "deviation_mm": dev}
+                           for d, dev in zip(("width", "height", "depth"), deviations, strict=True)}}
+
+
+def _result(width: float, verdict: str | None = None) -> ItemResult:
+    return ItemResult(points=1234, dimensions={"width": width, "height": 80.0, "depth": 60.0, "unit": "mm"},
+                      point_loss=0.01, uncertainty={"width": 0.2, "height": 0.3, "depth": 0.4},
+                      quality=_quality(verdict, (0.5, -0.25, 0.0)) if verdict else None,
+                      points_source="clicked",
+                      reference_points={"p1": [10.5, 10.25], "p2": [110.0, 12.0], "p6": None})
+
+
+@pytest.fixture
+def store() -> JobStore:
+    return JobStore(fakeredis.FakeRedis(decode_responses=True))
+
+
+def _make(store: JobStore, items: list[ItemRecord]) -> JobRecord:
+    job, _ = store.create(JobRecord(id=uuid.uuid4().hex, tenant="acme", items=items,
+                                    created_at=datetime.now(UTC), client_reference="batch 7"))
+    return job
+
+
+def _table(store: JobStore, job_id: str, page_items: int = PAGE_ITEMS) -> tuple[str, dict, list[int]]:
+    """(CSV text, parsed JSON, the limit of every page read) of the job's table."""
+    reads: list[int] = []
+
+    def read(offset: int, limit: int) -> JobRecord | None:
+        reads.append(limit)
+        found = store.get_page(job_id, offset, limit)
+        return found[0] if found else None
+
+    def all_pages():
+        first, n = store.get_page(job_id, 0, page_items)
+        reads.append(page_items)
+        return pages(first, n, read, page_items)
+
+    text = "".join(csv_chunks(all_pages()))
+    doc = json.loads("".join(json_chunks({"job_id": job_id}, all_pages())))
+    return text, doc, reads
+
+
+def test_rows_of_items_and_frames_agree_in_csv_and_json(store):
+    job = _make(store, [ItemRecord(index=0, spec=PHOTO), ItemRecord(index=1, spec=PHOTO),
+                        ItemRecord(index=2, spec=VIDEO)])
+    store.put_item(job.id, ItemRecord(index=0, spec=PHOTO, state=State.succeeded,
+                                      result=_result(100.5, "fail")))
+    store.put_item(job.id, ItemRecord(index=1, spec=PHOTO, state=State.failed, error="no box, no fit"))
+    store.put_item(job.id, ItemRecord(index=2, spec=VIDEO, state=State.succeeded, result=_result(99.0)))
+    store.put_frame(job.id, 2, FrameRecord(index=7, state=State.succeeded, result=_result(99.25, "pass")))
+    store.put_frame(job.id, 2, FrameRecord(index=3, state=State.failed, error="blurred"))
+    text, doc, _ = _table(store, job.id)
+
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert tuple(rows[0]) == COLUMNS == tuple(doc["columns"])
+    assert [(r["item"], r["frame"], r["state"]) for r in rows] == [
+        ("0", "", "succeeded"), ("1", "", "failed"), ("2", "", "succeeded"),
+        ("2", "3", "failed"), ("2", "7", "succeeded")]
+    first = rows[0]
+    assert (first["job_id"], first["client_reference"], first["input"]) == (job.id, "batch 7", PHOTO.image)
+    assert (first["width"], first["width_sigma"], first["unit"], first["cloud_points"]) == (
+        "100.5", "0.2", "mm", "1234")
+    assert (first["verdict"], first["height_verdict"], first["height_deviation_mm"]) == (
+        "fail", "fail", "-0.25")
+    assert (first["p1_x"], first["p1_y"], first["p6_x"], first["points_source"]) == (
+        "10.5", "10.25", "", "clicked")
+    failed = rows[1]  # no result: the spec's own points, no figures
+    assert (failed["error"], failed["width"], failed["verdict"]) == ("no box, no fit", "", "")
+    assert (failed["p2_x"], failed["p5_y"], failed["p6_x"]) == ("110.0", "8.0", "")
+    assert rows[3]["error"] == "blurred" and rows[4]["verdict"] == "pass" and rows[2]["verdict"] == ""
+    # The JSON is the same table, typed.
+    assert len(doc["rows"]) == len(rows)
+    for as_csv, as_json in zip(rows, doc["rows"], strict=True):
+        assert as_csv == {k: "" if v is None else str(v) for k, v in as_json.items()}
+    assert doc["rows"][0]["width"] == 100.5 and doc["rows"][1]["width"] is None
+
+
+def test_a_10000_item_job_is_read_a_page_at_a_time(store):
+    n = 10_000
+    job = _make(store, [ItemRecord(index=i, spec=PHOTO) for i in range(n)])
+    for i in range(0, n, 997):  # a few finished ones spread over the pages
+        store.put_item(job.id, ItemRecord(index=i, spec=PHOTO, state=State.succeeded,
+                                          result=_result(float(i))))
+    text, doc, reads = _table(store, job.id)
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert [int(r["item"]) for r in rows] == list(range(n)) == [r["item"] for r in doc["rows"]]
+    assert {int(r["item"]) for r in rows if r["state"] == "succeeded"} == set(range(0, n, 997))
+    assert all(float(r["width"]) == int(r["item"]) for r in rows if r["state"] == "succeeded")
+    # Never more than a page of items from the store at once: both tables, 50 pages each.
+    assert max(reads) == PAGE_ITEMS and len(reads) == 2 * n // PAGE_ITEMS
+
+
+def test_a_job_deleted_while_streamed_ends_its_table(store):
+    job = _make(store, [ItemRecord(index=i, spec=PHOTO) for i in range(5)])
+    first, n = store.get_page(job.id, 0, 2)
+    assert [len(p.items) for p in pages(first, n, lambda o, lim: None, 2)] == [2]
+
+
+def test_verdicts_are_counted_once_per_item_with_its_completion(store):
+    job = _make(store, [ItemRecord(index=i, spec=PHOTO) for i in range(4)])
+    for i, verdict in enumerate(("pass", "fail", "pass", None)):
+        for _ in range(2):  # a redelivered completion counts nothing twice
+            store.item_done(job.id, i, verdict)
+    assert store.get(job.id).verdicts == {"pass": 2, "fail": 1, "uncertain": 0}
+    assert store.get_page(job.id, 0, 0)[0].verdicts == {"pass": 2, "fail": 1, "uncertain": 0}
