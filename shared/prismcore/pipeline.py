@@ -11,15 +11,17 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import __version__
 from .cloud import Cloud, assemble, face_points
-from .edges import EdgeFit, inward, line_through, refine_quad
+from .edges import Bound, EdgeFit, inward, line_through, refine_quad
 from .errors import InputError
 from .faces import (
     FaceQuads,
+    Labels,
     SideFace,
     clicked_quads,
     paper_rectangles,
@@ -44,6 +46,9 @@ from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_
 from .spacing import thin_to_spacing
 from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
 from .verdicts import quality_from_report
+
+if TYPE_CHECKING:
+    from .camera import CameraModel
 
 __all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images", "run_scan",
            "scan_face"]
@@ -90,8 +95,8 @@ class ScanPlan:
     image_sizes: list[tuple[int, int]]
     warnings: list[str] = field(default_factory=list)
     timings_ms: dict[str, float] = field(default_factory=dict)
-    camera: dict = field(default_factory=dict)  # report.json's "camera" (JSON-ready)
-    fit: dict = field(default_factory=dict)  # report.json's "fit" (JSON-ready)
+    camera: dict[str, Any] = field(default_factory=dict)  # report.json's "camera" (JSON-ready)
+    fit: dict[str, Any] = field(default_factory=dict)  # report.json's "fit" (JSON-ready)
 
     @property
     def side_face(self) -> SideFace:
@@ -103,7 +108,7 @@ class ScanPlan:
 @dataclass(frozen=True)
 class ScanResult:
     cloud: Cloud
-    report: dict
+    report: dict[str, Any]
 
 
 @contextmanager
@@ -118,7 +123,9 @@ def _check_image(image: np.ndarray, name: str) -> None:
         raise InputError(f"{name} image must be RGB of shape (H, W, 3), got {image.shape}")
 
 
-def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]):
+def _refine(
+    spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]
+) -> tuple[FaceQuads, dict[str, list[EdgeFit]]]:
     """Edge-fit both faces; the single-photo side face reuses the front's edge it shares."""
     def search(quad: np.ndarray) -> float:
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
@@ -129,7 +136,8 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
     jobs = [("front", 0, clicked.front), ("side", 1 if spec.two_photo else 0, clicked.side)]
     for name, index, quad in jobs:
         r = search(quad)
-        known = extra = None
+        known: dict[int, EdgeFit] | None = None
+        extra: dict[int, tuple[Bound, ...]] | None = None
         if not spec.two_photo:
             front_edge, side_edge = shared_edges(clicked.side_face)
             if name == "side":
@@ -162,7 +170,10 @@ def _refine(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnin
 
 def _side_height_guess(spec: ScanSpec) -> float | None:
     """Two photos without p7: the front's height in side-photo pixels, when the scales tell it."""
-    if not spec.two_photo or spec.points.p7 is not None:
+    if not spec.two_photo:
+        return None
+    assert spec.points is not None  # a photo spec carries its clicks
+    if spec.points.p7 is not None:
         return None
     front_px = float(np.hypot(*np.subtract(spec.points.p3, spec.points.p2)))
     scale = spec.scale
@@ -180,10 +191,10 @@ class _Focal:
     focal_px: float | None
     source: str  # given | camera | exif | pooled | none (fitted is decided by the fit)
     principal: list[tuple[float, float]]  # per image
-    extra: dict = field(default_factory=dict)  # report fields of the source (a pooled std, ...)
+    extra: dict[str, Any] = field(default_factory=dict)  # report fields of the source (a pooled std, ...)
 
 
-def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list | None,
+def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list[CameraModel] | None,
                    exif_focal_px: float | None, pooled: PooledFocal | None = None) -> _Focal:
     """Order of trust: given > camera profile > EXIF > pooled over the camera's photos >
     (fitted later)."""
@@ -223,7 +234,7 @@ def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warning
 
 def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
              images: list[np.ndarray], focal: _Focal, warnings: list[str]
-             ) -> tuple[Dimensions, FaceQuads, dict]:
+             ) -> tuple[Dimensions, FaceQuads, dict[str, Any]]:
     """The prism's dimensions, the face quads to scan (the fitted model's, in perspective) and
     the report's "camera" fields."""
     complete = quads.front_complete and quads.side_complete
@@ -238,13 +249,13 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
         if spec.two_photo:
             assert focal.focal_px is not None
             Ks = [camera_matrix(focal.focal_px, c) for c in focal.principal]
-            dims, front, side = measure_perspective(*evidence, spec.scale, K_front=Ks[0],
+            dims, front, side = measure_perspective(evidence[0], evidence[1], spec.scale, K_front=Ks[0],
                                                     K_side=Ks[-1], two_photo=True)
             return dims, FaceQuads(front, side, True, True), camera
         free = focal.focal_px is None
         K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
-        dims, fit = measure_box(*evidence, spec.scale, K=K, free_focal=free, side_face=face,
-                                lens_known=focal.source == "camera")
+        dims, fit = measure_box(evidence[0], evidence[1], spec.scale, K=K, free_focal=free, side_face=face,
+                                lens_known=focal.source == "camera", image=images[0])
         if free:
             assert fit.focal_std_px is not None
             camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
@@ -282,7 +293,9 @@ def _click_rms(marked: FaceQuads, model: FaceQuads) -> float:
 
 
 def _unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
-                    images: list[np.ndarray], focal: _Focal, warnings: list[str], refined: tuple):
+                    images: list[np.ndarray], focal: _Focal, warnings: list[str],
+                    refined: tuple[Dimensions, FaceQuads, dict[str, Any]],
+                    ) -> tuple[Dimensions, FaceQuads, dict[str, Any], dict[str, list[EdgeFit]]]:
     """The box fitted to the refined edges, unless the edges snapped to something else.
 
     Edge refinement takes the consensus line near each clicked side; on a real box that can be a
@@ -310,7 +323,7 @@ def _unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[Edge
 
 
 def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: bool,
-           warnings: list[str]) -> dict:
+           warnings: list[str]) -> dict[str, Any]:
     """Distances between each click and the model's corner; warn, or refuse a clearly wrong fit.
 
     Only a fitted pinhole model is refused: the square-on model's corners are the refined
@@ -344,7 +357,7 @@ def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: boo
     return {"rms_px": round(rms, 3), "point_residuals_px": {n: round(residuals[n], 3) for n in order}}
 
 
-def _undistorted_points(spec: ScanSpec, cameras: list) -> ReferencePoints:
+def _undistorted_points(spec: ScanSpec, cameras: list[CameraModel]) -> ReferencePoints:
     from .camera import undistort_points
 
     assert spec.points is not None
@@ -355,7 +368,7 @@ def _undistorted_points(spec: ScanSpec, cameras: list) -> ReferencePoints:
     return ReferencePoints.model_validate(moved)
 
 
-def _cameras(spec: ScanSpec, images: list[np.ndarray]) -> list | None:
+def _cameras(spec: ScanSpec, images: list[np.ndarray]) -> list[CameraModel] | None:
     """The spec's camera model for each image's size, or None."""
     if spec.camera is None:
         return None
@@ -428,7 +441,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         if spec.method == "paper":
             quads = paper_rectangles(points, two_photo=spec.two_photo, side_face=side_face)
             marked = quads
-            labels: tuple = (None, None)
+            labels: tuple[Labels | None, Labels | None] = (None, None)
         else:
             marked = clicked_quads(points, two_photo=spec.two_photo,
                                    side_height_px=_side_height_guess(work), side_face=side_face)
@@ -465,13 +478,14 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     faces = []
     for name, index, region, mark in (("front", 0, quads.front, marked.front),
                                       ("side", side_index, quads.side, marked.side)):
-        seed = None
+        seed: tuple[float, float, float] | None = None
         if spec.method == "paper":
             # The first pixel of the region, read as the median of the 3x3 pixels just inside
             # the corner: a click exactly on the corner must not seed the scan with background.
             x, y = np.rint(mark[0]).astype(int)
             patch = images[index][y + 1 : y + 4, x + 1 : x + 4].reshape(-1, 3)
-            seed = tuple(float(c) for c in np.median(patch, axis=0))
+            r, g, b = (float(c) for c in np.median(patch, axis=0))
+            seed = (r, g, b)
         window = window_for([region, mark], images[index].shape)
         faces.append(FacePlan(name, index, region, mark, window, spec.method, seed, spec.tolerance))
     return ScanPlan(spec, (faces[0], faces[1]), dims, fits,
@@ -500,7 +514,7 @@ def finish_scan(plan: ScanPlan, images: list[np.ndarray], scans: list[FaceScan])
     return ScanResult(cloud, report)
 
 
-def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict:
+def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[str, Any]:
     """The report.json content (without the writers' timings, which the caller adds)."""
     rejected = sum(s.point_loss_counts[0] for s in scans)
     marked = sum(s.point_loss_counts[1] for s in scans)
