@@ -20,8 +20,10 @@ horizontally in the photo for a side, vertically for a top.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
+import cv2
 import numpy as np
 
 from .perspective import (
@@ -37,8 +39,11 @@ from .perspective import (
     fit_box,
     fit_rectangle,
     model_error_cov,
+    project,
+    rounding_shifts,
     undistort_evidence,
 )
+from .rounding import RadiusEstimate, estimate_edge_radius
 from .spec import KnownEdge, MmPerPx, Pinhole, Scale
 
 __all__ = ["Dimensions", "Obliqueness", "camera_matrix", "measure_affine", "measure_perspective",
@@ -90,11 +95,20 @@ def camera_matrix(focal_px: float, principal: tuple[float, float]) -> np.ndarray
     return np.array([[focal_px, 0, principal[0]], [0, focal_px, principal[1]], [0, 0, 1.0]])
 
 
+def _three(values: np.ndarray) -> tuple[float, float, float]:
+    """A (3,) array as three floats: (width, height, depth)."""
+    a, b, c = (float(v) for v in values)
+    return a, b, c
+
+
 def _depth_edge(side: np.ndarray, side_face: str) -> np.ndarray:
     """The mean image vector (2,) of the side quad's edges that run along the depth (Z)."""
+    edge: np.ndarray
     if side_face == "top":
-        return (side[3] - side[0] + side[2] - side[1]) / 2
-    return (side[1] - side[0] + side[2] - side[3]) / 2
+        edge = (side[3] - side[0] + side[2] - side[1]) / 2
+    else:
+        edge = (side[1] - side[0] + side[2] - side[3]) / 2
+    return edge
 
 
 def _side_size_px(side: np.ndarray, side_face: str) -> tuple[float, float]:
@@ -153,8 +167,10 @@ def square_on_cost(view: Obliqueness, scale: Scale | None) -> np.ndarray:
     f = view.foreshortening
     if isinstance(scale, KnownEdge):
         ref = f[("width", "height", "depth").index(scale.edge)]
-        return np.abs(f / ref - 1)
-    return np.abs(f - 1)
+        cost: np.ndarray = np.abs(f / ref - 1)
+        return cost
+    cost = np.abs(f - 1)
+    return cost
 
 
 def _scales_affine(scale: Scale | None, sizes: dict[str, float], focal: float | None,
@@ -199,13 +215,15 @@ def _affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, focal_px: 
     return np.array([w_px * s_front, h_px * s_front, d_px * s_side]), unit, notes
 
 
-def _noise_sigma(fn, front: np.ndarray, side: np.ndarray, noise_px: float) -> np.ndarray:
+def _noise_sigma(fn: Callable[[np.ndarray, np.ndarray], np.ndarray], front: np.ndarray, side: np.ndarray,
+                 noise_px: float) -> np.ndarray:
     """Standard deviation (3,) of fn(front, side) under independent corner noise (Monte Carlo,
     fixed seed: the same input gives the same sigma)."""
     rng = np.random.default_rng(0)
     draws = [fn(front + rng.normal(0, noise_px, front.shape), side + rng.normal(0, noise_px, side.shape))
              for _ in range(_MC_DRAWS)]
-    return np.std(np.array(draws), axis=0)
+    sigma: np.ndarray = np.std(np.array(draws), axis=0)
+    return sigma
 
 
 def _oblique_cost(front: np.ndarray, side: np.ndarray, scale: Scale | None,
@@ -223,7 +241,8 @@ def _oblique_cost(front: np.ndarray, side: np.ndarray, scale: Scale | None,
         return np.ones(3)  # no view of a box fits these quads: nothing is known
     worst = np.nanmax(drawn, axis=0)
     drawn = np.where(np.isnan(drawn), worst, drawn)
-    return np.percentile(drawn, 90, axis=0)
+    p90: np.ndarray = np.percentile(drawn, 90, axis=0)
+    return p90
 
 
 def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
@@ -256,8 +275,7 @@ def measure_affine(front: np.ndarray, side: np.ndarray, scale: Scale | None, *,
         sigma = np.hypot(sigma, _oblique_cost(front, side, scale, corner_noise_px, side_face) * dims)
     if clicked is not None:
         sigma = np.hypot(sigma, _affine(*clicked, scale, focal_px, two_photo, side_face)[0] - dims)
-    return Dimensions(*map(float, dims), unit, False, tuple(notes),
-                      tuple(float(s) for s in sigma))  # type: ignore[arg-type]
+    return Dimensions(*_three(dims), unit, False, tuple(notes), _three(sigma))
 
 
 def _scale_factor(scale: Scale | None, width: float, depth: float, z: float,
@@ -286,12 +304,13 @@ def _box_sigma(scale: Scale | None, fit: BoxFit) -> np.ndarray:
         e = np.zeros(4)
         e[k] = h
         G[:, k] = (_box_dims(scale, v + e) - _box_dims(scale, v - e)) / (2 * h)
-    return np.sqrt(np.clip(np.diag(G @ fit.shape_cov @ G.T), 0.0, None))
+    sigma: np.ndarray = np.sqrt(np.clip(np.diag(G @ fit.shape_cov @ G.T), 0.0, None))
+    return sigma
 
 
 def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *, K: np.ndarray,
                 free_focal: bool = False, side_face: str = "right",
-                lens_known: bool = False) -> tuple[Dimensions, BoxFit]:
+                lens_known: bool = False, image: np.ndarray | None = None) -> tuple[Dimensions, BoxFit]:
     """Dimensions of a box whose front and side share one photo, through a pinhole camera.
 
     The shooting distance (or mm-per-pixel, read as distance / focal) is the depth of the front
@@ -314,6 +333,10 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
         Where the second face lies (see `perspective.fit_box`).
     lens_known : bool
         The evidence is already free of lens distortion (a calibrated camera's).
+    image : ndarray, shape (H, W) or (H, W, 3), optional
+        The photo: with a scale in mm, the edges' radius is read from the shading across the
+        box's folds (`rounding.estimate_edge_radius`) and the silhouettes' inset it implies is
+        taken out of the shape; its uncertainty replaces the prior ROUNDING_RMS_MM.
 
     Returns
     -------
@@ -336,16 +359,45 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
             front, side = undistort_evidence(front, lens), undistort_evidence(side, lens)
     fit = fit_box(K, front, side, free_focal=free_focal, side_face=side_face)
     k, unit = _scale_factor(scale, fit.width, fit.depth, fit.centre_depth, fit.focal_px)
+    shape = np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px])
+    rounding = _edge_radius(image, fit, lens, k) if unit == "mm" and image is not None else None
+    notes: tuple[str, ...] = ()
+    if rounding is None:
+        silhouette_std = fold_radius = ROUNDING_RMS_MM / k if unit == "mm" else 0.0
+    else:
+        # The silhouettes lie inside the sharp outline by an inset the radius sets: the fit's
+        # linear response to that shift of its edge lines is taken out of the shape.
+        radius = rounding.radius_mm / k
+        if radius > 0 and fit.influence is not None:
+            shape = shape - fit.influence @ rounding_shifts(fit, front, side, radius, side_face=side_face)[0]
+        silhouette_std = rounding.std_mm / k
+        fold_radius = (rounding.radius_mm + rounding.std_mm) / k
+        notes = (f"edges rounded {rounding.radius_mm:.1f} ± {rounding.std_mm:.1f} mm (read from the "
+                 "shading at the folds): the silhouettes' inset corrected",)
     cov = fit.shape_cov + model_error_cov(fit, front, side, side_face=side_face,
-                                          distortion_std=lens.kappa_std,
-                                          rounding_radius=ROUNDING_RMS_MM / k if unit == "mm" else 0.0)
+                                          distortion_std=lens.kappa_std, rounding_radius=silhouette_std,
+                                          fold_radius=fold_radius)
     focal_std = None if fit.focal_std_px is None else float(np.sqrt(max(cov[3, 3], 0.0)))
-    fit = replace(fit, shape_cov=cov, focal_std_px=focal_std, front_quad=lens.distort(fit.front_quad),
+    fit = replace(fit, width=float(shape[0]), depth=float(shape[1]), focal_px=float(shape[3]), shape_cov=cov,
+                  focal_std_px=focal_std, front_quad=lens.distort(fit.front_quad),
                   side_quad=lens.distort(fit.side_quad), lens=lens)
-    dims = _box_dims(scale, np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px]))
+    dims = _box_dims(scale, shape)
     sigma = _box_sigma(scale, fit)
-    return Dimensions(*map(float, dims), unit, True, (),  # type: ignore[arg-type]
-                      tuple(float(s) for s in sigma)), fit  # type: ignore[arg-type]
+    return Dimensions(*_three(dims), unit, True, notes, _three(sigma)), fit
+
+
+def _edge_radius(image: np.ndarray, fit: BoxFit, lens: RadialDistortion, mm_per_unit: float
+                 ) -> RadiusEstimate | None:
+    """The edges' radius read from the photo through the fitted box (model units scaled to mm)."""
+    assert fit.principal is not None
+    K = camera_matrix(fit.focal_px, (float(fit.principal[0]), float(fit.principal[1])))
+    R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
+
+    def to_image(world_mm: np.ndarray) -> np.ndarray:
+        return lens.distort(project(K, fit.rvec, fit.tvec, world_mm / mm_per_unit))
+
+    return estimate_edge_radius(image, to_image, np.array([fit.width, 1.0, fit.depth]) * mm_per_unit,
+                                -R.T @ fit.tvec * mm_per_unit)
 
 
 def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
@@ -363,10 +415,12 @@ def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | 
         The faces' corners as the fitted model projects them.
     """
     if not two_photo:
-        dims, fit = measure_box(front, side, scale, K=K_front, side_face=side_face)
-        return dims, fit.front_quad, fit.side_quad
+        measured, fit = measure_box(front, side, scale, K=K_front, side_face=side_face)
+        return measured, fit.front_quad, fit.side_quad
 
-    def two_rectangles(f_corners: np.ndarray, s_corners: np.ndarray):
+    def two_rectangles(
+        f_corners: np.ndarray, s_corners: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         f_ev = FaceEvidence(f_corners, front.clicked, front.lines)
         s_ev = FaceEvidence(s_corners, side.clicked, side.lines)
         width, rvec, tvec, front_quad = fit_rectangle(K_front, f_ev)
@@ -382,6 +436,5 @@ def measure_perspective(front: FaceEvidence, side: FaceEvidence, scale: Scale | 
     flat = _affine(front.corners, side.corners, scale, focal, True)[0]
     rel = _noise_sigma(lambda f, s: _affine(f, s, scale, focal, True)[0], front.corners,
                        side.corners, NOISE_LINE_PX) / np.maximum(flat, 1e-12)
-    return (Dimensions(*map(float, dims), unit, True, (),  # type: ignore[arg-type]
-                       tuple(float(s) for s in rel * dims)),  # type: ignore[arg-type]
+    return (Dimensions(*_three(dims), unit, True, (), _three(rel * dims)),
             front_quad, side_quad)

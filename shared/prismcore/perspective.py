@@ -45,6 +45,7 @@ __all__ = [
     "focal_from_vanishing_points",
     "model_error_cov",
     "project",
+    "rounding_shifts",
     "undistort_evidence",
 ]
 
@@ -684,7 +685,8 @@ def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
 
 
 def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, side_face: str = "right",
-                    distortion_std: float = 0.0, rounding_radius: float = 0.0) -> np.ndarray:
+                    distortion_std: float = 0.0, rounding_radius: float = 0.0,
+                    fold_radius: float | None = None) -> np.ndarray:
     """Covariance (4, 4) of (width, depth, z, focal_px) from what the pinhole box model leaves out.
 
     Each effect is a systematic shift of the data of known shape and uncertain size, carried to
@@ -699,7 +701,8 @@ def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, sid
       the rounded edge, which meets the face's plane at r (sin a + cos a - 1) / sin a inside
       the sharp edge (a the ray's angle to the face's plane across the edge). All silhouettes
       of a box move together (one radius). A fold edge (both faces seen) is found somewhere on
-      the shading ramp the rounding makes: FOLD_FRACTION radii, independently per edge.
+      the shading ramp the rounding makes: FOLD_FRACTION radii (of `fold_radius`, default
+      `rounding_radius`), independently per edge.
     """
     if fit.influence is None or fit.principal is None:
         return np.zeros((4, 4))
@@ -721,34 +724,64 @@ def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, sid
         dr[n_lines:] = -np.concatenate([move[list(idx)].ravel() for _, idx, _ in faces]) / SIGMA_CLICK_PX
         patterns.append(dr)
     if rounding_radius > 0:
-        R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
-        camera_centre = -R.T @ fit.tvec
-        box_centre = np.array([fit.width, 1.0, fit.depth]) / 2
-        silhouettes = np.zeros(n)
-        folds: dict[tuple[int, int], np.ndarray] = {}
-        for k, (f, s, line, corner) in enumerate(rows):
-            idx = faces[f][1]
-            quad = model[list(idx)]
-            centre = quad.mean(axis=0)
-            normal = (centre - box_centre) / np.linalg.norm(centre - box_centre)
-            mid = (quad[s] + quad[(s + 1) % 4]) / 2
-            out = (mid - centre) / np.linalg.norm(mid - centre)
-            ray = camera_centre - mid
-            dm, dn = float(ray @ out), float(ray @ normal)
-            if dm < 0 and dn > 0:
-                a = np.arctan2(dn, -dm)
-                inset = rounding_radius * (np.sin(a) + np.cos(a) - 1) / np.sin(a)
-            else:
-                inset = FOLD_FRACTION * rounding_radius
-            moved = project(K, fit.rvec, fit.tvec, (model[corner] - inset * out)[None])[0]
-            shift = -float(line[:2] @ (moved - image[corner])) / SIGMA_LINE_PX
-            if dm < 0 and dn > 0:
-                silhouettes[k] = shift
-            else:
-                folds.setdefault((f, s), np.zeros(n))[k] = shift
-        patterns += [silhouettes, *folds.values()]
+        patterns.append(rounding_shifts(fit, front, side, rounding_radius, side_face=side_face)[0])
+    fold = rounding_radius if fold_radius is None else fold_radius
+    if fold > 0:
+        patterns += rounding_shifts(fit, front, side, FOLD_FRACTION * fold, side_face=side_face)[1]
     cov = np.zeros((4, 4))
     for dr in patterns:
         dx = fit.influence @ dr
         cov += np.outer(dx, dx)
     return cov
+
+
+def rounding_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, radius: float, *,
+                    side_face: str = "right") -> tuple[np.ndarray, list[np.ndarray]]:
+    """How edges rounded with `radius` (model units, height 1) move the fit's whitened residuals.
+
+    A silhouette edge (the face beyond it turned away) appears where the camera's ray grazes the
+    rounded edge, which meets the face's plane at r (sin a + cos a - 1) / sin a inside the sharp
+    edge (a the ray's angle to the face's plane across the edge); a fold edge (both faces seen)
+    is moved in by `radius` itself. The clicks do not move (they mark the corners).
+
+    Returns
+    -------
+    silhouettes : ndarray, shape (n_residuals,)
+        All silhouettes together (one radius moves them all).
+    folds : list of ndarray, shape (n_residuals,)
+        One pattern per fold edge.
+    """
+    n = 0 if fit.influence is None else fit.influence.shape[1]
+    if fit.principal is None or n == 0:
+        return np.zeros(n), []
+    second = _SECOND[side_face]
+    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    K = _camera(fit.focal_px, fit.principal)
+    model = second.corners(np.array([fit.width, fit.depth]))
+    image = project(K, fit.rvec, fit.tvec, model)
+    R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
+    camera_centre = -R.T @ fit.tvec
+    box_centre = np.array([fit.width, 1.0, fit.depth]) / 2
+    silhouettes = np.zeros(n)
+    folds: dict[tuple[int, int], np.ndarray] = {}
+    for k, (f, s, line, corner) in enumerate(_rows(faces)):
+        quad = model[list(faces[f][1])]
+        centre = quad.mean(axis=0)
+        normal = (centre - box_centre) / np.linalg.norm(centre - box_centre)
+        mid = (quad[s] + quad[(s + 1) % 4]) / 2
+        out = (mid - centre) / np.linalg.norm(mid - centre)
+        ray = camera_centre - mid
+        dm, dn = float(ray @ out), float(ray @ normal)
+        silhouette = dm < 0 and dn > 0
+        if silhouette:
+            a = np.arctan2(dn, -dm)
+            inset = radius * (np.sin(a) + np.cos(a) - 1) / np.sin(a)
+        else:
+            inset = radius
+        moved = project(K, fit.rvec, fit.tvec, (model[corner] - inset * out)[None])[0]
+        shift = -float(line[:2] @ (moved - image[corner])) / SIGMA_LINE_PX
+        if silhouette:
+            silhouettes[k] = shift
+        else:
+            folds.setdefault((f, s), np.zeros(n))[k] = shift
+    return silhouettes, list(folds.values())

@@ -1,0 +1,217 @@
+"""The radius of a box's rounded edges, read from the shading across its fold edges.
+
+Where two faces the camera sees meet (a fold), a rounded edge shows as a strip on either face in
+which the surface turns from one face's normal to the other's: the shade ramps from one face's
+level to the other's over about the radius. A silhouette edge (the face beyond it turned away)
+tells less: it is cut off where the camera's ray grazes the rounding, which lies inside the sharp
+outline by an amount that needs the radius (`perspective.model_error_cov`). So the radius is read
+at the folds and applied at the silhouettes.
+
+The fold's cross-section is exact for a quarter-cylinder edge of radius r: with (m, n) along the
+face toward its neighbour and along its normal, origin at the sharp edge, the arc point at angle
+a (0: tangent to the face, 90 degrees: tangent to the neighbour) is seen at
+s = r (1 - sin a - (1 - cos a) tan phi) inside the edge, phi the ray's angle from the face's
+normal across the edge. Its Lambertian shade, ambient k0 plus k1 (normal . light), is
+k0 (1 - cos a - sin a) + I_face cos a + I_neighbour sin a: linear in the flat levels and one
+unknown. Per radius on a grid (and a little blur and a sub-pixel offset of the fold) that is a
+linear least-squares fit of the profile across the fold (the median over positions along it, so
+that print and texture drop out); the radius is the best one, its uncertainty the spread of the
+folds' answers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = ["RadiusEstimate", "estimate_edge_radius", "fold_profile_radius"]
+
+_RADII_MM = np.linspace(0.0, 4.0, 81)  # candidate radii
+_BLURS_PX = (0.6, 1.0, 1.4, 1.9)  # candidate optical blur (Gaussian sigma, px)
+_SHIFTS_PX = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the fitted fold line's offset from the sharp edge
+_HALF_WIDTH_MM = 6.5  # profile across the fold, each side
+_STEP_PX = 0.25
+_ALONG = np.linspace(0.15, 0.85, 41)  # positions along a fold (clear of the corners)
+_ARC = np.linspace(0.0, math.pi / 2, 721)
+_MIN_PX_PER_MM = 1.0  # coarser than this, a fold's ramp is not resolved
+MIN_FOLDS = 1
+"""Folds needed for an estimate (their spread is its uncertainty)."""
+PER_FOLD_STD_MM = 0.5
+"""1-sigma error of one fold's estimate (mm), on photo-like renders against their true radius:
+print near a fold and a low contrast between the faces pull it either way."""
+STD_FLOOR_MM = 0.15
+"""Least 1-sigma of the estimate (mm): shading models of real surfaces are not exact."""
+
+
+@dataclass(frozen=True)
+class RadiusEstimate:
+    """The edge radius read from the photo.
+
+    radius_mm : float
+        Best estimate, mm (0 for a sharp box).
+    std_mm : float
+        Its 1-sigma error, mm.
+    per_fold_mm : tuple of float
+        Each fold's own estimate.
+    """
+
+    radius_mm: float
+    std_mm: float
+    per_fold_mm: tuple[float, ...]
+
+
+def _arc_of(s: np.ndarray, r: float, tan_phi: float) -> np.ndarray:
+    """Arc angle a (rad) seen at in-face distance s (mm) from the sharp edge; 0 where s >= r
+    (flat face) and nan where the neighbour's side of the arc is seen (s < 0 there)."""
+    if r <= 0:
+        return np.zeros_like(s)
+    sa = r * (1 - np.sin(_ARC) - (1 - np.cos(_ARC)) * tan_phi)  # decreasing in a while >= 0
+    end = int(np.argmax(sa < 0)) if np.any(sa < 0) else _ARC.size
+    end = max(end, 2)
+    order = np.argsort(sa[:end])
+    a = np.interp(s, sa[:end][order], _ARC[:end][order])
+    return np.where(s >= r, 0.0, a)
+
+
+def _gauss(sigma_px: float) -> np.ndarray:
+    half = math.ceil(3.5 * sigma_px / _STEP_PX)
+    x = np.arange(-half, half + 1) * _STEP_PX
+    k = np.exp(-0.5 * (x / sigma_px) ** 2)
+    out: np.ndarray = k / k.sum()
+    return out
+
+
+def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[float, float],
+                        tan_phi: tuple[float, float]) -> tuple[float, np.ndarray]:
+    """The radius that best explains one fold's shading profile.
+
+    Parameters
+    ----------
+    profile : ndarray, shape (N, C)
+        Image values across the fold at `x_px`, any number of channels.
+    x_px : ndarray, shape (N,)
+        Signed image distance (px) from the fold, uniform steps of _STEP_PX: negative on face A,
+        positive on face B.
+    px_per_mm : (g_a, g_b)
+        Image px per mm across the fold on each face.
+    tan_phi : (t_a, t_b)
+        Tangent of the viewing ray's angle from each face's normal, across the fold (toward
+        the other face).
+
+    Returns
+    -------
+    radius_mm : float
+    rss : ndarray, shape (len(_RADII_MM),)
+        The best residual sum of squares per candidate radius (over blur and offset).
+    """
+    pad = math.ceil(3.5 * max(_BLURS_PX) / _STEP_PX) + math.ceil(max(_SHIFTS_PX) / _STEP_PX)
+    fine = x_px[0] + _STEP_PX * np.arange(-pad, x_px.size + pad)
+    on_a = fine < 0
+    # Each face's level may drift across the profile (uneven light, vignetting): a slope each.
+    slopes = np.stack([np.where(on_a, fine, 0.0), np.where(on_a, 0.0, fine)], axis=1) / x_px.size
+    rss = np.full(_RADII_MM.size, np.inf)
+    for i, r in enumerate(_RADII_MM):
+        a = _arc_of(np.clip(-fine, 0, None) / px_per_mm[0], float(r), tan_phi[0])
+        b = _arc_of(np.clip(fine, 0, None) / px_per_mm[1], float(r), tan_phi[1])
+        ca, sa = np.where(on_a, np.cos(a), np.sin(b)), np.where(on_a, np.sin(a), np.cos(b))
+        turn = np.where(on_a, a, b)
+        basis = np.column_stack([ca, sa, 1 - np.cos(turn) - np.sin(turn)])
+        if r == 0:
+            basis = basis[:, :2]
+        for sigma in _BLURS_PX:
+            k = _gauss(sigma)
+            blurred = np.stack([np.convolve(np.pad(col, k.size // 2, mode="edge"), k, mode="valid")
+                                for col in basis.T], axis=1)
+            blurred = np.column_stack([blurred, slopes])
+            for shift in _SHIFTS_PX:
+                lo = pad + round(shift / _STEP_PX)
+                A = blurred[lo:lo + x_px.size]
+                coef, *_ = np.linalg.lstsq(A, profile, rcond=None)
+                rss[i] = min(rss[i], float(((A @ coef - profile) ** 2).sum()))
+    return float(_RADII_MM[int(np.argmin(rss))]), rss
+
+
+def _folds(size_mm: np.ndarray, camera_centre: np.ndarray
+           ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Edges whose two faces both face the camera: (start, end, n_a, n_b) in world mm."""
+    out = []
+    for axis in range(3):
+        j, k = (axis + 1) % 3, (axis + 2) % 3
+        for vj in (0.0, size_mm[j]):
+            for vk in (0.0, size_mm[k]):
+                n_a, n_b = np.zeros(3), np.zeros(3)
+                n_a[j] = 1.0 if vj else -1.0
+                n_b[k] = 1.0 if vk else -1.0
+                start = np.zeros(3)
+                start[j], start[k] = vj, vk
+                end = start.copy()
+                end[axis] = size_mm[axis]
+                if (camera_centre - start) @ n_a > 0 and (camera_centre - start) @ n_b > 0:
+                    out.append((start, end, n_a, n_b))
+    return out
+
+
+def _sample(image: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Bilinear samples (..., C) float32 of `image` at image (x, y) points (..., 2)."""
+    flat = pts.reshape(-1, 2).astype(np.float32)
+    got = cv2.remap(image.astype(np.float32), flat[:, 0].reshape(1, -1), flat[:, 1].reshape(1, -1),
+                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    got = got.reshape(flat.shape[0], -1)
+    out: np.ndarray = got.reshape(*pts.shape[:-1], got.shape[-1])
+    return out
+
+
+def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.ndarray],
+                         size_mm: np.ndarray, camera_centre_mm: np.ndarray) -> RadiusEstimate | None:
+    """The box's edge radius from the shading across its fold edges.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+        The photo as taken.
+    to_image : callable
+        World points (N, 3) mm (box from (0, 0, 0) to `size_mm`) -> image (x, y) px as
+        photographed (lens distortion included), (N, 2).
+    size_mm : ndarray, shape (3,)
+        The box's extent along X, Y, Z, mm.
+    camera_centre_mm : ndarray, shape (3,)
+        The camera's centre in the same frame.
+
+    Returns
+    -------
+    RadiusEstimate or None
+        None when fewer than MIN_FOLDS folds are seen large enough to read.
+    """
+    # Luma only: a JPEG keeps colour at half resolution, which would pass for a ramp.
+    img = image[..., None] if image.ndim == 2 else (image[..., :3].astype(np.float32)
+                                                    @ np.array([[0.299], [0.587], [0.114]], np.float32))
+    size = np.asarray(size_mm, dtype=np.float64)
+    centre = np.asarray(camera_centre_mm, dtype=np.float64)
+    radii = []
+    for start, end, n_a, n_b in _folds(size, centre):
+        mid = (start + end) / 2
+        ray = centre - mid
+        tan_phi = (float(ray @ n_b / (ray @ n_a)), float(ray @ n_a / (ray @ n_b)))
+        p0 = to_image(mid[None])[0]
+        g = tuple(float(np.linalg.norm(to_image((mid - n)[None])[0] - p0)) for n in (n_b, n_a))
+        if min(g) < _MIN_PX_PER_MM:
+            continue
+        x = np.arange(-_HALF_WIDTH_MM * g[0], _HALF_WIDTH_MM * g[1], _STEP_PX)
+        s = np.where(x < 0, -x / g[0], x / g[1])
+        # World points: along the fold, then into face A (away from B's normal) or face B.
+        into = np.where((x < 0)[:, None], -n_b, -n_a)
+        along = start + _ALONG[:, None] * (end - start)
+        world = along[:, None, :] + s[None, :, None] * into[None, :, :]
+        pts = to_image(world.reshape(-1, 3)).reshape(_ALONG.size, x.size, 2)
+        profile = np.median(_sample(img, pts), axis=0)
+        r, _ = fold_profile_radius(profile, x, g, tan_phi)  # type: ignore[arg-type]
+        radii.append(r)
+    if len(radii) < MIN_FOLDS:
+        return None
+    spread = float(np.std(radii, ddof=1)) if len(radii) > 1 else 0.0
+    std = max(spread, PER_FOLD_STD_MM / math.sqrt(len(radii)), STD_FLOOR_MM)
+    return RadiusEstimate(float(np.median(radii)), std, tuple(radii))

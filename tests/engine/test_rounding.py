@@ -1,0 +1,51 @@
+"""The edge radius read from the shading at a box's folds (`prismcore.rounding`).
+
+Oracle: photo-like renders (`prismsynth.photo_like_scene`) of a known radius, read through the
+render's true camera (pose, focal length, distortion), so that only the estimator is tested.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prismcore.rounding import estimate_edge_radius
+from prismsynth import PhotoLikeScene, photo_like_scene
+from prismsynth.render import distort_points
+
+pytestmark = pytest.mark.slow  # one photo-like render per case
+
+
+def _estimate(p: PhotoLikeScene):  # type: ignore[no-untyped-def]
+    s = p.scene
+    K, R, t = s.camera_matrix, s.rotation, s.translation
+    assert s.distortion is not None
+
+    def to_image(world: np.ndarray) -> np.ndarray:
+        cam = world @ R.T + t
+        return distort_points(cam[:, :2] / cam[:, 2:] * K[0, 0] + K[:2, 2], K, s.distortion)
+
+    size = np.array([p.box.width_mm, p.box.height_mm, p.box.depth_mm])
+    return estimate_edge_radius(p.image, to_image, size, -R.T @ t)
+
+
+@pytest.mark.parametrize("seed", [1, 9, 16])
+@pytest.mark.parametrize("radius", [1.0, 2.2])
+def test_radius_read_within_its_uncertainty(seed: int, radius: float) -> None:
+    est = _estimate(photo_like_scene(seed, edge_radius_mm=radius))
+    assert est is not None
+    assert abs(est.radius_mm - radius) <= max(0.5, 2 * est.std_mm), est
+    assert est.std_mm < 1.0, est
+
+
+@pytest.mark.parametrize("seed", [1, 9])
+def test_a_larger_radius_reads_larger(seed: int) -> None:
+    small, large = (_estimate(photo_like_scene(seed, edge_radius_mm=r)) for r in (0.6, 2.4))
+    assert small is not None and large is not None
+    assert large.radius_mm - small.radius_mm >= 1.0, (small, large)
+
+
+def test_sharp_box_reads_near_zero() -> None:
+    est = _estimate(photo_like_scene(9, edge_radius_mm=0.0))
+    assert est is not None
+    assert est.radius_mm <= max(0.5, 2 * est.std_mm), est
