@@ -10,6 +10,7 @@ import json
 import os
 import socket
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -81,6 +82,25 @@ class Cluster:
             "--hostname", f"{host}@%h", "--without-gossip", "--without-mingle"], env=self.env)
             for host in ("w1", "w2")}
 
+    def supervise(self) -> None:
+        """Start a worker again when it exits by itself, as the deployment's restart policy
+        does (docker-compose: `restart: unless-stopped`); hosts in `down` are left down."""
+        self.down: set[str] = set()
+        self.restarts = 0
+        self._supervising = threading.Event()
+        self._supervising.set()
+
+        def loop() -> None:
+            while self._supervising.is_set():
+                for host, worker in self.workers.items():
+                    if host not in self.down and worker.proc is not None and worker.proc.poll() is not None:
+                        self.restarts += 1
+                        worker.start()
+                time.sleep(1)
+
+        self._supervisor = threading.Thread(target=loop, daemon=True)
+        self._supervisor.start()
+
     def _process(self, host: str, argv: list[str], env: dict[str, str] | None = None) -> ManagedProcess:
         (self.workdir / host).mkdir(parents=True, exist_ok=True)
         return ManagedProcess(self.net.exec_argv(host, argv), None, self.workdir / host, env=env or {})
@@ -104,6 +124,7 @@ class Cluster:
         self.start_api()
         for host in self.workers:
             self.start_worker(host)
+        self.supervise()
 
     def start_redis(self) -> None:
         self.redis.start()
@@ -132,6 +153,9 @@ class Cluster:
             time.sleep(0.2)
 
     def stop(self) -> None:
+        if getattr(self, "_supervisor", None) is not None:
+            self._supervising.clear()
+            self._supervisor.join(10)
         for process in self.processes:
             with contextlib.suppress(ProcessLookupError, OSError):
                 process.stop(timeout=15)

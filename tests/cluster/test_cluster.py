@@ -75,6 +75,7 @@ def _run(ctx: Ctx, figures, name: str, inject: Callable[[], None], heal: Callabl
                                 for job_id, _ in list(load.acked.values()))) < 1:
             assert time.monotonic() < deadline, "no job in flight after 60 s"
             time.sleep(0.2)
+        restarts = ctx.cluster.restarts
         inject()
         ended = time.monotonic()
         if heal is not None:
@@ -99,7 +100,8 @@ def _run(ctx: Ctx, figures, name: str, inject: Callable[[], None], heal: Callabl
     took = sorted(seen[j] - at for j, at in load.acked.values() if j in seen) or [0.0]
     line = (f"{name}: jobs {result.jobs} ({in_flight} in flight at the fault), lost {len(result.lost)}, "
             f"duplicated {len(result.duplicated)}, failed {len(result.failed)}, recovery {recovery:.1f} s "
-            f"(job time median {took[len(took) // 2]:.1f} s, slowest {took[-1]:.1f} s)")
+            f"(job time median {took[len(took) // 2]:.1f} s, slowest {took[-1]:.1f} s); "
+            f"workers restarted by their supervisor {ctx.cluster.restarts - restarts}")
     FAULT_LINES.append(line)
     print("\n" + line)
     figures.update({"faults survived": 0 if result.problems else 1,
@@ -145,10 +147,12 @@ def test_the_store_unreachable_from_one_worker_host(ctx, figures):
 
 def test_a_worker_host_killed(ctx, figures):
     worker = ctx.cluster.workers["w1"]
+    ctx.cluster.down.add("w1")  # a dead host: its supervisor died with it
     try:
         _run(ctx, figures, "worker host w1 SIGKILLed (stays down)", worker.kill, None, hold=5)
     finally:
         ctx.cluster.start_worker("w1")
+        ctx.cluster.down.discard("w1")
 
 
 def test_the_redis_host_restarted(ctx, figures):
