@@ -255,7 +255,7 @@ def _measure(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str
         free = focal.focal_px is None
         K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
         dims, fit = measure_box(evidence[0], evidence[1], spec.scale, K=K, free_focal=free, side_face=face,
-                                lens_known=focal.source == "camera")
+                                lens_known=focal.source == "camera", image=images[0])
         if free:
             assert fit.focal_std_px is not None
             camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
