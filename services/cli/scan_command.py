@@ -85,7 +85,7 @@ def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict[str, An
             "tolerance_mm": tol[0] if len(tol) == 1 else tol}
 
 
-def spec_from_flags(image: Path | None, points: str | None, **flags) -> ScanSpec:
+def spec_from_flags(image: Path | None, points: str | None, **flags: Any) -> ScanSpec:
     if image is None or points is None:
         raise InputError("give IMAGE and --points, or --spec FILE")
     formats = [f.strip() for f in flags.pop("formats", "csv,ply").split(",") if f.strip()]

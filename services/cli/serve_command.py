@@ -29,7 +29,8 @@ __all__ = ["serve"]
 def _credentials(data_dir: Path) -> dict[str, str]:
     path = data_dir / "credentials.json"
     if path.exists():
-        return json.loads(path.read_text())
+        saved: dict[str, str] = json.loads(path.read_text())
+        return saved
     creds = {"api_key": "k-" + secrets.token_urlsafe(24),
              # The Standard Webhooks form, which receivers' verifiers take as it is.
              "webhook_secret": "whsec_" + base64.b64encode(secrets.token_bytes(32)).decode(),

@@ -13,6 +13,7 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -42,7 +43,7 @@ def selection_from_flags(every: int | None, start: float | None, end: float | No
     return given or None
 
 
-def _measure(spec: ScanSpec, index: int, frame, info: VideoInfo, out: Path, tiles: int,
+def _measure(spec: ScanSpec, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
              decode_ms: float, pooled: PooledFocal | None) -> dict:
     one = frame_spec(spec, index)
     result = run_scan(one, frame, tiles=tiles, pooled_focal=pooled)

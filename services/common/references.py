@@ -90,7 +90,7 @@ def resolve_public(host: str, port: int, *, allow_private: bool) -> list[str]:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except socket.gaierror as exc:
         raise ReferenceError(f"cannot resolve {host!r}: {exc.strerror}") from None
-    addresses = sorted({info[4][0] for info in infos})
+    addresses = sorted({str(info[4][0]) for info in infos})  # str for IPv4 and IPv6 (typeshed: str | int)
     if not allow_private and not all(is_public_ip(a) for a in addresses):
         raise ReferenceError(f"{host!r} resolves to a private or local address; not fetched")
     return addresses

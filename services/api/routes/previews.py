@@ -8,7 +8,7 @@ Another tenant's job answers 404, like every job route.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path, status
 from fastapi.responses import StreamingResponse
@@ -25,7 +25,9 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 _PLY = {"content": {"application/octet-stream": {}},
         "description": "Binary little-endian PLY: float32 x, y, z (mm) and uchar red, green, blue."}
-_RESPONSES = {200: _PLY, 404: {"description": "No such job, item, frame or preview"}}
+_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: _PLY, 404: {"description": "No such job, item, frame or preview"}
+}
 Index = Annotated[int, Path(ge=0)]
 
 
