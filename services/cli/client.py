@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
-from prism_common.public import JobList, JobPublic
+from prism_common.public import JobList, JobPublic, ResultsTable
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
@@ -213,6 +213,27 @@ class ApiClient:
                 for kind, url in downloads.items():
                     saved.append(self._save(url, where / FILE_NAMES.get(kind, kind)))
         return saved
+
+    def results(self, job_id: str) -> ResultsTable:
+        """The job's results table (results.json): a row per item and per video frame."""
+        return ResultsTable.model_validate(self._call("GET", f"/v1/jobs/{job_id}/results.json").json())
+
+    def save_results_csv(self, job_id: str, target: Path) -> Path:
+        """Save the job's results table as CSV (streamed: a big job's is never held whole)."""
+        target.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            with self._http.stream("GET", f"/v1/jobs/{job_id}/results.csv") as response:
+                if response.status_code >= 400:
+                    response.read()
+                    text, problem = _message(response)
+                    raise ApiError(f"HTTP {response.status_code}: {text}", status=response.status_code,
+                                   problem=problem)
+                with target.open("wb") as fh:
+                    for chunk in response.iter_bytes(1 << 20):
+                        fh.write(chunk)
+        except httpx.HTTPError as exc:
+            raise ApiError(f"download of {target.name} failed: {exc}") from None
+        return target
 
     def _save(self, url: str, target: Path) -> Path:
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,5 @@
-"""`prism submit`, `status`, `wait`, `download`, `jobs`, `cancel`: the job service from scripts."""
+"""`prism submit`, `status`, `wait`, `download`, `results`, `jobs`, `cancel`: the job service
+from scripts."""
 
 from __future__ import annotations
 
@@ -8,15 +9,17 @@ from typing import Annotated
 
 import typer
 from prism_common.public import JobPublic
+from pydantic import ValidationError
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from prismcore import InputError
 
 from .client import ApiClient, format_eta, remaining_s
-from .scan_command import spec_from_flags
+from .results_command import render_results
+from .scan_command import one_line, spec_from_flags
 
-__all__ = ["cancel", "download", "jobs", "status", "submit", "wait"]
+__all__ = ["cancel", "download", "jobs", "results", "status", "submit", "wait"]
 
 console = Console()
 ApiUrl = Annotated[str, typer.Option("--api", envvar="PRISM_API_URL", help="API base URL.")]
@@ -83,6 +86,12 @@ def submit(
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     method: Annotated[str, typer.Option()] = "default",
     cloud: Annotated[str, typer.Option()] = "surface",
+    formats: Annotated[str | None, typer.Option(
+        "--format", help="Outputs, comma-separated: csv, ply, las, laz, glb (default: the "
+        "service's, PRISM_DEFAULT_FORMATS).")] = None,
+    nominal: Annotated[str | None, typer.Option(help="Nominal W,H,D in mm: verdicts per dimension.")] = None,
+    tolerance_mm: Annotated[str | None, typer.Option(help="T or Tw,Th,Td, mm (with --nominal).")] = None,
+    spacing_mm: Annotated[float | None, typer.Option(help="Thin the cloud to this spacing, mm.")] = None,
     webhook: Annotated[str | None, typer.Option(help="URL to POST the finished job to.")] = None,
     reference: Annotated[str | None, typer.Option(help="Your own reference for the job.")] = None,
     idempotency_key: Annotated[str | None, typer.Option(help="Resubmits return the same job.")] = None,
@@ -94,12 +103,20 @@ def submit(
         data = json.loads(spec_file.read_text())
         items, base = data.get("items", [data]), spec_file.parent
     else:
-        spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
-                               distance_mm=distance_mm, focal_px=focal_px, width_mm=width_mm,
-                               height_mm=height_mm, depth_mm=depth_mm, method=method, cloud=cloud)
+        try:
+            spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
+                                   distance_mm=distance_mm, focal_px=focal_px, width_mm=width_mm,
+                                   height_mm=height_mm, depth_mm=depth_mm, method=method, cloud=cloud,
+                                   nominal=nominal, tolerance_mm=tolerance_mm, spacing_mm=spacing_mm,
+                                   **({"formats": formats} if formats else {}))
+        except ValidationError as exc:  # flags that make no spec (--format laz without a scale)
+            raise InputError(one_line(exc)) from None
         # exclude_none, not exclude_defaults: a default that carries meaning (the scale's
         # `kind` tag) must reach the API, or it cannot tell one scale from another.
-        items, base = [spec.model_dump(mode="json", exclude_none=True)], Path(".")
+        item = spec.model_dump(mode="json", exclude_none=True)
+        if not formats:
+            del item["formats"]  # the service's default formats apply
+        items, base = [item], Path(".")
     # The client uploads a file once however many items name it.
     body = {"items": [_upload_local(client, dict(item), base) for item in items],
             "client_reference": reference, "webhook_url": webhook}
@@ -138,11 +155,19 @@ def wait(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
 
 def download(job_id: str, out: Annotated[Path, typer.Option(help="Folder for the outputs.")],
              api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
-    """Download every item's CSV, PLY and report into OUT/item-N/."""
-    client = _client(api, key)
-    for path in client.download(client.job(job_id), out):
-        console.print(str(path))
+    """Download every item's outputs into OUT/item-N/, and the job's table as OUT/results.csv."""
+    with _client(api, key) as client:
+        for path in client.download(client.job(job_id), out):
+            console.print(str(path))
+        console.print(str(client.save_results_csv(job_id, out / "results.csv")))
 
+
+def results(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
+            as_json: Annotated[bool, typer.Option("--json", help="Print results.json.")] = False) -> None:
+    """Print the job's results table: a row per item (and video frame), dimensions ± sigma, verdicts."""
+    with _client(api, key) as client:
+        table = client.results(job_id)
+    console.print_json(table.model_dump_json()) if as_json else render_results(table, console)
 
 
 def jobs(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",

@@ -14,7 +14,7 @@ from prismcore import InputError
 
 from .calibrate_command import calibrate
 from .client import ApiError
-from .client_commands import cancel, download, jobs, status, submit, wait
+from .client_commands import cancel, download, jobs, results, status, submit, wait
 from .sample_command import sample
 from .scan_command import scan
 from .schema_command import schema
@@ -32,6 +32,7 @@ cli.command()(submit)
 cli.command()(status)
 cli.command()(wait)
 cli.command()(download)
+cli.command()(results)
 cli.command()(jobs)
 cli.command()(cancel)
 cli.command()(serve)

@@ -23,12 +23,13 @@ from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
-__all__ = ["quality_flags", "quality_lines", "scan", "spec_from_flags", "summary_line"]
+__all__ = ["one_line", "quality_flags", "quality_lines", "scan", "spec_from_flags", "summary_line"]
 
 console = Console()
 
 
-def _one_line(error: ValidationError) -> str:
+def one_line(error: ValidationError) -> str:
+    """A spec's validation error as one line: where, what, how many more."""
     first = error.errors()[0]
     where = ".".join(str(p) for p in first["loc"]) or "spec"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
@@ -178,7 +179,7 @@ def _camera_file(path: Path) -> CameraModel:
         raise InputError(f"cannot read --camera {str(path)!r}: {exc.strerror}") from None
     except ValidationError as exc:
         raise InputError(f"--camera {str(path)!r} is not a camera model (prism calibrate writes "
-                         f"one): {_one_line(exc)}") from None
+                         f"one): {one_line(exc)}") from None
 
 
 def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
@@ -292,7 +293,7 @@ def scan(
             result.report.update(points_source="auto", auto_points=auto.report())
             result.report["warnings"] += list(auto.warnings)
     except ValidationError as exc:
-        raise InputError(_one_line(exc)) from None
+        raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
     paths = write_outputs(result, spec, out, [front] + ([side_img] if side_img is not None else []))
     paths.update(write_overlays(result.report, front, side_img, out))

@@ -18,7 +18,7 @@ from prismcore.spec import FILE_NAMES, frame_folder
 from .records import ItemResult, JobRecord, State
 
 __all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic",
-           "ResultPublic", "download_name", "to_public"]
+           "ResultPublic", "ResultsTable", "download_name", "to_public"]
 
 
 VERDICTS = ("pass", "fail", "uncertain")
@@ -104,6 +104,18 @@ class JobPublic(BaseModel):
         description="How many finished items got each verdict against their nominal size: pass, "
                     "fail, uncertain (items without a nominal, and video items, are not counted).")
     items: list[ItemPublic]
+
+
+class ResultsTable(BaseModel):
+    """`GET /v1/jobs/{id}/results.json`: the job's table, a row per item and per video frame."""
+
+    job_id: str
+    client_reference: str | None
+    state: State
+    verdicts: dict[str, int] = Field(description="As the job's: items per verdict.")
+    columns: list[str] = Field(description="The rows' keys, in the CSV's column order.")
+    rows: list[dict[str, Any]] = Field(description="One per item, then one per frame of a video "
+                                       "item (`frame` set); null where a value is unknown.")
 
 
 class JobList(BaseModel):
