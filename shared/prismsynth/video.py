@@ -44,7 +44,7 @@ def render_clip(box: Box, frames: int, *, image_size: tuple[int, int] = (640, 51
     return scenes
 
 
-def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike, *, codec: str = "MJPG",
+def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], *, codec: str = "MJPG",
                 fps: float = 25.0) -> None:
     """Encode RGB uint8 frames (H, W, 3), all the same size, into a video file, streaming.
 
@@ -83,7 +83,7 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike, *, codec:
         finally:
             writer.close()
         return
-    out = cv2.VideoWriter(os.fspath(path), cv2.VideoWriter_fourcc(*codec), fps, (width, height))
+    out = cv2.VideoWriter(os.fspath(path), cv2.VideoWriter.fourcc(*codec), fps, (width, height))
     if not out.isOpened():
         raise RuntimeError(f"OpenCV cannot encode {codec!r} into {os.fspath(path)!r}")
     try:
