@@ -35,6 +35,7 @@ from .perspective import (
     RadialDistortion,
     box_edge_samples,
     centre_depth,
+    edge_shifts,
     estimate_distortion,
     fit_box,
     fit_rectangle,
@@ -369,7 +370,12 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
         # linear response to that shift of its edge lines is taken out of the shape.
         radius = rounding.radius_mm / k
         if radius > 0 and fit.influence is not None:
-            shape = shape - fit.influence @ rounding_shifts(fit, front, side, radius, side_face=side_face)[0]
+            # What the rounding did to the lines: silhouettes moved in by the inset, folds
+            # moved from the sharp edge to where the shading ramp put them.
+            moved = rounding_shifts(fit, front, side, radius, side_face=side_face)[0]
+            folds = [(mid / k, -offset) for mid, offset in rounding.fold_offsets]
+            moved += edge_shifts(fit, front, side, folds, side_face=side_face)
+            shape = shape - fit.influence @ moved
         silhouette_std = rounding.std_mm / k
         fold_radius = (rounding.radius_mm + rounding.std_mm) / k
         notes = (f"edges rounded {rounding.radius_mm:.1f} ± {rounding.std_mm:.1f} mm (read from the "

@@ -39,6 +39,7 @@ __all__ = [
     "RadialDistortion",
     "box_edge_samples",
     "centre_depth",
+    "edge_shifts",
     "estimate_distortion",
     "fit_box",
     "fit_rectangle",
@@ -785,3 +786,28 @@ def rounding_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, radius
         else:
             folds.setdefault((f, s), np.zeros(n))[k] = shift
     return silhouettes, list(folds.values())
+
+
+def edge_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence,
+                moves: list[tuple[np.ndarray, np.ndarray]], *, side_face: str = "right") -> np.ndarray:
+    """How moving some of the box's edge lines in the image changes the fit's whitened residuals.
+
+    moves : per edge, its model midpoint (3,) (height 1) and the image vector (2,) px by which
+        its fitted line moves; an edge the fit has no line for is skipped.
+
+    Returns
+    -------
+    ndarray, shape (n_residuals,)
+    """
+    n = 0 if fit.influence is None else fit.influence.shape[1]
+    second = _SECOND[side_face]
+    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    model = second.corners(np.array([fit.width, fit.depth]))
+    dr = np.zeros(n)
+    for k, (f, s, line, _) in enumerate(_rows(faces)):
+        idx = faces[f][1]
+        mid = (model[idx[s]] + model[idx[(s + 1) % 4]]) / 2
+        for where, vector in moves:
+            if np.linalg.norm(where - mid) < 1e-6 * max(1.0, fit.width, fit.depth):
+                dr[k] = -float(line[:2] @ vector) / SIGMA_LINE_PX
+    return dr

@@ -30,9 +30,9 @@ import numpy as np
 
 __all__ = ["RadiusEstimate", "estimate_edge_radius", "fold_profile_radius"]
 
-_RADII_MM = np.linspace(0.0, 4.0, 81)  # candidate radii
-_BLURS_PX = (0.6, 1.0, 1.4, 1.9)  # candidate optical blur (Gaussian sigma, px)
-_SHIFTS_PX = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the fitted fold line's offset from the sharp edge
+_RADII_MM = np.linspace(0.0, 4.0, 41)  # candidate radii
+_BLURS_PX = (0.7, 1.1, 1.6)  # candidate optical blur (Gaussian sigma, px)
+_SHIFTS_PX = tuple(np.arange(-3.0, 3.01, 0.5))  # the sharp edge's offset from the fitted fold line
 _HALF_WIDTH_MM = 6.5  # profile across the fold, each side
 _STEP_PX = 0.25
 _ALONG = np.linspace(0.15, 0.85, 41)  # positions along a fold (clear of the corners)
@@ -40,6 +40,10 @@ _ARC = np.linspace(0.0, math.pi / 2, 721)
 _MIN_PX_PER_MM = 1.0  # coarser than this, a fold's ramp is not resolved
 MIN_FOLDS = 1
 """Folds needed for an estimate (their spread is its uncertainty)."""
+RESOLVED_PX = 3.0
+"""The folds' ramps must span this many image px (their median) for a radius to be read: on
+photo-like renders of sharp boxes (blur, JPEG, print near a fold) single folds' fitted ramps
+span up to 3.5 px, their median up to 2.6 px."""
 PER_FOLD_STD_MM = 0.5
 """1-sigma error of one fold's estimate (mm), on photo-like renders against their true radius:
 print near a fold and a low contrast between the faces pull it either way."""
@@ -57,11 +61,17 @@ class RadiusEstimate:
         Its 1-sigma error, mm.
     per_fold_mm : tuple of float
         Each fold's own estimate.
+    per_fold_px_per_mm : tuple of float
+        Each fold's resolution: image px per mm across it on the more foreshortened face.
     """
 
     radius_mm: float
     std_mm: float
     per_fold_mm: tuple[float, ...]
+    per_fold_px_per_mm: tuple[float, ...] = ()
+    fold_offsets: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    """Per fold: its midpoint (3,) mm, and the image vector (2,) px from the fold line the box
+    was fitted to (where `to_image` puts it) to where the shading puts the sharp edge."""
 
 
 def _arc_of(s: np.ndarray, r: float, tan_phi: float) -> np.ndarray:
@@ -86,7 +96,7 @@ def _gauss(sigma_px: float) -> np.ndarray:
 
 
 def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[float, float],
-                        tan_phi: tuple[float, float]) -> tuple[float, np.ndarray]:
+                        tan_phi: tuple[float, float]) -> tuple[float, float, np.ndarray]:
     """The radius that best explains one fold's shading profile.
 
     Parameters
@@ -105,6 +115,8 @@ def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[
     Returns
     -------
     radius_mm : float
+    shift_px : float
+        Where the sharp edge lies: at x = -shift_px.
     rss : ndarray, shape (len(_RADII_MM),)
         The best residual sum of squares per candidate radius (over blur and offset).
     """
@@ -114,6 +126,7 @@ def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[
     # Each face's level may drift across the profile (uneven light, vignetting): a slope each.
     slopes = np.stack([np.where(on_a, fine, 0.0), np.where(on_a, 0.0, fine)], axis=1) / x_px.size
     rss = np.full(_RADII_MM.size, np.inf)
+    best_shift = np.zeros(_RADII_MM.size)
     for i, r in enumerate(_RADII_MM):
         a = _arc_of(np.clip(-fine, 0, None) / px_per_mm[0], float(r), tan_phi[0])
         b = _arc_of(np.clip(fine, 0, None) / px_per_mm[1], float(r), tan_phi[1])
@@ -131,8 +144,11 @@ def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[
                 lo = pad + round(shift / _STEP_PX)
                 A = blurred[lo:lo + x_px.size]
                 coef, *_ = np.linalg.lstsq(A, profile, rcond=None)
-                rss[i] = min(rss[i], float(((A @ coef - profile) ** 2).sum()))
-    return float(_RADII_MM[int(np.argmin(rss))]), rss
+                got = float(((A @ coef - profile) ** 2).sum())
+                if got < rss[i]:
+                    rss[i], best_shift[i] = got, shift
+    best = int(np.argmin(rss))
+    return float(_RADII_MM[best]), float(best_shift[best]), rss
 
 
 def _folds(size_mm: np.ndarray, camera_centre: np.ndarray
@@ -184,14 +200,17 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
     Returns
     -------
     RadiusEstimate or None
-        None when fewer than MIN_FOLDS folds are seen large enough to read.
+        None when fewer than MIN_FOLDS folds are seen large enough to read, or no fold's ramp
+        spans RESOLVED_PX (median over folds): no evidence of a rounding (the caller keeps its prior).
     """
     # Luma only: a JPEG keeps colour at half resolution, which would pass for a ramp.
     img = image[..., None] if image.ndim == 2 else (image[..., :3].astype(np.float32)
                                                     @ np.array([[0.299], [0.587], [0.114]], np.float32))
     size = np.asarray(size_mm, dtype=np.float64)
     centre = np.asarray(camera_centre_mm, dtype=np.float64)
-    radii = []
+    radii: list[float] = []
+    resolution: list[float] = []
+    offsets: list[tuple[np.ndarray, np.ndarray]] = []
     for start, end, n_a, n_b in _folds(size, centre):
         mid = (start + end) / 2
         ray = centre - mid
@@ -208,10 +227,15 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         world = along[:, None, :] + s[None, :, None] * into[None, :, :]
         pts = to_image(world.reshape(-1, 3)).reshape(_ALONG.size, x.size, 2)
         profile = np.median(_sample(img, pts), axis=0)
-        r, _ = fold_profile_radius(profile, x, g, tan_phi)  # type: ignore[arg-type]
+        r, shift, _ = fold_profile_radius(profile, x, g, tan_phi)  # type: ignore[arg-type]
         radii.append(r)
+        toward_b = to_image((mid - n_a)[None])[0] - p0
+        offsets.append((mid, -shift * toward_b / np.linalg.norm(toward_b)))
+        resolution.append(min(g))
     if len(radii) < MIN_FOLDS:
         return None
+    if float(np.median([r * g for r, g in zip(radii, resolution, strict=True)])) < RESOLVED_PX:
+        return None  # what a sharp fold's blur, JPEG and print near it also show
     spread = float(np.std(radii, ddof=1)) if len(radii) > 1 else 0.0
     std = max(spread, PER_FOLD_STD_MM / math.sqrt(len(radii)), STD_FLOOR_MM)
-    return RadiusEstimate(float(np.median(radii)), std, tuple(radii))
+    return RadiusEstimate(float(np.median(radii)), std, tuple(radii), tuple(resolution), tuple(offsets))
