@@ -13,6 +13,7 @@ import pytest
 from page_driver import KEY, PageDriver, save_photo
 from playwright.sync_api import expect
 
+from prism_worker.artifacts import OVERLAY_MAX_SIDE
 from prismcore.spec import ScanSpec
 from prismsynth import Box, render_front_view, render_oblique_view, render_side_view
 
@@ -122,7 +123,9 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     overlay = page.locator("#overlay")
     expect(page.locator("#overlay-figure")).to_be_visible()
     page.wait_for_function("document.getElementById('overlay').naturalWidth > 0")
-    assert page.evaluate("document.getElementById('overlay').naturalWidth") == scene.image.shape[1]
+    shrink = min(1.0, OVERLAY_MAX_SIDE / max(scene.image.shape[:2]))  # stored at display size
+    width = page.evaluate("document.getElementById('overlay').naturalWidth")
+    assert width == round(scene.image.shape[1] * shrink)
     assert overlay.get_attribute("src").startswith("blob:")
     page.locator("#result").screenshot(path=str(tmp_path / "result.png"))
     assert d.viewer_pixels().std() > 5
