@@ -27,12 +27,15 @@ class Stack:
         self.url = f"http://127.0.0.1:{api.port}"
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
+    """One API and worker for every page test file (in each pytest-xdist process): the page
+    tests find their own jobs by id or as the newest, so they share it. Redis database 3 is
+    no other test's, so this worker, idle until the session ends, takes no one else's tasks."""
     if not (STATIC_DIR / "index.html").is_file():
         pytest.fail(f"the page is not built in {STATIC_DIR}: run scripts/setup (needs node and npm)")
     tmp = tmp_path_factory.mktemp("web-stack")
-    env = service_env(redis_server.port, s3_server.port, db=2, bucket="web-e2e")
+    env = service_env(redis_server.port, s3_server.port, db=3, bucket="web-e2e")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=1)
     yield Stack(api, worker)
