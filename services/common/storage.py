@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import re
-from typing import Any, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import boto3
 from botocore.client import Config
@@ -16,6 +16,10 @@ from botocore.exceptions import ClientError
 from botocore.response import StreamingBody
 
 from .settings import Settings
+
+if TYPE_CHECKING:  # boto3-stubs[s3] (test extra): the client's types, not needed at run time
+    from mypy_boto3_s3 import S3Client
+    from mypy_boto3_s3.type_defs import ObjectIdentifierTypeDef
 
 __all__ = ["ObjectStore", "is_missing", "object_key"]
 
@@ -40,7 +44,7 @@ def is_missing(exc: ClientError) -> bool:
 class ObjectStore:
     """The service's bucket (and read access to configured input buckets)."""
 
-    def __init__(self, client, bucket: str) -> None:
+    def __init__(self, client: S3Client, bucket: str) -> None:
         self.client = client
         self.bucket = bucket
 
@@ -132,7 +136,7 @@ class ObjectStore:
     def delete_keys(self, keys: list[str]) -> None:
         """Delete these objects (missing ones are no error), in batches of 1000."""
         for start in range(0, len(keys), 1000):
-            batch = [{"Key": k} for k in keys[start:start + 1000]]
+            batch: list[ObjectIdentifierTypeDef] = [{"Key": k} for k in keys[start:start + 1000]]
             answer = self.client.delete_objects(Bucket=self.bucket,
                                                 Delete={"Objects": batch, "Quiet": True})
             # Failures come back in the body of an HTTP 200: raise, so nothing is forgotten.
