@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from botocore.exceptions import ClientError
+from botocore.response import StreamingBody
 from fastapi.responses import StreamingResponse
 from prism_common.storage import ObjectStore, is_missing
 
@@ -17,7 +18,7 @@ __all__ = ["CHUNK_BYTES", "relay_object"]
 CHUNK_BYTES = 1 << 20
 
 
-def _chunks(body) -> Iterator[bytes]:
+def _chunks(body: StreamingBody) -> Iterator[bytes]:
     try:
         yield from body.iter_chunks(CHUNK_BYTES)
     finally:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Awaitable, Callable
 
 import anyio
 import httpx
@@ -62,7 +63,7 @@ async def readyz(request: Request, settings: SettingsDep, objects: ObjectsDep) -
     """Redis and the object store answer: 200, or 503 naming which does not."""
     checks = {"redis": False, "object_store": False}
 
-    async def run(name: str, probe) -> None:
+    async def run(name: str, probe: Callable[[], Awaitable[bool]]) -> None:
         with anyio.move_on_after(PROBE_TIMEOUT_S * 2):
             checks[name] = await probe()
 
