@@ -49,6 +49,7 @@ photos.onChange = (what) => {
 $("method").addEventListener("change", () => marking.refresh());
 runner.onAdded = () => marking.changed(clearAll);
 runner.onFinished = (job) => {
+  settings.collapse(true); // the result takes the settings' place beside the photo
   result.show(job);
   void history.load();
 };

@@ -5,13 +5,16 @@
 
 import { call, message } from "./api";
 import type { ColourMode } from "./colours";
-import type { Frame, Item, Job } from "./types";
+import { ResultsTableView } from "./results-table";
+import type { Dimension, Frame, Item, Job, Result } from "./types";
+import { badge, deviationText } from "./verdicts";
 import { isVideoItem, videoResult } from "./video-result";
-import { Viewer } from "./viewer";
+import { type BoxAnnotation, Viewer } from "./viewer";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
-const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["report", "Report (JSON)"],
-  ["overlay", "Fit overlay (PNG)"]];
+const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
+  ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["overlay", "Fit overlay (PNG)"]];
+const DIMS: Dimension[] = ["width", "height", "depth"];
 const SOURCES: Record<string, string> = {
   given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
   fitted: "fitted to the box", none: "not used (square-on model)",
@@ -21,10 +24,16 @@ export class ResultPanel {
   private viewer: Viewer | null = null;
   private job: Job | null = null;
   private loading = 0; // the latest load; an older one that finishes late is dropped
+  private table = new ResultsTableView();
+  private model = false; // the 3D view shows the glb box model rather than the cloud
 
   constructor() {
     $("result-item").addEventListener("change", () => void this.showItem());
     $("result-frame").addEventListener("change", () => void this.showCloud());
+    this.table.onOpen = (item, frame) => void this.select(item, frame);
+    $("show-cloud").addEventListener("click", () => this.showModel(false));
+    $("show-model").addEventListener("click", () => this.showModel(true));
+    $("show-dims").addEventListener("change", (e) => this.viewer?.annotations((e.target as HTMLInputElement).checked));
     $("color-mode").addEventListener("change", () => this.viewer?.colour(this.mode()));
     $("point-size").addEventListener("input", (e) =>
       this.viewer?.pointSize(Number((e.target as HTMLInputElement).value)));
@@ -41,23 +50,45 @@ export class ResultPanel {
     const select = $<HTMLSelectElement>("result-item");
     const first = job.items.find((i) => i.state === "succeeded") ?? job.items[0];
     select.replaceChildren(...job.items.map((i) =>
-      new Option(`Scan ${i.index + 1}: ${i.state}`, String(i.index), false, i === first)));
+      new Option(`Scan ${i.index + 1}: ${i.state}${i.result?.quality ? `, ${i.result.quality.verdict}` : ""}`,
+        String(i.index), false, i === first)));
+    void this.table.load(job);
     void this.showItem();
+  }
+
+  /** Open one scan (and for a video one frame) of the job: the table's click-through. */
+  async select(item: number, frame: number | null): Promise<void> {
+    $<HTMLSelectElement>("result-item").value = String(item);
+    await this.showItem(frame);
+    $("h-result").focus();
+    $("result").scrollIntoView({ block: "start" });
+  }
+
+  private showModel(model: boolean): void {
+    this.model = model;
+    $("show-cloud").setAttribute("aria-pressed", String(!model));
+    $("show-model").setAttribute("aria-pressed", String(model));
+    void this.showCloud();
   }
 
   private item(): Item {
     return this.job!.items[Number($<HTMLSelectElement>("result-item").value)];
   }
 
-  private async showItem(): Promise<void> {
+  private async showItem(frameWanted: number | null = null): Promise<void> {
     const item = this.item();
     const video = isVideoItem(item);
     $("result-body").replaceChildren(...(video ? videoResult(item) : summary(item)));
     const measured = video ? item.frames.filter((f) => f.state === "succeeded") : [];
     $("result-frame-row").hidden = !measured.length;
-    $<HTMLSelectElement>("result-frame").replaceChildren(...measured.map((f, i) =>
-      new Option(`Frame ${f.index}`, String(f.index), false, i === 0)));
-    await this.showCloud();
+    const chosen = measured.find((f) => f.index === frameWanted) ?? measured[0];
+    $<HTMLSelectElement>("result-frame").replaceChildren(...measured.map((f) =>
+      new Option(`Frame ${f.index}`, String(f.index), false, f === chosen)));
+    this.table.mark(item.index, video ? (chosen?.index ?? null) : null);
+    const glb = !video && Boolean(item.downloads.glb);
+    $("show-model").hidden = !glb;
+    if (!glb && this.model) this.showModel(false);
+    else await this.showCloud();
   }
 
   /** The item's cloud, or for a video the cloud of the frame chosen, in the 3D view. */
@@ -77,12 +108,14 @@ export class ResultPanel {
     const path = `/v1/jobs/${job.id}/items/${item.index}` + (frame ? `/frames/${frame.index}` : "");
     void this.showOverlay(path, load);
     try {
+      if (this.model && !frame) return await this.showGlb(path, load);
       const response = await call(`${path}/preview.ply`);
       const data = await response.arrayBuffer();
       if (load !== this.loading) return;
       this.viewer ??= new Viewer($("viewer"));
       this.viewer.pointSize(Number($<HTMLInputElement>("point-size").value));
-      const { shown, total } = this.viewer.show(data, this.mode());
+      const { shown, total } = this.viewer.show(data, this.mode(), annotation(result));
+      this.viewer.annotations($<HTMLInputElement>("show-dims").checked);
       const of = result && result.points > shown ? ` of ${result.points.toLocaleString("en")}` : "";
       const which = frame ? ` of frame ${frame.index}` : "";
       status.textContent = `Showing ${shown.toLocaleString("en")}${of} points${which}` +
@@ -93,7 +126,18 @@ export class ResultPanel {
     }
   }
 
-  /** The fit drawn on the photo (overlay.png), under the dimensions. */
+  /** The fitted box as the worker's textured glTF model (box.glb, relayed through the API). */
+  private async showGlb(path: string, load: number): Promise<void> {
+    const data = await (await call(`${path}/box.glb`)).arrayBuffer();
+    if (load !== this.loading) return;
+    this.viewer ??= new Viewer($("viewer"));
+    await this.viewer.showModel(data, annotation(this.item().result));
+    this.viewer.annotations($<HTMLInputElement>("show-dims").checked);
+    $("viewer-status").textContent = "Showing the box model (glTF): the fitted box, its faces textured from the photo.";
+    $("viewer").dataset.points = "0";
+  }
+
+  /** The fit drawn on the photo (overlay.png), beside the dimensions. */
   private async showOverlay(path: string, load: number): Promise<void> {
     const figure = $("overlay-figure");
     const img = $<HTMLImageElement>("overlay");
@@ -134,29 +178,49 @@ function summary(item: Item): HTMLElement[] {
   const r = item.result;
   const unit = r.dimensions.unit;
   const sigma = r.uncertainty ?? undefined;
-  const rows: [string, string][] = [
-    ["Width", withSigma(r.dimensions.width, sigma?.width, unit)],
-    ["Height", withSigma(r.dimensions.height, sigma?.height, unit)],
-    ["Depth", withSigma(r.dimensions.depth, sigma?.depth, unit)],
-    ["Points", r.points.toLocaleString("en")],
-    ["Point loss", `${(r.point_loss * 100).toFixed(2)} %`],
-  ];
-  if (r.focal_source) {
-    const f = r.focal_px ? `${Math.round(r.focal_px)} px, ` : "";
-    rows.push(["Focal length", `${f}${SOURCES[r.focal_source] ?? r.focal_source}`]);
+  const quality = r.quality ?? null;
+  const out: HTMLElement[] = [];
+  if (quality) {
+    const p = document.createElement("p");
+    p.className = "part-verdict";
+    p.id = "part-verdict";
+    const n = Object.keys(quality.dimensions).length;
+    p.append("Part: ", badge(quality.verdict, "strong"),
+      ` (${quality.counts.pass} of ${n} dimensions within tolerance at ±${quality.k} σ)`);
+    out.push(p);
   }
-  if (r.fit_rms_px !== undefined && r.fit_rms_px !== null) rows.push(["Fit", `${r.fit_rms_px.toFixed(2)} px RMS`]);
-  if (r.side_face) rows.push(["Second face", r.side_face]);
   const dl = document.createElement("dl");
   dl.id = "dimensions";
-  for (const [k, v] of rows) {
+  const add = (key: string, value: string, cls = "wide"): HTMLElement => {
     const dt = document.createElement("dt");
     const dd = document.createElement("dd");
-    dt.textContent = k;
-    dd.textContent = v;
-    dd.dataset.field = k.toLowerCase().replaceAll(" ", "-");
+    dt.textContent = key;
+    dd.textContent = value;
+    dd.className = cls;
+    dd.dataset.field = key.toLowerCase().replaceAll(" ", "-");
     dl.append(dt, dd);
+    return dd;
+  };
+  for (const dim of DIMS) {
+    const name = dim.charAt(0).toUpperCase() + dim.slice(1);
+    const dd = add(name, withSigma(r.dimensions[dim], sigma?.[dim], unit), "dim");
+    (dd.previousElementSibling as HTMLElement).className = "big";
+    const judged = quality?.dimensions[dim];
+    const verdict = document.createElement("dd");
+    verdict.className = "deviation";
+    verdict.dataset.verdictOf = dim;
+    if (judged) verdict.append(badge(judged.verdict), " ", deviationText(judged));
+    dl.append(verdict);
   }
+  add("Points", r.points.toLocaleString("en"));
+  add("Point loss", `${(r.point_loss * 100).toFixed(2)} %`);
+  if (r.focal_source) {
+    const f = r.focal_px ? `${Math.round(r.focal_px)} px, ` : "";
+    add("Focal length", `${f}${SOURCES[r.focal_source] ?? r.focal_source}`);
+  }
+  if (r.fit_rms_px !== undefined && r.fit_rms_px !== null) add("Fit", `${r.fit_rms_px.toFixed(2)} px RMS`);
+  if (r.side_face) add("Second face", r.side_face);
+  out.push(dl);
   const links = document.createElement("p");
   links.className = "downloads";
   for (const [kind, text] of LINKS) {
@@ -167,7 +231,7 @@ function summary(item: Item): HTMLElement[] {
     a.rel = "noopener";
     links.append(a);
   }
-  const out: HTMLElement[] = [dl, links];
+  out.push(links);
   if (r.warnings.length) {
     const ul = document.createElement("ul");
     ul.setAttribute("aria-label", "Warnings");
@@ -176,4 +240,17 @@ function summary(item: Item): HTMLElement[] {
     out.push(ul);
   }
   return out;
+}
+
+/** The fitted box and its dimension labels for the 3D view, from a scan's result. */
+function annotation(r: Result | null): BoxAnnotation | undefined {
+  if (!r) return undefined;
+  const sigma = r.uncertainty ?? undefined;
+  const unit = r.dimensions.unit;
+  const labels = Object.fromEntries(DIMS.map((d) => {
+    const name = d.charAt(0).toUpperCase() + d.slice(1);
+    const verdict = r.quality?.dimensions[d]?.verdict;
+    return [d, { text: `${name} ${withSigma(r.dimensions[d], sigma?.[d], unit)}`, verdict }];
+  })) as BoxAnnotation["labels"];
+  return { size: [r.dimensions.width, r.dimensions.height, r.dimensions.depth], unit, labels };
 }

@@ -6,11 +6,28 @@ import type { Scale, ScanSpec } from "./types";
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const value = (id: string) => $<HTMLInputElement | HTMLSelectElement>(id).value;
 
-export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px" | "side_face">;
+export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px" | "side_face"
+  | "nominal" | "tolerance_mm">;
 
 export class SettingsForm {
   constructor(private twoPhoto: () => boolean) {
     $("scale-kind").addEventListener("change", () => this.render());
+    $("settings").addEventListener("change", () => this.describe());
+    $("quality-settings").addEventListener("change", () => this.describe());
+  }
+
+  /** Fold the settings away (a result is shown) or open them; the summary line says what is set. */
+  collapse(closed: boolean): void {
+    this.describe();
+    $<HTMLDetailsElement>("settings-panel").open = !closed;
+  }
+
+  private describe(): void {
+    const scale = $<HTMLSelectElement>("scale-kind");
+    const parts = [`scale: ${scale.selectedOptions[0]?.text.toLowerCase() ?? ""}`];
+    const nominal = ["nominal-width", "nominal-height", "nominal-depth"].map(value);
+    if (nominal.some((v) => v.trim())) parts.push(`nominal ${nominal.join(" × ")} mm ± ${value("tolerance-mm")}`);
+    $("settings-summary").textContent = `(${parts.join("; ")})`;
   }
 
   paper(): boolean {
@@ -52,8 +69,34 @@ export class SettingsForm {
     if (scale) settings.scale = scale;
     if (focal !== undefined) settings.focal_px = focal;
     if (!this.twoPhoto()) settings.side_face = value("second-face") as Settings["side_face"];
+    const quality = nominal();
+    if (quality) {
+      if (!scale) {
+        $("scale-kind").focus();
+        throw new Error("A nominal size needs a scale (the dimensions in millimetres): choose one under Scale.");
+      }
+      Object.assign(settings, quality);
+    }
     return settings;
   }
+}
+
+/** The nominal size and tolerance, or null when none is given (all fields empty). */
+function nominal(): Pick<Settings, "nominal" | "tolerance_mm"> | null {
+  const ids = ["nominal-width", "nominal-height", "nominal-depth"];
+  const names = ["The nominal width", "The nominal height", "The nominal depth"];
+  const tolerance = $<HTMLInputElement>("tolerance-mm");
+  if (ids.every((id) => value(id).trim() === "") && tolerance.value.trim() === "") return null;
+  const size = ids.map((id, i) => number(id, names[i], { positive: true })!) as [number, number, number];
+  const text = tolerance.value.trim();
+  const parts = text === "" ? [] : text.split(/[\s,;]+/).filter(Boolean);
+  const values = parts.map(Number);
+  if (!(parts.length === 1 || parts.length === 3) || values.some((v) => !Number.isFinite(v) || v < 0)) {
+    tolerance.focus();
+    throw new Error("The tolerance must be one number of millimetres (0 or more), or three: width, height, depth " +
+      `(got ${JSON.stringify(text)}).`);
+  }
+  return { nominal: size, tolerance_mm: values.length === 1 ? values[0] : (values as [number, number, number]) };
 }
 
 function number(id: string, what: string,

@@ -40,6 +40,28 @@ export interface Summary {
   failed: { frame: number; error: string }[];
 }
 
+export type Verdict = "pass" | "fail" | "uncertain";
+export const VERDICTS: readonly Verdict[] = ["pass", "fail", "uncertain"];
+
+/** One dimension against its nominal (prismcore.verdicts.DimensionVerdict), mm. */
+export interface DimensionVerdict {
+  nominal_mm: number;
+  measured_mm: number;
+  deviation_mm: number;
+  tolerance_mm: number;
+  sigma_mm: number | null;
+  interval_mm: [number, number];
+  verdict: Verdict;
+}
+
+/** report.json's quality block: the part's verdict against its nominal size. */
+export interface Quality {
+  verdict: Verdict;
+  k: number;
+  counts: Record<Verdict, number>;
+  dimensions: Partial<Record<Dimension, DimensionVerdict>>;
+}
+
 export interface Result {
   points: number;
   dimensions: Record<Dimension, number> & { unit: string };
@@ -52,6 +74,7 @@ export interface Result {
   focal_source?: string | null;
   fit_rms_px?: number | null;
   side_face?: string | null;
+  quality?: Quality | null;
 }
 
 export interface Frame {
@@ -83,8 +106,26 @@ export interface Job {
   client_reference: string | null;
   error: string | null;
   item_count: number;
+  verdicts?: Record<Verdict, number>;
   items: Item[];
 }
+
+/** GET /v1/jobs/{id}/results.json: a row per item, then per frame of a video item. */
+export interface ResultsTable {
+  job_id: string;
+  client_reference: string | null;
+  state: State;
+  verdicts: Record<Verdict, number>;
+  columns: string[];
+  rows: ResultRow[];
+}
+
+export type ResultRow = Record<string, string | number | null> & {
+  item: number;
+  frame: number | null;
+  state: State;
+  verdict: Verdict | null;
+};
 
 export interface JobList {
   jobs: Job[];
@@ -122,4 +163,8 @@ export interface ScanSpec {
   cloud: "surface" | "volume";
   scale?: Scale;
   focal_px?: number;
+  /** The part's nominal width, height and depth (mm), and the tolerance on them. */
+  nominal?: [number, number, number];
+  tolerance_mm?: number | [number, number, number];
+  formats?: string[];
 }

@@ -1,7 +1,8 @@
 """An item's (or a video frame's) display cloud and overlay picture, streamed through the API.
 
 ``GET /v1/jobs/{id}/items/{n}/preview.ply`` and ``.../items/{n}/frames/{f}/preview.ply``; the
-same with ``overlay.png`` (the fit drawn on the photo). The web page draws the cloud with WebGL
+same with ``overlay.png`` (the fit drawn on the photo), and ``items/{n}/box.glb`` (the fitted box
+as a textured glTF model, when the item asked for the glb format). The web page draws the cloud with WebGL
 and shows the overlay from its own origin, so these routes relay the worker's objects (`relay`).
 Another tenant's job answers 404, like every job route.
 """
@@ -29,6 +30,7 @@ _RESPONSES: dict[int | str, dict[str, Any]] = {
     200: _PLY, 404: {"description": "No such job, item, frame or preview"}
 }
 Index = Annotated[int, Path(ge=0)]
+_MEDIA = {"overlay": "image/png", "glb": "model/gltf-binary"}
 
 
 def _item(store, job_id: str, index: int, tenant: str) -> ItemRecord:
@@ -42,7 +44,7 @@ def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: s
            kind: str = "preview") -> StreamingResponse:
     if key is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"{what} has no {kind} (the {noun} is {state})")
-    media = "image/png" if kind == "overlay" else "application/octet-stream"
+    media = _MEDIA.get(kind, "application/octet-stream")
     response = relay_object(objects, key, media, max_age_s=300)
     if response is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"the {kind} of {what} is gone")
@@ -99,3 +101,16 @@ def get_frame_overlay(job_id: str, index: Index, frame: Index, tenant: TenantDep
     record = _frame(_item(store, job_id, index, tenant), job_id, index, frame)
     return _relay(objects, record.outputs.get("overlay"), f"frame {frame} of item {index} of job {job_id}",
                   "frame", record.state.value, "overlay")
+
+
+@router.get("/{job_id}/items/{index}/box.glb", response_class=StreamingResponse,
+            responses={200: {"content": {"model/gltf-binary": {}},
+                             "description": "The fitted box as binary glTF (metres, Y up), its visible "
+                                            "faces textured from the photo."},
+                       404: {"description": "No such job or item, or no glb (not among its formats)"}})
+def get_box_model(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
+                  objects: ObjectsDep) -> StreamingResponse:
+    """The item's box model (box.glb), relayed so the page loads it from its own origin."""
+    item = _item(store, job_id, index, tenant)
+    return _relay(objects, item.outputs.get("glb"), f"item {index} of job {job_id}", "item",
+                  item.state.value, "glb")
