@@ -9,6 +9,7 @@ from __future__ import annotations
 import redis
 from celery import Celery
 
+from .broker_transport import transport_for
 from .settings import Settings
 
 __all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
@@ -76,6 +77,8 @@ def configure_celery(app: Celery, settings: Settings) -> None:
     its configuration, so that importing the worker reads no settings)."""
     app.conf.update(
         broker_url=settings.redis_url,
+        # kombu's Redis transport with the fix that keeps a worker alive through a Redis restart.
+        broker_transport=transport_for(settings.redis_url),
         result_backend=settings.redis_url,
         task_acks_late=True,  # a task is acked when done, so a lost worker's task is redone
         task_reject_on_worker_lost=True,
