@@ -6,6 +6,8 @@ hash per task name with a count per bucket, the total count and the sum of secon
 
 from __future__ import annotations
 
+from typing import cast
+
 import redis
 
 __all__ = ["BUCKETS_S", "read_task_durations", "record_task_duration"]
@@ -28,7 +30,7 @@ def record_task_duration(client: redis.Redis, task: str, seconds: float) -> None
 
 def read_task_durations(client: redis.Redis) -> dict[str, dict[str, float]]:
     """{task: {"le:0.01": n, ..., "count": n, "sum": s}} for every task recorded."""
-    names = sorted(client.smembers(_KEY + "names"))
+    names = sorted(cast("set[str]", client.smembers(_KEY + "names")))  # a decoding client
     with client.pipeline() as pipe:
         for name in names:
             pipe.hgetall(_KEY + name)

@@ -17,9 +17,10 @@ import hashlib
 import json
 from collections.abc import Mapping
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, cast
 
 import redis
+from redis.typing import EncodableT, FieldT
 
 __all__ = ["UploadRecords", "upload_probe"]
 
@@ -45,14 +46,15 @@ def _sha_key(tenant: str, sha256: str, name: str) -> str:
 
 
 class UploadRecords:
-    """The upload half of the job store: methods over the store's Redis client, `_r`."""
+    """The upload half of the job store: methods over the store's Redis client, `_r`, which
+    decodes replies (as JobStore's must): they are cast to str here."""
 
     _r: redis.Redis
 
     def put_upload(self, upload_id: str, *, tenant: str, key: str, size: int, name: str,
                    probe: Mapping[str, Any] | None = None, sha256: str | None = None) -> None:
         now = datetime.now(UTC)
-        fields: dict[str, str | int] = {"tenant": tenant, "key": key, "size": size, "name": name,
+        fields: dict[FieldT, EncodableT] = {"tenant": tenant, "key": key, "size": size, "name": name,
                                         "created_at": now.isoformat()}
         if probe is not None:
             fields["probe"] = json.dumps(dict(probe))
@@ -79,27 +81,30 @@ class UploadRecords:
             upload_id = key.removeprefix(f"{_P}upload:")
             if ":" in upload_id:  # an extraction claim, not an upload
                 continue
-            made = self._r.hget(key, "created_at")
+            made = cast("str | None", self._r.hget(key, "created_at"))
             if made is not None:
                 stamp = datetime.fromisoformat(made).timestamp()
-                added += self._r.zadd(_UPLOADS, {upload_id: stamp}, nx=True)
+                added += cast(int, self._r.zadd(_UPLOADS, {upload_id: stamp}, nx=True))
         return added
 
     def uploads_before(self, when: float, limit: int = 500) -> list[str]:
         """Ids of up to `limit` uploads made before `when` (s since the epoch), oldest first."""
-        return self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit)
+        return cast("list[str]", self._r.zrangebyscore(_UPLOADS, "-inf", f"({when!r}", start=0, num=limit))
 
     def find_upload(self, tenant: str, sha256: str, name: str) -> tuple[str, dict[str, str]] | None:
         """The tenant's upload of this content (SHA-256) under this name (id and record), if
         it is still kept."""
-        upload_id = self._r.get(_sha_key(tenant, sha256, name))
-        record = self.get_upload(upload_id) if upload_id else None
+        upload_id = cast("str | None", self._r.get(_sha_key(tenant, sha256, name)))
+        if not upload_id:
+            return None
+        record = self.get_upload(upload_id)
         if record is None or record.get("tenant") != tenant or record.get("sha256") != sha256:
             return None
         return upload_id, record
 
     def delete_upload(self, upload_id: str) -> None:
-        tenant, sha256, name = self._r.hmget(f"{_P}upload:{upload_id}", ["tenant", "sha256", "name"])
+        tenant, sha256, name = cast("list[str | None]", self._r.hmget(f"{_P}upload:{upload_id}",
+                                                                       ["tenant", "sha256", "name"]))
         if tenant and sha256 and self._r.get(_sha_key(tenant, sha256, name or "")) == upload_id:
             self._r.delete(_sha_key(tenant, sha256, name or ""))
         with self._r.pipeline() as pipe:
@@ -108,7 +113,7 @@ class UploadRecords:
             pipe.execute()
 
     def get_upload(self, upload_id: str) -> dict[str, str] | None:
-        return self._r.hgetall(f"{_P}upload:{upload_id}") or None
+        return cast("dict[str, str]", self._r.hgetall(f"{_P}upload:{upload_id}")) or None
 
     def claim_extraction(self, upload_id: str, frame: int, ttl_s: int) -> bool:
         """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
