@@ -13,6 +13,9 @@ from .webhook_secret import signing_key
 
 __all__ = ["Settings", "get_settings"]
 
+# Typed, so that mypy checks these against OutputFormat's names.
+_DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
+
 
 class Settings(BaseSettings):
     """Every setting, with its environment variable PRISM_<NAME>.
@@ -71,7 +74,7 @@ class Settings(BaseSettings):
     # The outputs of an item whose spec names no formats (a spec's own list wins), e.g.
     # PRISM_DEFAULT_FORMATS='["laz","glb"]' for compact storage; the metric ones (las, laz, glb)
     # go to items with a scale only, and an item left with none gets csv and ply.
-    default_formats: list[OutputFormat] = Field(default_factory=lambda: ["csv", "ply"], min_length=1)
+    default_formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
 
     @field_validator("webhook_secret")
     @classmethod
