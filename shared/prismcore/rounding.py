@@ -40,10 +40,12 @@ _ARC = np.linspace(0.0, math.pi / 2, 721)
 _MIN_PX_PER_MM = 1.0  # coarser than this, a fold's ramp is not resolved
 MIN_FOLDS = 1
 """Folds needed for an estimate (their spread is its uncertainty)."""
-RESOLVED_PX = 3.0
+RESOLVED_PX = 3.2
 """The folds' ramps must span this many image px (their median) for a radius to be read: on
-photo-like renders of sharp boxes (blur, JPEG, print near a fold) single folds' fitted ramps
-span up to 3.5 px, their median up to 2.6 px."""
+renders of sharp boxes (blur, JPEG, print near a fold; 12 photo-like and 20 of
+benchmarks/accuracy.py) single folds' fitted ramps span up to 4.5 px, their median up to 3.1 px."""
+MIN_SIGNIFICANCE = 2.0
+"""A radius is read only when it is this many of its standard deviations above none."""
 PER_FOLD_STD_MM = 0.5
 """1-sigma error of one fold's estimate (mm), on photo-like renders against their true radius:
 print near a fold and a low contrast between the faces pull it either way."""
@@ -200,8 +202,9 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
     Returns
     -------
     RadiusEstimate or None
-        None when fewer than MIN_FOLDS folds are seen large enough to read, or no fold's ramp
-        spans RESOLVED_PX (median over folds): no evidence of a rounding (the caller keeps its prior).
+        None when there is no evidence of a rounding (the caller keeps its prior): fewer than
+        MIN_FOLDS folds seen large enough to read, their ramps spanning less than RESOLVED_PX
+        (median over folds), or a radius under MIN_SIGNIFICANCE standard deviations.
     """
     # Luma only: a JPEG keeps colour at half resolution, which would pass for a ramp.
     img = image[..., None] if image.ndim == 2 else (image[..., :3].astype(np.float32)
@@ -228,6 +231,8 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         pts = to_image(world.reshape(-1, 3)).reshape(_ALONG.size, x.size, 2)
         profile = np.median(_sample(img, pts), axis=0)
         r, shift, _ = fold_profile_radius(profile, x, g, tan_phi)  # type: ignore[arg-type]
+        if r >= _RADII_MM[-1]:
+            continue  # the widest ramp tried: something else (print, a shadow), not a rounding
         radii.append(r)
         toward_b = to_image((mid - n_a)[None])[0] - p0
         offsets.append((mid, -shift * toward_b / np.linalg.norm(toward_b)))
@@ -238,4 +243,6 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         return None  # what a sharp fold's blur, JPEG and print near it also show
     spread = float(np.std(radii, ddof=1)) if len(radii) > 1 else 0.0
     std = max(spread, PER_FOLD_STD_MM / math.sqrt(len(radii)), STD_FLOOR_MM)
+    if float(np.median(radii)) < MIN_SIGNIFICANCE * std:
+        return None  # the folds disagree too much to tell a rounding from none
     return RadiusEstimate(float(np.median(radii)), std, tuple(radii), tuple(resolution), tuple(offsets))
