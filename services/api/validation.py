@@ -56,6 +56,7 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
         if camera is not None and camera.has_distortion:
             return None  # the engine checks the quads on undistorted points, after decoding
         face = resolve_side_face(points, spec.side_face, two_photo=spec.two_photo)
+        labels: tuple[tuple[str | None, ...] | None, tuple[str | None, ...] | None]  # None: unnamed corners
         if spec.method == "paper":
             quads, labels = paper_rectangles(points, two_photo=spec.two_photo, side_face=face), (None, None)
         else:
@@ -126,6 +127,12 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
+        if item.auto_points is not None:
+            # The engine's search (prismcore.locate) runs in `prism scan` only so far: a job that
+            # asked for it would otherwise fail when polled, with a reason about something else.
+            fail(("items", i, "points"), f"item {i}: points \"auto\" is measured by `prism scan "
+                                         f"--points auto` only for now; the service needs the points")
+            continue
         shapes: dict[str, tuple[int, int] | None] = {}
         for field in ("image", "side_image"):
             text = getattr(item, field)
