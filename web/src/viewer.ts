@@ -190,7 +190,7 @@ export class Viewer {
       const dims: [Dimension, THREE.Vector3, THREE.Vector3, THREE.Vector3][] = [
         ["width", new THREE.Vector3(0, 0, 0), new THREE.Vector3(w, 0, 0), new THREE.Vector3(0, -1, 0)],
         ["height", new THREE.Vector3(0, 0, 0), new THREE.Vector3(0, h, 0), new THREE.Vector3(-1, 0, 0)],
-        ["depth", new THREE.Vector3(w, 0, 0), new THREE.Vector3(w, 0, d), new THREE.Vector3(1, -1, 0).normalize()],
+        ["depth", new THREE.Vector3(w, h, 0), new THREE.Vector3(w, h, d), new THREE.Vector3(1, 0, 0)],
       ];
       for (const [name, a, b, dir] of dims) {
         const [a2, b2] = [a.clone().addScaledVector(dir, o), b.clone().addScaledVector(dir, o)];
