@@ -52,7 +52,7 @@ def detect_type(head: bytes) -> str:
         return f"a RIFF {head[8:12].decode('latin-1').strip()!r} file, not AVI or WebP"
     sample = head[:4096]
     try:
-        text = sample.decode("utf-8")
+        text: str | None = sample.decode("utf-8")
     except UnicodeDecodeError as exc:
         # A multi-byte character cut at the sample's end is still text.
         text = sample[: exc.start].decode("utf-8") if exc.start >= len(sample) - 3 else None

@@ -8,7 +8,7 @@ a video's frames) is recorded with the upload, so a job naming it is checked at 
 from __future__ import annotations
 
 import tempfile
-from typing import IO, Any
+from typing import IO, Any, BinaryIO, cast
 from uuid import uuid4
 
 import anyio
@@ -67,7 +67,8 @@ async def create_upload(request: Request, response: Response, tenant: TenantDep,
     key = upload_key(tenant, upload_id)
     try:
         try:
-            await anyio.to_thread.run_sync(objects.put_stream, key, upload)
+            # A file object to boto3, which only read()s it (it has no seek: a multipart upload).
+            await anyio.to_thread.run_sync(objects.put_stream, key, cast(BinaryIO, upload))
         except Exception:
             if upload.failure is not None:  # our own refusal, possibly wrapped by boto3
                 raise upload.failure from None
