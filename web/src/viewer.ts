@@ -112,9 +112,9 @@ export class Viewer {
   /** The point size slider's step (1-8; 3 by default covers the surface without gaps). */
   pointSize(step: number): void {
     this.sizeStep = step;
-    // PointsMaterial's attenuated size is in world units times (viewport height / 2) / depth,
-    // without the field of view: tan(fov / 2) makes it world units on screen.
-    this.material.size = this.spacing * (0.55 * step) * Math.tan(THREE.MathUtils.degToRad(FOV / 2));
+    // PointsMaterial's attenuated size is drawn (viewport height / 2) / depth pixels per unit,
+    // without the field of view; a world length L covers L (height / 2) / (depth tan(fov / 2)).
+    this.material.size = (this.spacing * 0.55 * step) / Math.tan(THREE.MathUtils.degToRad(FOV / 2));
     this.render();
   }
 
