@@ -18,6 +18,7 @@ from celery import Celery
 from fastapi import Depends, HTTPException, Request, Security, status
 from fastapi.security import APIKeyHeader
 from prism_common.queue import make_celery
+from prism_common.redis_client import redis_client
 from prism_common.settings import Settings, get_settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
@@ -47,9 +48,8 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 
 def get_redis(settings: SettingsDep) -> redis.Redis:
     # Timeouts: a stuck Redis fails the request (503) instead of holding it forever.
-    return _once(("redis", settings.redis_url), lambda: redis.Redis.from_url(
-        settings.redis_url, decode_responses=True, socket_connect_timeout=5, socket_timeout=15,
-        health_check_interval=30))
+    return _once(("redis", settings.redis_url, *settings.redis_sentinels), lambda: redis_client(
+        settings, socket_connect_timeout=5, socket_timeout=15, health_check_interval=30))
 
 
 RedisDep = Annotated[redis.Redis, Depends(get_redis)]

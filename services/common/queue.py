@@ -10,6 +10,7 @@ import redis
 from celery import Celery
 
 from .broker_transport import transport_for
+from .redis_client import celery_transport_options, celery_url
 from .settings import Settings
 
 __all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
@@ -76,10 +77,10 @@ def configure_celery(app: Celery, settings: Settings) -> None:
     """Configure `app` as `make_celery` does (the worker's app does it when Celery first reads
     its configuration, so that importing the worker reads no settings)."""
     app.conf.update(
-        broker_url=settings.redis_url,
+        broker_url=celery_url(settings),
         # kombu's Redis transport with the fix that keeps a worker alive through a Redis restart.
-        broker_transport=transport_for(settings.redis_url),
-        result_backend=settings.redis_url,
+        broker_transport=transport_for(celery_url(settings)),
+        result_backend=celery_url(settings),
         task_acks_late=True,  # a task is acked when done, so a lost worker's task is redone
         task_reject_on_worker_lost=True,
         worker_prefetch_multiplier=1,  # one task at a time per process: fair across jobs
@@ -89,8 +90,9 @@ def configure_celery(app: Celery, settings: Settings) -> None:
         # Kombu looks for a lost worker's unacked messages only every 10th restore cycle by
         # default (100 s); every cycle brings them back within visibility_timeout + 10 s.
         broker_transport_options={"visibility_timeout": settings.visibility_timeout_s,
-                                  "unacked_restore_throttle": 1},
-        result_backend_transport_options={"visibility_timeout": settings.visibility_timeout_s},
+                                  "unacked_restore_throttle": 1, **celery_transport_options(settings)},
+        result_backend_transport_options={"visibility_timeout": settings.visibility_timeout_s,
+                                          **celery_transport_options(settings)},
         result_expires=86400,
         task_serializer="json",
         result_serializer="json",

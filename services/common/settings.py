@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Annotated
 
 from pydantic import Field, SecretStr, field_validator, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from prismcore.spec import OutputFormat
 
@@ -34,6 +35,12 @@ class Settings(BaseSettings):
     webhook_secret: SecretStr = Field(description="Key for webhook signatures (Standard Webhooks).")
 
     redis_url: str = "redis://127.0.0.1:6379/0"
+    # Redis behind Sentinel (prism_common.redis_client): PRISM_REDIS_SENTINELS=host:port,host:port
+    # names the sentinels, which say where the primary named PRISM_REDIS_SENTINEL_MASTER is;
+    # redis_url then gives only the primary's password and database number.
+    redis_sentinels: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    redis_sentinel_master: str = "prism"
+    redis_sentinel_password: SecretStr | None = None  # the sentinels' own (requirepass)
     s3_endpoint_url: str | None = None  # None: AWS S3
     # The store as clients reach it, for the presigned download links (the signature covers the
     # host, so links cannot be rewritten afterwards). None: s3_endpoint_url.
@@ -81,6 +88,17 @@ class Settings(BaseSettings):
     def _webhook_key(cls, secret: SecretStr) -> SecretStr:
         signing_key(secret.get_secret_value())  # a malformed whsec_ secret stops the start
         return secret
+
+    @field_validator("redis_sentinels", mode="before")
+    @classmethod
+    def _sentinels(cls, value: object) -> object:
+        if isinstance(value, str):
+            value = [part.strip() for part in value.split(",") if part.strip()]
+        for address in value if isinstance(value, list) else []:
+            host, _, port = str(address).rpartition(":")
+            if not host or not port.isdigit():
+                raise ValueError(f"redis_sentinels: {address!r} is not host:port")
+        return value
 
     @field_validator("fetch_allowed_hosts", "webhook_allowed_hosts")
     @classmethod

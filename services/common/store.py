@@ -33,6 +33,8 @@ import redis
 from redis.typing import EncodableT, FieldT
 
 from .records import FINAL_STATES, FrameRecord, ItemRecord, ItemView, JobRecord, State
+from .redis_client import redis_client
+from .settings import Settings
 from .upload_records import UploadRecords
 
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictError", "JobStore"]
@@ -107,8 +109,8 @@ class JobStore(UploadRecords):
         self._item_done = client.register_script(_ITEM_DONE)
 
     @classmethod
-    def from_url(cls, url: str) -> JobStore:
-        return cls(redis.Redis.from_url(url, decode_responses=True, health_check_interval=30))
+    def from_settings(cls, settings: Settings) -> JobStore:
+        return cls(redis_client(settings, health_check_interval=30))
 
     # -- jobs -------------------------------------------------------------------------------
     def create(self, job: JobRecord, *, idempotency_key: str | None = None,

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 import redis
+from prism_common.redis_client import redis_client
 from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
@@ -46,8 +47,7 @@ class WorkerContext:
 def build_context(settings: Settings, send_task: SendTask) -> WorkerContext:
     """The real collaborators for `settings`: Redis (with timeouts, so a stalled Redis surfaces
     as an error the task retries, not a hung worker), the job store on it, the bucket."""
-    client = redis.Redis.from_url(settings.redis_url, decode_responses=True, health_check_interval=30,
-                                  socket_timeout=30, socket_connect_timeout=5)
+    client = redis_client(settings, health_check_interval=30, socket_timeout=30, socket_connect_timeout=5)
     store = JobStore(client)
     return WorkerContext(settings=settings, redis=client, store=store,
                          objects=ObjectStore.from_settings(settings),

@@ -179,3 +179,27 @@ def test_primary_killed_with_jobs_in_flight_sentinel_promotes_and_nothing_is_los
         assert {"items/0/cloud.ply", "items/1/cloud.ply"} <= stack.keys(job_id)
     figures.update({"faults survived": 1, "jobs submitted": len(accepted),
                     "jobs succeeded": states.count("succeeded")})
+
+
+def test_sentinel_settings_and_celery_urls(monkeypatch):
+    from prism_common.redis_client import celery_transport_options, celery_url
+    from prism_common.settings import Settings
+    from pydantic import ValidationError
+
+    from .conftest import API_KEYS, WEBHOOK_SECRET
+
+    base = {"api_keys": API_KEYS, "webhook_secret": WEBHOOK_SECRET}
+    monkeypatch.setenv("PRISM_REDIS_SENTINELS", " 10.0.0.1:26379,redis-b:26380 ")
+    monkeypatch.setenv("PRISM_REDIS_URL", "redis://:p%40ss@ignored:6379/3")
+    monkeypatch.setenv("PRISM_REDIS_SENTINEL_PASSWORD", "s3")
+    settings = Settings(**base)
+    assert settings.redis_sentinels == ["10.0.0.1:26379", "redis-b:26380"]
+    assert celery_url(settings) == "sentinel://:p%40ss@10.0.0.1:26379/3;sentinel://:p%40ss@redis-b:26380/3"
+    assert celery_transport_options(settings) == {"master_name": "prism",
+                                                  "sentinel_kwargs": {"password": "s3"}}
+    monkeypatch.setenv("PRISM_REDIS_SENTINELS", "10.0.0.1")
+    with pytest.raises(ValidationError, match="is not host:port"):
+        Settings(**base)
+    monkeypatch.delenv("PRISM_REDIS_SENTINELS")
+    plain = Settings(**base)
+    assert celery_url(plain) == plain.redis_url and celery_transport_options(plain) == {}

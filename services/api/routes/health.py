@@ -11,6 +11,8 @@ import redis.asyncio as aioredis
 from botocore.exceptions import BotoCoreError
 from fastapi import APIRouter, Request, Response, status
 from fastapi.responses import JSONResponse
+from prism_common.redis_client import async_redis_client
+from prism_common.settings import Settings
 from prometheus_client import CONTENT_TYPE_LATEST
 
 from ..collector import render_metrics
@@ -29,10 +31,10 @@ def healthz() -> dict[str, str]:
     return {"status": "ok"}
 
 
-async def _redis_ok(url: str) -> bool:
+async def _redis_ok(settings: Settings) -> bool:
     # A client of its own with short timeouts: the shared one waits longer, for real work.
-    client = aioredis.Redis.from_url(url, socket_timeout=PROBE_TIMEOUT_S,
-                                     socket_connect_timeout=PROBE_TIMEOUT_S)
+    client = async_redis_client(settings, socket_timeout=PROBE_TIMEOUT_S,
+                                socket_connect_timeout=PROBE_TIMEOUT_S)
     try:
         return bool(await client.ping())
     except (aioredis.RedisError, OSError) as exc:
@@ -68,7 +70,7 @@ async def readyz(request: Request, settings: SettingsDep, objects: ObjectsDep) -
             checks[name] = await probe()
 
     async with anyio.create_task_group() as group:
-        group.start_soon(run, "redis", lambda: _redis_ok(settings.redis_url))
+        group.start_soon(run, "redis", lambda: _redis_ok(settings))
         group.start_soon(run, "object_store", lambda: _object_store_ok(objects))
     body = {name: "ok" if ok else "down" for name, ok in checks.items()}
     if all(checks.values()):
