@@ -13,8 +13,9 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path, status
 from fastapi.responses import StreamingResponse
-from prism_common.records import ItemRecord
+from prism_common.records import FrameRecord, ItemRecord
 from prism_common.storage import ObjectStore
+from prism_common.store import JobStore
 
 from ..deps import ObjectsDep, StoreDep, TenantDep
 from ..relay import relay_object
@@ -33,7 +34,7 @@ Index = Annotated[int, Path(ge=0)]
 _MEDIA = {"overlay": "image/png", "glb": "model/gltf-binary"}
 
 
-def _item(store, job_id: str, index: int, tenant: str) -> ItemRecord:
+def _item(store: JobStore, job_id: str, index: int, tenant: str) -> ItemRecord:
     job = own_job(store, job_id, tenant)
     if index >= len(job.items):
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"job {job_id} has no item {index}")
@@ -51,7 +52,7 @@ def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: s
     return response
 
 
-def _frame(item: ItemRecord, job_id: str, index: int, frame: int):
+def _frame(item: ItemRecord, job_id: str, index: int, frame: int) -> FrameRecord:
     record = next((f for f in item.frames if f.index == frame), None)
     if record is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND,
@@ -78,9 +79,10 @@ def get_frame_preview(job_id: str, index: Index, frame: Index, tenant: TenantDep
                   "frame", record.state.value)
 
 
-_PNG_RESPONSES = {200: {"content": {"image/png": {}}, "description": "The fit drawn on the photo: "
-                        "clicks, fitted faces and corners, residuals, dimensions."},
-                  404: {"description": "No such job, item, frame or overlay"}}
+_PNG_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"image/png": {}}, "description": "The fit drawn on the photo: "
+          "clicks, fitted faces and corners, residuals, dimensions."},
+    404: {"description": "No such job, item, frame or overlay"}}
 
 
 @router.get("/{job_id}/items/{index}/overlay.png", response_class=StreamingResponse,

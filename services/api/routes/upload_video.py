@@ -9,7 +9,7 @@ Another tenant's upload answers 404, like an unknown one.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from celery import Celery
 from fastapi import APIRouter, HTTPException, Path, status
@@ -27,8 +27,10 @@ router = APIRouter(prefix="/uploads", tags=["uploads"])
 
 RETRY_AFTER_S = 1
 CLAIM_TTL_S = 30  # a lost extraction is asked for again after this
-_PENDING = {202: {"description": "The worker is decoding it: ask again after Retry-After seconds"}}
-_PNG = {"content": {"image/png": {}}, "description": "The frame, lossless, as the worker decodes it."}
+_PENDING: dict[int | str, dict[str, Any]] = {
+    202: {"description": "The worker is decoding it: ask again after Retry-After seconds"}}
+_PNG: dict[str, Any] = {"content": {"image/png": {}},
+                        "description": "The frame, lossless, as the worker decodes it."}
 
 
 def _own_upload(store: JobStore, upload_id: str, tenant: str) -> dict[str, str]:
