@@ -4,8 +4,9 @@ Where two faces the camera sees meet (a fold), a rounded edge shows as a strip o
 which the surface turns from one face's normal to the other's: the shade ramps from one face's
 level to the other's over about the radius. A silhouette edge (the face beyond it turned away)
 tells less: it is cut off where the camera's ray grazes the rounding, which lies inside the sharp
-outline by an amount that needs the radius (`perspective.model_error_cov`). So the radius is read
-at the folds and applied at the silhouettes.
+outline by an amount that needs the radius (`perspective.rounding_shifts`). So the radius is read
+at the folds and applied at the silhouettes; each fold's fit also says where its sharp edge lies
+against the fold line the box was fitted to (an edge detector finds a ramp's steepest point).
 
 The fold's cross-section is exact for a quarter-cylinder edge of radius r: with (m, n) along the
 face toward its neighbour and along its normal, origin at the sharp edge, the arc point at angle
@@ -13,10 +14,12 @@ a (0: tangent to the face, 90 degrees: tangent to the neighbour) is seen at
 s = r (1 - sin a - (1 - cos a) tan phi) inside the edge, phi the ray's angle from the face's
 normal across the edge. Its Lambertian shade, ambient k0 plus k1 (normal . light), is
 k0 (1 - cos a - sin a) + I_face cos a + I_neighbour sin a: linear in the flat levels and one
-unknown. Per radius on a grid (and a little blur and a sub-pixel offset of the fold) that is a
-linear least-squares fit of the profile across the fold (the median over positions along it, so
-that print and texture drop out); the radius is the best one, its uncertainty the spread of the
-folds' answers.
+unknown. Per radius on a grid (and a blur and an offset of the fold of up to 3 px) that is a
+linear least-squares fit of the luma profile across the fold (the median over positions along it,
+so that print and texture mostly drop out); each face's level may drift linearly. The radius is
+the folds' median, its uncertainty their spread (PER_FOLD_STD_MM for one fold). Without clear
+evidence (RESOLVED_PX, MIN_SIGNIFICANCE) there is no estimate: blur, JPEG and print near a sharp
+fold also look like a narrow ramp.
 """
 
 from __future__ import annotations
