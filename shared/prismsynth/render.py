@@ -44,8 +44,11 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -215,7 +218,7 @@ class Realism:
         return np.array([self.k1, self.k2, 0.0, 0.0, 0.0])
 
 
-class _Points(dict):
+class _Points(dict[str, tuple[float, float]]):
     """Point name -> (x, y) px. Keys are the engine's ("p1".."p7"); lookups ignore case."""
 
     def __getitem__(self, key: str) -> tuple[float, float]:
@@ -224,7 +227,8 @@ class _Points(dict):
     def __contains__(self, key: object) -> bool:
         return super().__contains__(key.lower() if isinstance(key, str) else key)
 
-    def get(self, key: str, default=None):  # type: ignore[override]
+    def get(self, key: str,  # type: ignore[override]
+            default: tuple[float, float] | None = None) -> tuple[float, float] | None:
         return super().get(key.lower(), default)
 
 
@@ -300,7 +304,8 @@ def _project(K: np.ndarray, R: np.ndarray, t: np.ndarray, X: np.ndarray) -> np.n
     """Pinhole projection of (N, 3) world points to (N, 2) px."""
     cam = X @ R.T + t
     uvw = cam @ K.T
-    return uvw[:, :2] / uvw[:, 2:3]
+    px: np.ndarray = uvw[:, :2] / uvw[:, 2:3]
+    return px
 
 
 def _corners(box: Box) -> dict[str, np.ndarray]:
@@ -387,7 +392,8 @@ def _oblique_pose(box: Box, distance_mm: float, yaw_deg: float,
     return R, -R @ centre
 
 
-def _auto_distance(box: Box, image_size: tuple[int, int], focal_px: float, pose) -> float:
+def _auto_distance(box: Box, image_size: tuple[int, int], focal_px: float,
+                   pose: Callable[[float], tuple[np.ndarray, np.ndarray]]) -> float:
     """Distance at which the box's projection spans _FILL_WIDTH of the image width (or
     _MAX_FILL_HEIGHT of its height, whichever is reached first)."""
     K = _camera_matrix(focal_px, _principal(image_size))
@@ -424,9 +430,11 @@ def _halfplane_coverage(s: np.ndarray, nx: float, ny: float) -> np.ndarray:
     t = np.clip(s, -h1, h1)
 
     def q(x: np.ndarray) -> np.ndarray:
-        return np.square(np.maximum(x, 0.0)) / 2
+        half_square: np.ndarray = np.square(np.maximum(x, 0.0)) / 2
+        return half_square
 
-    return np.clip((q(t + h1) - q(t + h0) - q(t - h0) + q(t - h1)) / (a * b), 0.0, 1.0)
+    coverage: np.ndarray = np.clip((q(t + h1) - q(t + h0) - q(t - h0) + q(t - h1)) / (a * b), 0.0, 1.0)
+    return coverage
 
 
 def _polygon_coverage(poly: np.ndarray, x0: int, y0: int, w: int, h: int) -> np.ndarray:
@@ -481,14 +489,15 @@ def _light(rng: np.random.Generator) -> np.ndarray:
     return np.array([0.45, -0.45, -0.77])
 
 
-def _lambert(normal, light: np.ndarray) -> float:
+def _lambert(normal: np.ndarray | list[int], light: np.ndarray) -> float:
     return 0.42 + 0.58 * max(0.0, float(np.dot(normal, light)))
 
 
 def _random_color(rng: np.random.Generator) -> np.ndarray:
     c = rng.uniform(20, 235, 3)
     grey = c.mean()
-    return grey + (c - grey) * rng.uniform(0.15, 0.85)  # mostly muted, like real rooms
+    muted: np.ndarray = grey + (c - grey) * rng.uniform(0.15, 0.85)  # mostly muted, like real rooms
+    return muted
 
 
 def _contrasting(rng: np.random.Generator, face: np.ndarray, min_dist: float = 70.0) -> np.ndarray:
@@ -511,7 +520,8 @@ def _low_freq(rng: np.random.Generator, h: int, w: int, cells: int) -> np.ndarra
     gh, gw = max(2, round(cells * h / max(h, w))), max(2, round(cells * w / max(h, w)))
     small = rng.standard_normal((gh, gw)).astype(np.float32)
     field = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
-    return (field - field.mean()) / (field.std() + 1e-6)
+    normalised: np.ndarray = (field - field.mean()) / (field.std() + 1e-6)
+    return normalised
 
 
 def _background(rng: np.random.Generator, size: tuple[int, int], style: Style,
@@ -524,7 +534,7 @@ def _background(rng: np.random.Generator, size: tuple[int, int], style: Style,
     else:
         base = _contrasting(rng, face)
         family = None
-    img = np.empty((h, w, 3), np.float32)
+    img: np.ndarray = np.empty((h, w, 3), np.float32)  # float32, uint8 to draw on, float32
     img[:] = base
     if not style.clutter:
         return img
@@ -591,10 +601,10 @@ def _background(rng: np.random.Generator, size: tuple[int, int], style: Style,
     for _ in range(int(rng.integers(1, 4))):
         x, y = rng.uniform(0, 0.9) * w, rng.uniform(0.05, 0.95) * h
         c = color(strong=True)
-        size = rng.uniform(0.4, 1.0)
+        font_scale = rng.uniform(0.4, 1.0)
         for line in range(int(rng.integers(2, 6))):
-            cv2.putText(img, _words(rng, 14), (round(x), round(y + line * 30 * size)),
-                        cv2.FONT_HERSHEY_SIMPLEX, size, c, 1, cv2.LINE_AA)
+            cv2.putText(img, _words(rng, 14), (round(x), round(y + line * 30 * font_scale)),
+                        cv2.FONT_HERSHEY_SIMPLEX, font_scale, c, 1, cv2.LINE_AA)
     # Fine grain of the surfaces.
     img = img.astype(np.float32)
     grain = cv2.GaussianBlur(rng.standard_normal((h, w)).astype(np.float32), (0, 0), 0.8)
@@ -602,12 +612,12 @@ def _background(rng: np.random.Generator, size: tuple[int, int], style: Style,
     return img
 
 
-def _fix(p) -> tuple[int, int]:
+def _fix(p: np.ndarray) -> tuple[int, int]:
     """A point in OpenCV's 4-bit fixed point (shift=4)."""
     return round(float(p[0]) * 16), round(float(p[1]) * 16)
 
 
-def _poly(img: np.ndarray, poly: np.ndarray, color, thick: int) -> None:
+def _poly(img: np.ndarray, poly: np.ndarray, color: tuple[float, ...], thick: int) -> None:
     pts = [np.round(np.asarray(poly) * 16).astype(np.int32)]
     if thick < 0:
         cv2.fillPoly(img, pts, color, cv2.LINE_AA, shift=4)
@@ -630,7 +640,7 @@ def _fit_text(rng: np.random.Generator, room: int, scale: float, thick: int) -> 
 
 def _words(rng: np.random.Generator, n: int) -> str:
     letters = "ABCDEFGHIJKLMNOPRSTUVWXYZ0123456789"
-    out = []
+    out: list[str] = []
     while sum(len(x) + 1 for x in out) < n:
         out.append("".join(letters[i] for i in rng.integers(len(letters), size=int(rng.integers(2, 8)))))
     return " ".join(out)
@@ -644,14 +654,15 @@ def _grain(rng: np.random.Generator, nv: int, nu: int, amplitude: float) -> np.n
     if amplitude <= 0:
         return np.zeros((nv, nu), np.float32)
     fine = cv2.GaussianBlur(rng.standard_normal((nv, nu)).astype(np.float32), (0, 0), 0.7)
-    fibres = rng.standard_normal((nv, nu)).astype(np.float32)
+    fibres: np.ndarray = rng.standard_normal((nv, nu)).astype(np.float32)
     horizontal = rng.random() < 0.5
     fibres = cv2.GaussianBlur(fibres, (0, 0), sigmaX=6.0 if horizontal else 0.6,
                               sigmaY=0.6 if horizontal else 6.0)
     mottle = _low_freq(rng, nv, nu, 8)
     out = (0.75 * fine / (fine.std() + 1e-6) + 0.45 * fibres / (fibres.std() + 1e-6)
            + 0.45 * mottle)
-    return out * amplitude
+    grain: np.ndarray = out * amplitude
+    return grain
 
 
 def _lighting_field(rng: np.random.Generator, nv: int, nu: int, strength: float) -> np.ndarray:
@@ -666,7 +677,8 @@ def _lighting_field(rng: np.random.Generator, nv: int, nu: int, strength: float)
     spot = np.exp(-((u - hx) ** 2 + (v - hy) ** 2) / (2 * rng.uniform(0.2, 0.5) ** 2))
     g = 0.7 * ramp + 0.5 * spot
     g = (g - g.min()) / (np.ptp(g) + 1e-6) - 0.5  # exactly spans [-0.5, 0.5]
-    return 1.0 + strength * g
+    field: np.ndarray = 1.0 + strength * g
+    return field
 
 
 def _draw_label(rng: np.random.Generator, albedo: np.ndarray, texture: float) -> None:
@@ -828,7 +840,7 @@ def _render(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: t
         img = cv2.GaussianBlur(img, (0, 0), style.blur_sigma, borderType=cv2.BORDER_REFLECT)
     if style.noise_sigma > 0:
         img += rng_noise.standard_normal(img.shape, dtype=np.float32) * np.float32(style.noise_sigma)
-    out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    out: np.ndarray = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     if style.jpeg_quality is not None:
         out = _jpeg_round_trip(out, style.jpeg_quality)
     return out
@@ -922,7 +934,7 @@ def _cast_shadow(bg: np.ndarray, cover: np.ndarray, light_cam: np.ndarray, light
     ys, xs = np.nonzero(cover > 0.5)
     if xs.size == 0:
         return bg
-    size = max(np.ptp(xs), np.ptp(ys), 1)
+    size = max(int(np.ptp(xs)), int(np.ptp(ys)), 1)  # px
     away = -light_cam[:2]
     norm = float(np.linalg.norm(away))
     direction = away / norm if norm > 1e-6 else np.array([0.0, 1.0])
@@ -933,7 +945,8 @@ def _cast_shadow(bg: np.ndarray, cover: np.ndarray, light_cam: np.ndarray, light
     small = cv2.GaussianBlur(small, (0, 0), max(0.5, 0.01 * size))
     shadow = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
     strength = min(0.35, 0.9 * lighting)
-    return bg * (1.0 - strength * shadow)[..., None]
+    shaded: np.ndarray = bg * (1.0 - strength * shadow)[..., None]
+    return shaded
 
 
 def _jpeg_round_trip(rgb: np.ndarray, quality: int) -> np.ndarray:
@@ -941,7 +954,8 @@ def _jpeg_round_trip(rgb: np.ndarray, quality: int) -> np.ndarray:
     ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise RuntimeError("JPEG encoding failed")
-    return cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    decoded = cast("np.ndarray", cv2.imdecode(buf, cv2.IMREAD_COLOR))  # None only for bad bytes
+    return cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB)
 
 
 def _scene(box: Box, view: str, image_size: tuple[int, int], focal_px: float, distance_mm: float,
@@ -1288,7 +1302,8 @@ def save_image(scene_or_array: Scene | np.ndarray, path: str | Path) -> None:
     fmt = _SAVE_FORMATS.get(path.suffix.lower())
     if fmt is None:
         raise ValueError(f"unsupported image extension {path.suffix!r}: use one of {sorted(_SAVE_FORMATS)}")
-    options = {"JPEG": {"quality": 95}, "WEBP": {"lossless": True}}.get(fmt, {})
+    saving: dict[str, dict[str, object]] = {"JPEG": {"quality": 95}, "WEBP": {"lossless": True}}
+    options = saving.get(fmt, {})
     Image.fromarray(np.ascontiguousarray(image)).save(path, format=fmt, **options)
 
 
@@ -1433,7 +1448,7 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
         fill = float(rng.uniform(0.35, 0.6))
         roll = math.radians(rng.uniform(-8.0, 8.0))
         shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
-        d = _auto_distance(box, (w, h), focal, lambda d, y=yaw, p=pitch: _oblique_pose(box, d, y, p))
+        d = _auto_distance(box, (w, h), focal, partial(_oblique_pose, box, yaw_deg=yaw, pitch_deg=pitch))
         R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
         angles = _face_angles(box, -R.T @ t)
         if not all(lo <= a <= hi for a in angles):
@@ -1453,9 +1468,9 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
     front_centre = R @ np.array([box.width_mm / 2, box.height_mm / 2, 0.0]) + t
     scene = _scene(box, "oblique", (w, h), focal, float(front_centre[2]), R, t, style,
                    int(rng.integers(1 << 31)), _POINT_ORDER, "front", None, realism=realism)
-    radius = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
+    offset = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
     angle = rng.uniform(0.0, 2 * math.pi, 7)
     clicks = {n: (scene.points[n][0] + float(r * math.cos(a)), scene.points[n][1] + float(r * math.sin(a)))
-              for n, r, a in zip(_POINT_ORDER, radius, angle, strict=True)}
+              for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
     known = str(rng.choice(["width", "height", "depth"]))
     return PhotoLikeScene(scene, clicks, known, realism.exif is not None, style, realism, angles)
