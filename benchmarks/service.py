@@ -8,7 +8,11 @@ N photos of 1280x1024, submits them as jobs at a steady rate, and prints:
 * the engine again, storing the same outputs (CSV, PLY, preview, report) into the same
   SeaweedFS with boto3, no queue: the share of the overhead that is object storage itself
   (on this machine the store's server shares the 2 cores with the workers);
-* submit latency p50/p99 at the steady request rate, and status-poll latency p50/p99.
+* submit latency p50/p99 at the steady request rate, and status-poll latency p50/p99;
+* then the same photos again through the same service for each output mode, side by side:
+  default (CSV + PLY), compact (LAZ + glb) and compact at a 1 mm spacing: images per second and
+  the bytes stored per photo (every object under the jobs' prefixes: the formats, preview.ply,
+  overlay.png, report.json, job.json), against the issue's ceiling of 4 MB for compact.
 
 Run: .venv/bin/python benchmarks/service.py [--images 200] [--per-job 10] [--rate 20]
 """
@@ -42,6 +46,12 @@ from prismsynth import Box, render_oblique_view
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 PROCESSES = 2
 STORE_BUCKET = "bench-engine"
+SERVICE_BUCKET = "prismcloud"  # the service's default bucket
+# Output modes: what each item of a run adds to its spec.
+MODES = {"default (csv + ply)": {},
+         "compact (laz + glb)": {"formats": ["laz", "glb"]},
+         "compact, 1 mm spacing": {"formats": ["laz", "glb"], "spacing_mm": 1.0}}
+COMPACT_MAX_BYTES = 4_000_000
 
 
 def _scenes(count: int) -> list[tuple[bytes, dict]]:
@@ -127,34 +137,57 @@ def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, t
                             headers={"X-API-Key": key})
         refs = [http.post("/v1/uploads", files={"file": ("p.jpg", data)}).json()["reference"]
                 for data, _ in work]
-        jobs, submit_ms = [], []
-        start = time.perf_counter()
-        for n, first in enumerate(range(0, len(work), per_job)):
-            time.sleep(max(0.0, start + n / rate - time.perf_counter()))  # steady rate
-            items = [{"image": ref, **item} for ref, (_, item) in
-                     zip(refs[first:first + per_job], work[first:first + per_job], strict=True)]
-            t = time.perf_counter()
-            response = http.post("/v1/jobs", json={"items": items})
-            submit_ms.append((time.perf_counter() - t) * 1000)
-            jobs.append(response.json()["id"])
-        poll_ms, pending = [], set(jobs)
-        while pending:
-            for job_id in list(pending):
-                t = time.perf_counter()
-                state = http.get(f"/v1/jobs/{job_id}").json()["state"]
-                poll_ms.append((time.perf_counter() - t) * 1000)
-                if state in ("succeeded", "failed", "cancelled"):
-                    pending.discard(job_id)
-            time.sleep(1.0)  # a client polls each job about once a second
-        elapsed = time.perf_counter() - start
-        tasks = _task_means(http.get("/metrics").text)
-        failed = sum(item["state"] != "succeeded" for job_id in jobs
-                     for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
-        return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
-                "failed_items": failed, "tasks": tasks, "engine_store_rate": engine_store_rate}
+        _store_init(endpoint, *creds)
+        s3_client = _STORE.pop()
+        runs = {}
+        for mode, extra in MODES.items():
+            runs[mode] = _run(http, refs, work, per_job, rate, extra)
+            runs[mode]["bytes_per_photo"] = sum(
+                _stored_bytes(s3_client, job_id) for job_id in runs[mode]["jobs"]) / len(work)
+            if mode == next(iter(MODES)):  # the default's task figures, before other modes mix in
+                runs[mode]["tasks"] = _task_means(http.get("/metrics").text)
+        return {**runs[next(iter(MODES))], "modes": runs, "engine_store_rate": engine_store_rate}
     finally:
         for proc in reversed(procs):
             proc.stop()
+
+
+def _run(http: httpx.Client, refs: list[str], work: list[tuple[bytes, dict]], per_job: int,
+         rate: float, extra: dict) -> dict:
+    """Submit every photo (`extra` added to each item) at a steady rate, wait for every job."""
+    jobs, submit_ms = [], []
+    start = time.perf_counter()
+    for n, first in enumerate(range(0, len(work), per_job)):
+        time.sleep(max(0.0, start + n / rate - time.perf_counter()))  # steady rate
+        items = [{"image": ref, **item, **extra} for ref, (_, item) in
+                 zip(refs[first:first + per_job], work[first:first + per_job], strict=True)]
+        t = time.perf_counter()
+        response = http.post("/v1/jobs", json={"items": items})
+        submit_ms.append((time.perf_counter() - t) * 1000)
+        jobs.append(response.json()["id"])
+    poll_ms, pending = [], set(jobs)
+    while pending:
+        for job_id in list(pending):
+            t = time.perf_counter()
+            state = http.get(f"/v1/jobs/{job_id}").json()["state"]
+            poll_ms.append((time.perf_counter() - t) * 1000)
+            if state in ("succeeded", "failed", "cancelled"):
+                pending.discard(job_id)
+        time.sleep(1.0)  # a client polls each job about once a second
+    elapsed = time.perf_counter() - start
+    failed = sum(item["state"] != "succeeded" for job_id in jobs
+                 for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
+    return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
+            "failed_items": failed, "jobs": jobs}
+
+
+def _stored_bytes(s3_client, job_id: str) -> int:
+    """Bytes of every object under the job's prefix in the service's bucket."""
+    total = 0
+    for page in s3_client.get_paginator("list_objects_v2").paginate(Bucket=SERVICE_BUCKET,
+                                                                   Prefix=f"jobs/{job_id}/"):
+        total += sum(obj["Size"] for obj in page.get("Contents", []))
+    return total
 
 
 def _task_means(metrics: str) -> dict[str, tuple[int, float]]:
@@ -200,6 +233,16 @@ def main() -> None:
     for task, (runs, mean_ms) in sorted(service["tasks"].items()):
         table.add_row(f"worker task {task}: runs, mean ms", f"{runs}, {mean_ms:.0f}")
     Console().print(table)
+    modes = Table(title="Output modes through the same service, one run each (bytes stored per photo: "
+                        f"every object of its jobs; compact ceiling {COMPACT_MAX_BYTES / 1e6:g} MB)")
+    for col in ("outputs", "images/s", "MB stored per photo", "failed items"):
+        modes.add_column(col)
+    for mode, run in service["modes"].items():
+        too_big = run["bytes_per_photo"] > COMPACT_MAX_BYTES and "compact" in mode
+        over = " (over the ceiling)" if too_big else ""
+        modes.add_row(mode, f"{run['images_per_s']:.2f}", f"{run['bytes_per_photo'] / 1e6:.2f}{over}",
+                      str(run["failed_items"]))
+    Console().print(modes)
 
 
 if __name__ == "__main__":
