@@ -253,6 +253,13 @@ def test_layout_at_laptop_size_nominal_from_the_page(page, stack, tmp_path):
     assert result["y"] < photo["y"] + photo["height"] and photo["y"] < result["y"] + result["height"]
     dims = page.locator("#dimensions").bounding_box()
     assert dims["y"] + dims["height"] <= LAPTOP["height"], dims
+    # No glb asked for: no model button, and the relay says there is none.
+    expect(page.get_by_role("button", name="Box model (glb)")).to_be_hidden()
+    job_id = page.locator("#job-state").text_content().split()[1].rstrip(":")
+    job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]
+    assert job["id"].startswith(job_id)
+    missing = httpx.get(f"{stack.url}/v1/jobs/{job['id']}/items/0/box.glb", headers={"X-API-Key": KEY})
+    assert missing.status_code == 404 and "has no glb" in missing.json()["detail"], missing.text
     # The settings open again from their summary, by keyboard.
     page.locator("#settings-panel summary").focus()
     page.keyboard.press("Enter")
