@@ -3,8 +3,8 @@
 // service's CSV (results.csv, fetched with the key), each row opening its scan in the result.
 
 import { apiUrl, call, getJson, message } from "./api";
-import type { Job, ResultRow, ResultsTable } from "./types";
-import { badge } from "./verdicts";
+import type { Job, ResultRow, ResultsTable, Verdict } from "./types";
+import { badge, verdictText } from "./verdicts";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
@@ -171,6 +171,13 @@ export class ResultsTableView {
         td.title = `${dv}${dev === null ? "" : `, deviation ${dev >= 0 ? "+" : ""}${dev.toFixed(2)} mm`}`;
       }
       td.append(c.cell(r));
+      if (typeof dv === "string") {
+        // The dimension's own verdict as a symbol and (for screen readers) a word, not colour alone.
+        const mark = Object.assign(document.createElement("span"), { className: "dim-verdict", textContent:
+          ` ${verdictText(dv as Verdict).split(" ")[0]}` });
+        mark.setAttribute("aria-hidden", "true");
+        td.append(mark, Object.assign(document.createElement("span"), { className: "sr-only", textContent: ` (${dv})` }));
+      }
       tr.append(td);
     }
     const open = document.createElement("button");
