@@ -176,12 +176,20 @@ def _folds(size_mm: np.ndarray, camera_centre: np.ndarray
     return out
 
 
+_REMAP_MAX = 30_000
+"""The most points one cv2.remap call samples (its maps' sides must stay under 32767)."""
+
+
 def _sample(image: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Bilinear samples (..., C) float32 of `image` at image (x, y) points (..., 2)."""
     flat = pts.reshape(-1, 2).astype(np.float32)
-    got = cv2.remap(image.astype(np.float32), flat[:, 0].reshape(1, -1), flat[:, 1].reshape(1, -1),
-                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    got = got.reshape(flat.shape[0], -1)
+    source = image.astype(np.float32)
+    # remap's maps are images, whose sides OpenCV caps below 32767: sample in rows of that.
+    chunks = [cv2.remap(source, part[:, 0].reshape(1, -1), part[:, 1].reshape(1, -1), cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_REPLICATE).reshape(part.shape[0], -1)
+              for part in np.array_split(flat, max(1, -(-flat.shape[0] // _REMAP_MAX))) if len(part)]
+    got = np.concatenate(chunks) if chunks else np.zeros((0, 1 if image.ndim == 2 else image.shape[2]),
+                                                         np.float32)
     out: np.ndarray = got.reshape(*pts.shape[:-1], got.shape[-1])
     return out
 

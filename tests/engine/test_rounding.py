@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismcore.rounding import estimate_edge_radius
+from prismcore.rounding import _sample, estimate_edge_radius
 from prismsynth import PhotoLikeScene, photo_like_scene
 from prismsynth.render import distort_points
 
@@ -56,3 +56,17 @@ def test_sharp_box_gives_no_radius(seed: int) -> None:
     """The two sharp renders (of 12 tried) whose folds look most like a rounding (print near
     them, faces seen at a grazing angle): still no evidence of one."""
     assert _estimate(photo_like_scene(seed, edge_radius_mm=0.0)) is None
+
+
+def test_sampling_more_points_than_one_remap_takes():
+    # cv2.remap's maps are images capped below 32767 a side; a long fold profile must not crash
+    # (found by the spec fuzz test on a large photo), and must equal bilinear interpolation.
+    rng = np.random.default_rng(5)
+    image = rng.random((50, 60, 3), dtype=np.float32)
+    pts = rng.random((70_000, 2)) * [59, 49]
+    got = _sample(image, pts)
+    x0, y0 = np.floor(pts[:, 0]).astype(int), np.floor(pts[:, 1]).astype(int)
+    fx, fy = (pts[:, 0] - x0)[:, None], (pts[:, 1] - y0)[:, None]
+    want = (image[y0, x0] * (1 - fx) * (1 - fy) + image[y0, x0 + 1] * fx * (1 - fy)
+            + image[y0 + 1, x0] * (1 - fx) * fy + image[y0 + 1, x0 + 1] * fx * fy)
+    assert got.shape == (70_000, 3) and np.abs(got - want).max() < 1e-4
