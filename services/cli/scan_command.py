@@ -304,7 +304,7 @@ def scan(
     for line in quality_lines(result.report.get("quality")):
         console.print(line, soft_wrap=True)
     for warning in result.report["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}")
+        console.print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))
     for kind, path in paths.items():
-        console.print(f"{kind:>{wide}}: {path}")
+        console.print(f"{kind:>{wide}}: {path}", soft_wrap=True)  # a path must stay one line to be copied
