@@ -228,9 +228,7 @@ class ApiClient:
                     text, problem = _message(response)
                     raise ApiError(f"HTTP {response.status_code}: {text}", status=response.status_code,
                                    problem=problem)
-                with target.open("wb") as fh:
-                    for chunk in response.iter_bytes(1 << 20):
-                        fh.write(chunk)
+                _write_body(response, target)
         except httpx.HTTPError as exc:
             raise ApiError(f"download of {target.name} failed: {exc}") from None
         return target
@@ -240,9 +238,7 @@ class ApiClient:
         try:
             with httpx.stream("GET", url, timeout=120) as response:
                 response.raise_for_status()
-                with target.open("wb") as fh:
-                    for chunk in response.iter_bytes(1 << 20):
-                        fh.write(chunk)
+                _write_body(response, target)
         except httpx.HTTPError as exc:
             raise ApiError(f"download of {target.name} failed: {exc}") from None
         return target
@@ -257,3 +253,10 @@ def format_eta(seconds: float | None) -> str:
     if seconds < 3600:
         return f"about {round(seconds / 60)} min left"
     return f"about {seconds / 3600:.1f} h left"
+
+
+def _write_body(response: httpx.Response, target: Path) -> None:
+    """Stream a response's body into `target` a megabyte at a time (never whole in memory)."""
+    with target.open("wb") as fh:
+        for chunk in response.iter_bytes(1 << 20):
+            fh.write(chunk)
