@@ -43,7 +43,7 @@ _P = "prism:"
 # A job hash's fields other than its items and frames.
 _VERDICT_FIELDS = ["verdict:pass", "verdict:fail", "verdict:uncertain"]
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
-               "units_done", "items_done", *_VERDICT_FIELDS]
+               "units_done", "units_at_cancel", "items_done", *_VERDICT_FIELDS]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 WATCHDOG_LOCK_KEY = f"{_P}watchdog:lock"
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
@@ -56,6 +56,12 @@ if rank[ARGV[1]] <= rank[cur] then return 0 end
 redis.call('HSET', KEYS[1], 'state', ARGV[1])
 if ARGV[1] == 'running' then redis.call('HSET', KEYS[1], 'started_at', ARGV[2]) end
 if rank[ARGV[1]] == 2 then redis.call('HSET', KEYS[1], 'finished_at', ARGV[2]) end
+if ARGV[1] == 'cancelled' then
+  -- What had finished when the job was cancelled; tasks in flight may still count units after.
+  local done = redis.call('HGET', KEYS[1], 'units_done') or '0'
+  local total = redis.call('HGET', KEYS[1], 'units_total') or '1'
+  redis.call('HSET', KEYS[1], 'units_at_cancel', done .. '/' .. total)
+end
 if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'error', ARGV[3]) end
 local tenant = redis.call('HGET', KEYS[1], 'tenant')
 local score = redis.call('HGET', KEYS[1], 'score')
@@ -404,8 +410,11 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
     job.verdicts = {name.split(":")[1]: int(fields.get(name, 0)) for name in _VERDICT_FIELDS}
     total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
     if job.state == State.cancelled:
-        # Progress counts finished work only, and what had not finished never will: its items
-        # and frames read as cancelled (the worker's tasks stop at their next step).
+        # Progress counts the work finished when the job was cancelled (a task in flight then
+        # may still count its unit before it stops), and what had not finished never will: its
+        # items and frames read as cancelled (the worker's tasks stop at their next step).
+        if fields.get("units_at_cancel"):
+            done, total = (int(n) for n in fields["units_at_cancel"].split("/"))
         job.progress = min(100, int(100 * done / max(total, 1)))
         for item in job.items:
             _cancel_unfinished(item)

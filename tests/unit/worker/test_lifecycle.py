@@ -134,6 +134,18 @@ def test_a_cancelled_job_starts_no_more_items(fakes: Fakes) -> None:
     assert not fakes.objects.exists(f"jobs/{job_id}/job.json")
 
 
+def test_a_cancelled_jobs_progress_is_what_had_finished_at_the_cancel(fakes: Fakes) -> None:
+    job_id = fakes.job(items=4, state=State.running)
+    _succeed(fakes, job_id, 0)
+    at_cancel = fakes.store.get(job_id).progress
+    fakes.store.transition(job_id, State.cancelled)
+    # Tasks in flight at the cancel count their units on the way out (a whole item's plan).
+    lifecycle.count_plan(fakes.ctx, job_id, 1, 0)
+    fakes.store.tile_done(job_id, 2, "front-0-10")
+    assert 0 < at_cancel < 100 and fakes.store.get(job_id).progress == at_cancel
+    assert [i.state for i in fakes.store.get(job_id).items] == [State.succeeded] + [State.cancelled] * 3
+
+
 def test_a_failure_keeps_the_first_outcome(fakes: Fakes) -> None:
     job_id = fakes.job(items=2, state=State.running)
     lifecycle.fail_item(fakes.ctx, job_id, 0, "first")
