@@ -13,8 +13,9 @@ from .broker_transport import transport_for
 from .redis_client import celery_transport_options, celery_url
 from .settings import Settings
 
-__all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_RUN_JOB",
-           "WORKER_QUEUES", "configure_celery", "make_celery", "queue_depth", "queue_lists", "time_limits"]
+__all__ = ["QUEUE_FRAMES", "QUEUE_SCANS", "QUEUE_WEBHOOKS", "TASK_EXTRACT_FRAME", "TASK_FIND_POINTS",
+           "TASK_RUN_JOB", "WORKER_QUEUES", "configure_celery", "make_celery", "queue_depth", "queue_lists",
+           "time_limits"]
 
 TASK_RUN_JOB = "prism.run_job"
 TASK_PLAN_ITEM = "prism.plan_item"
@@ -23,10 +24,11 @@ TASK_FINISH_ITEM = "prism.finish_item"
 TASK_SCAN_FRAME = "prism.scan_frame"
 TASK_DELIVER_WEBHOOK = "prism.deliver_webhook"
 TASK_EXTRACT_FRAME = "prism.extract_frame"
+TASK_FIND_POINTS = "prism.find_points"  # an upload's box and points, for the web page
 QUEUE_SCANS = "scans"
 QUEUE_WEBHOOKS = "webhooks"
-# A person waits on a frame to mark: its own queue, so it is not stuck behind a long scan queue
-# (a worker takes from its queues in turn).
+# A person waits on a frame to mark (or on the points found in it): its own queue, so it is not
+# stuck behind a long scan queue (a worker takes from its queues in turn).
 QUEUE_FRAMES = "frames"
 WORKER_QUEUES = ",".join((QUEUE_SCANS, QUEUE_FRAMES, QUEUE_WEBHOOKS))
 """What a worker consumes: ``celery -A prism_worker.app worker -Q`` this."""
@@ -52,7 +54,8 @@ def queue_depth(client: redis.Redis, queue: str) -> int:
 
 # Tasks that only start others or post a webhook are short whatever the input: a tight limit.
 _SHORT_TASK_S = {TASK_RUN_JOB: 60.0, TASK_DELIVER_WEBHOOK: 60.0}
-_ITEM_TASKS = (TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME, TASK_EXTRACT_FRAME)
+_ITEM_TASKS = (TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME, TASK_EXTRACT_FRAME,
+               TASK_FIND_POINTS)
 
 
 def time_limits(settings: Settings) -> dict[str, dict[str, float]]:
@@ -86,7 +89,8 @@ def configure_celery(app: Celery, settings: Settings) -> None:
         worker_prefetch_multiplier=1,  # one task at a time per process: fair across jobs
         task_default_queue=QUEUE_SCANS,
         task_routes={TASK_DELIVER_WEBHOOK: {"queue": QUEUE_WEBHOOKS},
-                     TASK_EXTRACT_FRAME: {"queue": QUEUE_FRAMES}},
+                     TASK_EXTRACT_FRAME: {"queue": QUEUE_FRAMES},
+                     TASK_FIND_POINTS: {"queue": QUEUE_FRAMES}},
         # Kombu looks for a lost worker's unacked messages only every 10th restore cycle by
         # default (100 s); every cycle brings them back within visibility_timeout + 10 s.
         broker_transport_options={"visibility_timeout": settings.visibility_timeout_s,
