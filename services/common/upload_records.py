@@ -5,7 +5,8 @@
   height as the engine sees them, a video's frame_count, fps and codec; see `prism_api.probe`).
 * ``uploads`` sorted set: upload id -> when its lifetime counts from (made, or last named by a
   submitted job), s since the epoch: the sweep deletes those past ``upload_ttl_s``.
-* ``upload:{id}:extract:{n}`` (expiring): frame n of that video was asked of a worker.
+* ``upload:{id}:extract:{n}`` (expiring): frame n of that video was asked of a worker;
+  ``upload:{id}:points:{name}`` (expiring): that point search was (`claim_points`).
 * ``tenant:{t}:upload-sha256:{hex}:{name}``: the tenant's upload of that content under that
   name, so the same file sent again is answered with the upload it already has (the name is
   part of it: errors about an upload quote the name the client gave it).
@@ -119,3 +120,7 @@ class UploadRecords:
         """True for the first asker in `ttl_s` seconds: a page polling for a frame sends its
         extraction once, not at every poll (and again if that task got lost)."""
         return bool(self._r.set(f"{_P}upload:{upload_id}:extract:{frame}", 1, nx=True, ex=ttl_s))
+
+    def claim_points(self, upload_id: str, search: str, ttl_s: int) -> bool:
+        """`claim_extraction` for a point search (`search` names it: frame and hint)."""
+        return bool(self._r.set(f"{_P}upload:{upload_id}:points:{search}", 1, nx=True, ex=ttl_s))

@@ -7,6 +7,7 @@ the logic, which lives in one place each:
 * `steps`: an item of a photo job: plan, scan a tile, finish; or scanned whole;
 * `video`: a video item split into frames, a frame measured, the item summarised; an uploaded
   video's frame extracted for the web page;
+* `upload_points`: the box and its points found in an upload, for the web page;
 * `inputs` (references, fetch, egress), `artifacts` (object keys, plan.json, tiles, outputs,
   caches), `webhooks`, `watchdog` (stall sweep, retention), `broker` (kombu's structures).
 
@@ -15,7 +16,8 @@ Graph: run_job -> plan_item (a window of items per job) -> chord(scan_tile per f
 of a batch (one tile per face) is scanned whole inside plan_item instead. A video item's
 plan_item splits it and sends a scan_frame task per frame as it goes; the last frame summarises
 the item and completes it. Apart from jobs, extract_frame probes an uploaded video and stores
-one frame for the web page to mark (own queue). Tasks pass ids and object keys only; each is
+one frame for the web page to mark, and find_points searches an upload for the box and its
+points (both on the frames queue). Tasks pass ids and object keys only; each is
 idempotent (deterministic keys, exists-checks, counting by set membership), since late acks
 redo a task whose worker was lost.
 
@@ -36,6 +38,7 @@ from celery import Task, chord
 from prism_common.queue import (
     TASK_DELIVER_WEBHOOK,
     TASK_EXTRACT_FRAME,
+    TASK_FIND_POINTS,
     TASK_FINISH_ITEM,
     TASK_PLAN_ITEM,
     TASK_RUN_JOB,
@@ -47,14 +50,14 @@ from prism_common.references import ReferenceError
 
 from prismcore import InputError
 
-from . import lifecycle, steps, video, webhooks
+from . import lifecycle, steps, upload_points, video, webhooks
 from .app import app, worker_context
 from .artifacts import tile_id
 from .context import WorkerContext
 from .inputs import FetchError
 
-__all__ = ["deliver_webhook", "extract_frame", "finish_item", "plan_item", "run_job", "scan_frame",
-           "scan_tile"]
+__all__ = ["deliver_webhook", "extract_frame", "find_points", "finish_item", "plan_item", "run_job",
+           "scan_frame", "scan_tile"]
 
 log = logging.getLogger(__name__)
 
@@ -242,3 +245,25 @@ def deliver_webhook(self: AnyTask, job_id: str) -> None:
           ignore_result=True)
 def extract_frame(self: AnyTask, upload_id: str, frame: int) -> None:
     video.extract_frame(worker_context(), upload_id, frame)
+
+
+def _hint(hint: list[int] | None) -> tuple[int, int] | None:
+    return None if hint is None else (int(hint[0]), int(hint[1]))
+
+
+class PointsTask(RetryingTask):
+    """A point search: if it fails for good, its answer says why (the page is waiting on it)."""
+
+    def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
+        upload_id, frame, hint = args[:3]
+        log.error("point search in upload %s failed for good: %r", upload_id, exc)
+        try:
+            upload_points.search_failed(worker_context(), upload_id, frame, _hint(hint), _reason(self, exc))
+        except Exception:
+            log.exception("could not record the failed point search in upload %s", upload_id)
+
+
+@app.task(name=TASK_FIND_POINTS, base=PointsTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
+def find_points(self: AnyTask, upload_id: str, frame: int | None, hint: list[int] | None) -> None:
+    upload_points.find_upload_points(worker_context(), upload_id, frame, _hint(hint))

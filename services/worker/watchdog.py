@@ -18,10 +18,11 @@ queued and running job:
   worker each time it is handed out would otherwise be redelivered for ever).
 
 Retention, in the same sweep: uploads older than `upload_ttl_s` go (the file, a video's probe
-and decoded frames, the record), and, when the operator sets `job_ttl_s`, ended jobs older than
-that (every object under jobs/{id}/, the record). Objects go before records, so a sweep cut short
-leaves the thing listed and the next one finishes it; deleting twice is harmless. An upload's
-expiry does not touch the outputs of the jobs that read it.
+and decoded frames, what point searches found, the record), and, when the operator sets
+`job_ttl_s`, ended jobs older than that (every object under jobs/{id}/, the record). Objects go
+before records, so a sweep cut short leaves the thing listed and the next one finishes it;
+deleting twice is harmless. An upload's expiry does not touch the outputs of the jobs that read
+it.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from collections.abc import Callable
 from prism_common.records import State
 from prism_common.storage import object_key
 from prism_common.store import WATCHDOG_LOCK_KEY
-from prism_common.upload_keys import upload_key, video_info_key
+from prism_common.upload_keys import points_prefix, upload_key, video_info_key
 
 from . import lifecycle
 from .broker import pending_job_ids
@@ -122,7 +123,8 @@ def expire_uploads(ctx: WorkerContext, now: float) -> int:
         if upload is not None:
             tenant = upload["tenant"]
             frames = objects.list_keys(upload_key(tenant, upload_id) + ".frames/")
-            objects.delete_keys([upload["key"], video_info_key(tenant, upload_id), *frames])
+            found = objects.list_keys(points_prefix(tenant, upload_id))
+            objects.delete_keys([upload["key"], video_info_key(tenant, upload_id), *frames, *found])
         store.delete_upload(upload_id)
         gone += 1
     if gone:

@@ -10,6 +10,7 @@ import pytest
 from prism_common.queue import (
     TASK_DELIVER_WEBHOOK,
     TASK_EXTRACT_FRAME,
+    TASK_FIND_POINTS,
     TASK_FINISH_ITEM,
     TASK_PLAN_ITEM,
     TASK_RUN_JOB,
@@ -27,7 +28,7 @@ from .conftest import API_KEYS, WEBHOOK_SECRET
 from .worker_env import Env, encode, spec_for, worker_env
 
 ALL_TASKS = (TASK_RUN_JOB, TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME,
-             TASK_DELIVER_WEBHOOK, TASK_EXTRACT_FRAME)
+             TASK_DELIVER_WEBHOOK, TASK_EXTRACT_FRAME, TASK_FIND_POINTS)
 
 
 def test_every_task_has_a_soft_limit_below_its_hard_limit():
