@@ -8,9 +8,9 @@ Columns (`COLUMNS`; the JSON rows have the same keys, with numbers as numbers an
 empty): the job and its client reference, the item and frame (empty on an item's row), the
 input (the item's image reference), state and error; width, height, depth, their unit and one
 standard deviation each; the cloud's point count, the point loss, where the reference points
-came from (clicked or auto) and the points p1..p7 (x, y px; those of the spec when the scan did
-not record its own); the part's verdict and each dimension's verdict and deviation (mm) against
-the nominal size (empty without one).
+came from (clicked or auto), the search's confidence (auto) and the points p1..p7 (x, y px;
+those of the spec when the scan did not record its own); the part's verdict and each
+dimension's verdict and deviation (mm) against the nominal size (empty without one).
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ _POINTS = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 COLUMNS: tuple[str, ...] = (
     "job_id", "client_reference", "item", "frame", "input", "state", "error",
     *_DIMS, "unit", *(f"{d}_sigma" for d in _DIMS),
-    "cloud_points", "point_loss", "points_source", *(f"{p}_{c}" for p in _POINTS for c in "xy"),
+    "cloud_points", "point_loss", "points_source", "points_confidence",
+    *(f"{p}_{c}" for p in _POINTS for c in "xy"),
     "verdict", *(f"{d}_verdict" for d in _DIMS), *(f"{d}_deviation_mm" for d in _DIMS),
 )
 
@@ -86,6 +87,7 @@ def _row(job: JobRecord, item: ItemRecord, frame: int | None, state: State, erro
                             else "auto" if spec.auto_points is not None else "clicked")
     if result is None:
         return row
+    row["points_confidence"] = result.points_confidence
     row.update(cloud_points=result.points, point_loss=result.point_loss,
                unit=result.dimensions.get("unit"))
     for d in _DIMS:

@@ -127,12 +127,6 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
-        if item.auto_points is not None:
-            # The engine's search (prismcore.locate) runs in `prism scan` only so far: a job that
-            # asked for it would otherwise fail when polled, with a reason about something else.
-            fail(("items", i, "points"), f"item {i}: points \"auto\" is measured by `prism scan "
-                                         f"--points auto` only for now; the service needs the points")
-            continue
         shapes: dict[str, tuple[int, int] | None] = {}
         for field in ("image", "side_image"):
             text = getattr(item, field)

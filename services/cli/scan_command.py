@@ -14,6 +14,7 @@ from pydantic import ValidationError
 from rich.console import Console
 
 from prismcore import InputError, ScanSpec, parse_points, run_scan
+from prismcore.auto_points import found_box_guard, record_found
 from prismcore.camera import CameraModel
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
@@ -282,16 +283,11 @@ def scan(
         auto = None
         if spec.auto_points is not None:
             spec, auto = resolve_points(spec, front)
-        try:
+        with found_box_guard(auto is not None):
             result = run_scan(spec, front, side_img, tiles=tiles,
                               exif_focal_px=found.focal_px if found else None)
-        except InputError as exc:
-            if auto is None:
-                raise
-            raise InputError(f"points auto: the box found fails the fit guards: {exc}") from None
         if auto is not None:
-            result.report.update(points_source="auto", auto_points=auto.report())
-            result.report["warnings"] += list(auto.warnings)
+            record_found(result.report, auto.report())
     except ValidationError as exc:
         raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)

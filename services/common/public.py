@@ -60,6 +60,11 @@ class ResultPublic(BaseModel):
         "deviation_mm, tolerance_mm, sigma_mm, interval_mm and verdict. Null without a nominal.")
     points_source: str | None = Field(default=None, description="Where the reference points came "
                                       "from: clicked (given in the spec) or auto (found).")
+    points_confidence: float | None = Field(
+        default=None, description="Points auto: the search's confidence in the points it found, "
+                                  "0-1 (below the search's threshold the item is refused; an "
+                                  "accepted low one comes with a warning to check the points). "
+                                  "Null for clicked points.")
     reference_points: dict[str, list[float] | None] | None = Field(
         default=None, description="The reference points p1..p7 the scan used, (x, y) px.")
 

@@ -44,6 +44,7 @@ class ItemResult(BaseModel):
     # report.json's quality block (prismcore.verdicts.QualityBlock) when the spec gave a nominal
     quality: dict[str, Any] | None = None
     points_source: str | None = None  # clicked, or auto (found by the zero-click search)
+    points_confidence: float | None = None  # auto: the search's confidence, 0-1
     reference_points: dict[str, list[float] | None] | None = None  # p1..p7 (x, y) the scan used, px
 
 

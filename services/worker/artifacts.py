@@ -241,6 +241,7 @@ def item_result(report: dict[str, Any]) -> ItemResult:
                       fit_rms_px=(report.get("fit") or {}).get("rms_px"),
                       side_face=report.get("side_face"), quality=report.get("quality"),
                       points_source=report.get("points_source", "clicked"),
+                      points_confidence=(report.get("auto_points") or {}).get("confidence"),
                       reference_points=(report.get("inputs") or {}).get("points"))
 
 

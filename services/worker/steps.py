@@ -7,6 +7,10 @@ holds the list of tiles the chord is made of, so the finish merges exactly the t
 scanned, even if PRISM_TILES_PER_FACE changed in between; tiles and finish read only the job's
 prefix.
 
+An item whose points are "auto" has them found in its photo first (`prismcore.locate`, in
+`_located`): the search's refusal fails the item with its reason, and what it found is kept
+(beside the plan in plan.json for a tiled item) for report.json and the item's result.
+
 An item of a batch is scanned whole in one task (`scan_whole_item`): a batch already has its
 parallelism from the items it keeps in flight, and split into tiles each of its items would also
 pay for plan.json, an object per tile, the photo decoded again and several store round trips,
@@ -19,14 +23,18 @@ same objects under the same keys.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from botocore.exceptions import ClientError
 from prism_common.records import ItemResult, ItemView
 from prism_common.storage import ObjectStore, is_missing
 
-from prismcore import ScanPlan, finish_scan, plan_scan, run_scan
+from prismcore import ScanPlan, ScanSpec, finish_scan, plan_scan, run_scan
+from prismcore.auto_points import found_box_guard, record_found
 from prismcore.exif import exif_focal
 from prismcore.images import load_image
+from prismcore.locate import resolve_points
 from prismcore.scan import merge_bands, scan_band
 
 from .artifacts import (
@@ -90,12 +98,26 @@ def plan_item(ctx: WorkerContext, view: ItemView) -> list[Tile]:
     if spec.two_photo:
         side_key, side_label = copy_input(ctx, view, "side")
         side = cached_image(ctx, side_key, limit, side_label)
+    spec, found = _located(spec, front)
     # The photo's own EXIF may give the focal length (a second read of its head is cheaper
     # than keeping the bytes beside the decoded cache).
-    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px(ctx, front_key, front.shape))
+    with found_box_guard(found is not None):
+        plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px(ctx, front_key, front.shape))
     tiles = plan_tiles(plan, tiles_per_face(ctx, view.n_items))
-    ctx.objects.put_bytes(key, dumps_plan(plan, tiles=tiles), "application/json")
+    ctx.objects.put_bytes(key, dumps_plan(plan, tiles=tiles, auto_points=found), "application/json")
     return tiles
+
+
+def _located(spec: ScanSpec, front: np.ndarray) -> tuple[ScanSpec, dict[str, Any] | None]:
+    """The spec to measure: with points "auto", the points found in `front` filled in, and
+    what the search found (`Found.report()`); else the spec as it is and None.
+
+    Raises InputError with the search's reason when it refuses.
+    """
+    if spec.auto_points is None:
+        return spec, None
+    spec, found = resolve_points(spec, front)
+    return spec, found.report()
 
 
 def _image(ctx: WorkerContext, job_id: str, item: int, plan: ScanPlan, index: int) -> np.ndarray:
@@ -149,6 +171,8 @@ def finish_item(ctx: WorkerContext, job_id: str, item: int) -> tuple[ItemResult,
         scans.append(merge_bands(face, [unpack_tile(_tile_bytes(ctx.objects, k, item)) for k in keys]))
     indices = range(2 if plan.spec.two_photo else 1)
     result = finish_scan(plan, [_scanned_image(ctx, job_id, item, plan, i) for i in indices], scans)
+    if extra.get("auto_points") is not None:
+        record_found(result.report, extra["auto_points"])
     return write_outputs(ctx, job_id, item, plan.spec, result,
                          [_image(ctx, job_id, item, plan, i) for i in indices])
 
@@ -174,6 +198,10 @@ def scan_whole_item(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dic
         data, label = read_input(ctx, view, "side")
         side = load_image(data, max_pixels=limit, name=label)
     del data
-    result = run_scan(spec, front, side, exif_focal_px=found.focal_px if found else None)
+    spec, auto = _located(spec, front)
+    with found_box_guard(auto is not None):
+        result = run_scan(spec, front, side, exif_focal_px=found.focal_px if found else None)
+    if auto is not None:
+        record_found(result.report, auto)
     return write_outputs(ctx, view.job_id, view.item.index, spec, result,
                          [front] + ([side] if side is not None else []))

@@ -313,9 +313,12 @@ class ScanSpec(_Strict):
                 raise ValueError("auto_points goes with points \"auto\": drop one of them")
             if self.side_image is not None or self.frames is not None:
                 raise ValueError("points \"auto\" is for one photo: not with side_image or frames")
+            if self.side_face != "auto":
+                raise ValueError(f"side_face {self.side_face!r} goes with clicked points: with points "
+                                 "\"auto\" the search tells the face itself; drop side_face")
         elif self.points is None:
-            raise ValueError("points: the reference points are missing (give points, or "
-                             "frame_points for a video)")
+            raise ValueError("points: the reference points are missing (give points, \"auto\" "
+                             "to have them found in the photo, or frame_points for a video)")
         if self.side_image is not None and self.side_face in ("left", "top"):
             raise ValueError(f"side_face {self.side_face!r} is for one photo: with side_image "
                              f"{self.side_image!r}, p4, p5 and p7 mark the side face as photographed "

@@ -118,14 +118,6 @@ def test_collinear_front_points_are_refused_at_submit_in_words(stack):
     print(f"\nzero-pixel region: {error['detail']}")
 
 
-def test_points_auto_is_refused_at_submit_until_the_service_searches(stack):
-    spec = {**item(stack.upload(GOOD), SCENE), "points": "auto"}
-    r = stack.call("POST", "/v1/jobs", json={"items": [spec]})
-    assert r.status_code == 422, r.text
-    [error] = r.json()["errors"]
-    assert error["pointer"] == "/items/0/points" and "prism scan --points auto" in error["detail"], error
-
-
 def test_empty_file_is_refused_at_upload(stack, figures):
     r = stack.call("POST", "/v1/uploads", files={"file": ("empty.png", b"")})
     figures["inputs tried"] += 1

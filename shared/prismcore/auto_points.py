@@ -1,0 +1,38 @@
+"""Measuring with the points the zero-click search found (`prismcore.locate`): the rules the CLI
+and the worker share, so a found box is refused and recorded the same way wherever it is measured.
+
+A found box that the engine then refuses (its fit guards, a face too thin, ...) is the search's
+failure, not the person's: the message says so, since nobody clicked the points it names.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from .errors import InputError
+
+__all__ = ["found_box_guard", "record_found"]
+
+
+@contextmanager
+def found_box_guard(auto: bool = True) -> Iterator[None]:
+    """Around measuring a spec: with `auto`, an InputError is re-raised as the search's refusal."""
+    try:
+        yield
+    except InputError as exc:
+        if not auto:
+            raise
+        raise InputError(f"points auto: the box found fails the fit guards: {exc}") from None
+
+
+def record_found(report: dict[str, Any], found: dict[str, Any]) -> None:
+    """Mark `report` (report.json's dict) as measured with found points.
+
+    `found` is `locate.Found.report()`: its confidence, side face, points and warnings are kept
+    under ``auto_points``, and its warnings (a low confidence: check the points) join the scan's.
+    """
+    report["points_source"] = "auto"
+    report["auto_points"] = found
+    report["warnings"] = [*report.get("warnings", []), *found.get("warnings", [])]

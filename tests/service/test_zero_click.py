@@ -1,0 +1,180 @@
+"""Zero-click (issue 12) through the whole service (API under uvicorn, a Celery worker,
+redis-server and SeaweedFS): photo items with ``"points": "auto"`` and no clicks get their
+points from the engine's search in the worker, scanned whole (an item of a batch) and by tiles
+(a lone item); a photo with no box fails its item with the search's reason; the item results,
+report.json and the job's results table say the points were found, with the confidence.
+
+The truth is the renderer's projection of the box's corners (`prismsynth.scenes`); the search
+names the faces its own way, so each found point is matched to its nearest true corner, and the
+dimensions are checked as ratios to the width (no scale: the units are pixels) against the true
+lengths of the edges the search named.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from collections.abc import Iterator
+
+import cv2
+import httpx
+import numpy as np
+import pytest
+
+from prism_cli.stack import start_api, start_worker
+from prismcore.locate import CONFIDENCE_MIN, find_points
+from prismsynth.scenes import ClutterScene, clutter_scene, empty_scene
+
+from .conftest import API_KEYS
+from .servers import service_env
+
+SIZE = (640, 512)  # small photos: the search and the scan stay cheap
+SEEDS = (0, 2)  # scenes where the search finds the box (checked against the truth below)
+EMPTY = empty_scene(0, image_size=SIZE)  # clutter and no box
+ACME = {"X-API-Key": API_KEYS["acme"]}
+
+
+class Stack:
+    def __init__(self, port: int) -> None:
+        self.http = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30, headers=ACME)
+
+    def upload(self, image: np.ndarray, name: str) -> str:
+        ok, data = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        assert ok
+        r = self.http.post("/v1/uploads", files={"file": (name, data.tobytes())})
+        assert r.status_code in (200, 201), r.text
+        return str(r.json()["reference"])
+
+    def run(self, items: list[dict], timeout: float = 240) -> dict:
+        r = self.http.post("/v1/jobs", json={"items": items})
+        assert r.status_code == 202, r.text
+        job_id = r.json()["id"]
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            job = self.http.get(f"/v1/jobs/{job_id}").json()
+            if job["state"] in ("succeeded", "failed", "cancelled"):
+                return dict(job)
+            time.sleep(0.25)
+        raise AssertionError(f"job {job_id} not final: {job}")
+
+
+@pytest.fixture(scope="module")
+def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
+    tmp = tmp_path_factory.mktemp("zero-click")
+    # Three tiles per face: a job of three items is scanned whole per item, a lone item by tiles.
+    env = service_env(redis_server.port, s3_server.port, db=13, bucket="zero-click-e2e",
+                      TILES_PER_FACE="3", ITEMS_IN_FLIGHT_PER_JOB="3")
+    api = start_api(tmp / "api", env)
+    worker = start_worker(tmp / "worker", env, concurrency=2)
+    made = Stack(api.port)
+    yield made
+    made.http.close()
+    worker.stop()
+    api.stop()
+
+
+@pytest.fixture(scope="module")
+def scenes() -> dict[int, ClutterScene]:
+    return {seed: clutter_scene(seed, image_size=SIZE) for seed in SEEDS}
+
+
+@pytest.fixture(scope="module")
+def batch(stack, scenes) -> tuple[dict, list[dict]]:
+    """One job, no clicks: two scenes with a box (the second with a hint on it) and one without."""
+    second = scenes[SEEDS[1]]
+    hint = second.vertices_px[second.visible].mean(axis=0)
+    items = [{"image": stack.upload(scenes[SEEDS[0]].image, "a.png"), "points": "auto"},
+             {"image": stack.upload(second.image, "b.png"), "points": "auto",
+              "auto_points": {"hint": [float(hint[0]), float(hint[1])]}},
+             {"image": stack.upload(EMPTY, "empty.png"), "points": "auto"}]
+    return stack.run(items), items
+
+
+def _matched(points: dict[str, list[float]], scene: ClutterScene) -> tuple[float, dict[str, int]]:
+    """Worst distance (px) from a found point to its nearest true corner, and those corners."""
+    which = {n: int(np.argmin(np.linalg.norm(scene.vertices_px - xy, axis=1))) for n, xy in points.items()}
+    worst = max(float(np.linalg.norm(scene.vertices_px[which[n]] - xy)) for n, xy in points.items())
+    return worst, which
+
+
+def _length(scene: ClutterScene, which: dict[str, int], a: str, b: str) -> float:
+    """True length (mm) of the edge between the corners found points `a` and `b` lie on."""
+    return float(np.linalg.norm(scene.vertices[which[a]] - scene.vertices[which[b]]))
+
+
+def test_found_points_are_measured_and_a_photo_without_a_box_fails_with_the_reason(batch, scenes):
+    job, _ = batch
+    assert job["state"] == "succeeded", job
+    assert [i["state"] for i in job["items"]] == ["succeeded", "succeeded", "failed"], job
+    for item, seed in zip(job["items"], SEEDS, strict=False):
+        result, scene = item["result"], scenes[seed]
+        assert result["points_source"] == "auto"
+        assert CONFIDENCE_MIN <= result["points_confidence"] <= 1
+        points = {n: xy for n, xy in result["reference_points"].items() if xy is not None}
+        assert len(points) == 7
+        worst, which = _matched(points, scene)
+        assert worst <= 3.0, (seed, worst)
+        assert len(set(which.values())) == 6  # P4 is P1 or P2; the others six distinct corners
+        width, height, depth = (_length(scene, which, a, b) for a, b in (("p1", "p2"), ("p1", "p6"),
+                                                                        ("p4", "p5")))
+        dims = result["dimensions"]
+        assert dims["unit"] == "px"
+        assert dims["height"] / dims["width"] == pytest.approx(height / width, rel=0.01)
+        assert dims["depth"] / dims["width"] == pytest.approx(depth / width, rel=0.01)
+        assert result["side_face"] in ("right", "left", "top")
+    refused = job["items"][2]
+    search = find_points(EMPTY)  # the engine's own answer: the service must pass it on as it is
+    assert not search.ok
+    assert refused["error"] == f"points auto: {search.reason}", refused
+    assert refused["result"] is None
+
+
+def test_report_json_keeps_what_the_search_found(batch):
+    job, _ = batch
+    item = job["items"][0]
+    report = httpx.get(item["downloads"]["report"]).json()
+    assert report["points_source"] == "auto"
+    auto = report["auto_points"]
+    assert auto["confidence"] == item["result"]["points_confidence"] and auto["reason"] is None
+    used = item["result"]["reference_points"]
+    assert auto["points"] == {n: pytest.approx(xy, abs=0.005) for n, xy in used.items()}  # rounded
+    assert auto["side_face"] == report["side_face"] == item["result"]["side_face"]
+
+
+def test_results_table_marks_the_found_points(stack, batch):
+    job, _ = batch
+    r = stack.http.get(f"/v1/jobs/{job['id']}/results.csv")
+    assert r.status_code == 200, r.text
+    rows = list(csv.DictReader(io.StringIO(r.text)))
+    assert [row["points_source"] for row in rows] == ["auto"] * 3
+    for row, item in zip(rows, job["items"], strict=True):
+        if item["state"] == "succeeded":
+            assert float(row["points_confidence"]) == item["result"]["points_confidence"]
+            assert [float(row["p2_x"]), float(row["p2_y"])] == item["result"]["reference_points"]["p2"]
+        else:
+            assert row["points_confidence"] == "" and row["error"] == item["error"]
+
+
+def test_a_lone_item_scanned_by_tiles_measures_as_the_batch_did(stack, batch):
+    job, items = batch
+    lone = stack.run([items[0]])  # one item: planned, scanned in tiles, finished
+    assert lone["state"] == "succeeded", lone
+    [item] = lone["items"]
+    whole = job["items"][0]["result"]
+    for key in ("points_source", "points_confidence", "reference_points", "dimensions", "points"):
+        assert item["result"][key] == whole[key], key
+    assert httpx.get(item["downloads"]["report"]).json()["auto_points"]["confidence"] == \
+        whole["points_confidence"]
+
+
+@pytest.mark.parametrize(("extra", "words"), [
+    ({"side_face": "top"}, "the search tells the face itself"),
+    ({"side_image": "http://127.0.0.1:9/side.png"}, "is for one photo"),
+])
+def test_what_the_search_cannot_do_is_refused_at_submit(stack, extra, words):
+    item = {"image": "http://127.0.0.1:9/box.png", "points": "auto", **extra}
+    r = stack.http.post("/v1/jobs", json={"items": [item]})
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"].startswith("/items/0") and words in error["detail"], error
