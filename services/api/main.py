@@ -17,7 +17,7 @@ from prism_common.settings import get_settings
 from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
-from .routes import health, jobs, previews, results, upload_video, uploads
+from .routes import health, jobs, previews, results, upload_points, upload_video, uploads
 from .webapp import mount_docs, mount_web
 
 __all__ = ["app", "create_app"]
@@ -52,6 +52,7 @@ def create_app() -> FastAPI:
     v1 = APIRouter(prefix="/v1", responses=_V1_RESPONSES)
     v1.include_router(uploads.router)
     v1.include_router(upload_video.router)
+    v1.include_router(upload_points.router)
     v1.include_router(jobs.router)
     v1.include_router(previews.router)
     v1.include_router(results.router)

@@ -13,8 +13,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from prismcore.spec import ScanSpec
 
-__all__ = ["DimensionsPublic", "ItemPublic", "JobCreate", "JobList", "JobPublic", "ResultPublic",
-           "UploadProbe", "UploadPublic", "VideoPublic"]
+__all__ = ["DimensionsPublic", "FoundPointsPublic", "ItemPublic", "JobCreate", "JobList", "JobPublic",
+           "ResultPublic", "UploadProbe", "UploadPublic", "VideoPublic"]
 
 
 def _first_non_finite(value: Any, path: str = "") -> str | None:
@@ -92,3 +92,26 @@ class VideoPublic(BaseModel):
     height: int = Field(description="Frame height, px.")
     codec: str = Field(description='FourCC as OpenCV reports it, e.g. "MJPG", "FMP4", "h264".')
     duration_s: float
+
+
+class FoundPointsPublic(BaseModel):
+    """The box and its reference points the zero-click search (`prismcore.locate`) found in an
+    upload, for a person to check: either `points` or a `reason`."""
+
+    id: str = Field(description="The upload's id.")
+    frame: int | None = Field(description="The video frame searched; null for a photo.")
+    hint: tuple[int, int] | None = Field(description="The hint searched around, (x, y) whole px.")
+    width: int = Field(description="The photo's (frame's) width as the engine decodes it, px.")
+    height: int = Field(description="Its height, px.")
+    points: dict[str, list[float]] | None = Field(
+        description="p1..p7, image (x, y) px, in the documented order (p4, p5, p7 on the "
+                    "`side_face`); null when the search refused (see `reason`).")
+    side_face: Literal["right", "left", "top"] | None = Field(
+        description="The second face p4, p5 and p7 mark; null when refused.")
+    confidence: float = Field(description="0-1: how well a box explains the edges found.")
+    reason: str | None = Field(
+        description="Why no points are given, in words a person can act on (no box found, two "
+                    "candidate boxes: give a hint, only one face visible, uncertain); null when found.")
+    warnings: list[str] = Field(description="Found with a modest confidence: check the points.")
+    faces: list[list[list[float]]] = Field(
+        description="The faces found, each four (x, y) px corners (for an overlay); empty when refused.")

@@ -41,7 +41,8 @@ ROUTES = {("POST", "/v1/uploads"): 201, ("POST", "/v1/jobs"): 422, ("GET", "/v1/
           ("GET", "/v1/jobs/{job_id}/items/{index}/box.glb"): 404,
           ("GET", "/v1/jobs/{job_id}/results.csv"): 404, ("GET", "/v1/jobs/{job_id}/results.json"): 404,
           ("GET", "/v1/uploads/{upload_id}/video"): 404,
-          ("GET", "/v1/uploads/{upload_id}/frames/{frame}.png"): 404}
+          ("GET", "/v1/uploads/{upload_id}/frames/{frame}.png"): 404,
+          ("GET", "/v1/uploads/{upload_id}/points"): 404}
 
 
 @pytest.fixture
