@@ -3,7 +3,9 @@
 Each frame is measured as a photo (`frame_spec` + `run_scan`) and written to `frame_NNNNNN/`
 like a photo's outputs (overlay.png included); `summary.json` beside them says how repeatable
 each dimension is.
-A frame that cannot be measured is reported and the others go on.
+A frame that cannot be measured is reported and the others go on. With points "auto", a first
+pass finds each frame's points in frame order (`prismcore.video_points.FrameSearch`); a frame
+where the search refuses fails with its reason.
 """
 
 from __future__ import annotations
@@ -18,10 +20,12 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
+from prismcore.auto_points import found_box_guard, record_found
 from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.summary import DIMENSIONS, frame_info, summarize
 from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video_points import FrameSearch
 
 from .outputs import report_path, write_outputs, write_overlays
 
@@ -43,10 +47,47 @@ def selection_from_flags(every: int | None, start: float | None, end: float | No
     return given or None
 
 
-def _measure(spec: ScanSpec, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
+class _FrameSpecs:
+    """Each frame's photo spec: the video spec's points, or with points "auto" those found in
+    the frame (searched once, in frame order, before anything else reads the frames)."""
+
+    def __init__(self, spec: ScanSpec, path: Path, indices: list[int]) -> None:
+        self._spec = spec
+        self._found: dict[int, tuple[ScanSpec, dict] | str] = {}
+        if spec.auto_points is None:
+            return
+        search = FrameSearch(spec)
+        try:
+            for index, frame in iter_frames(path, indices):
+                try:
+                    resolved, found = search.resolve(index, frame)
+                except InputError as exc:
+                    self._found[index] = str(exc)
+                else:
+                    self._found[index] = (resolved, found.report())
+        except InputError:
+            pass  # the measuring pass meets the same break and reports it per frame
+
+    def spec(self, index: int) -> tuple[ScanSpec, dict | None]:
+        """Frame `index`'s photo spec and what the search found there (None: points given).
+
+        Raises InputError with the search's reason for a frame where it found none.
+        """
+        if self._spec.auto_points is None:
+            return frame_spec(self._spec, index), None
+        found = self._found.get(index, f"points auto: frame {index} was not searched (decoding stopped)")
+        if isinstance(found, str):
+            raise InputError(found)
+        return found
+
+
+def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
              decode_ms: float, pooled: PooledFocal | None) -> dict:
-    one = frame_spec(spec, index)
-    result = run_scan(one, frame, tiles=tiles, pooled_focal=pooled)
+    one, auto = specs.spec(index)
+    with found_box_guard(auto is not None):
+        result = run_scan(one, frame, tiles=tiles, pooled_focal=pooled)
+    if auto is not None:
+        record_found(result.report, auto)
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
@@ -56,7 +97,8 @@ def _measure(spec: ScanSpec, index: int, frame: np.ndarray, info: VideoInfo, out
     return result.report
 
 
-def _pooled_focal(spec: ScanSpec, path: Path, indices: list[int]) -> tuple[PooledFocal, list[int]] | None:
+def _pooled_focal(spec: ScanSpec, specs: _FrameSpecs, path: Path, indices: list[int]
+                  ) -> tuple[PooledFocal, list[int]] | None:
     """All frames of one video share one focal length: when none is known, fit it on every
     frame first (the fit only, a fraction of a frame's cost) and pool the fits, so each frame is
     then measured with the steadier pooled value. Returns it with the frames it was pooled
@@ -66,7 +108,11 @@ def _pooled_focal(spec: ScanSpec, path: Path, indices: list[int]) -> tuple[Poole
     estimates, fitted = [], []
     try:
         for index, frame in iter_frames(path, indices):
-            found = focal_estimate(frame_spec(spec, index), frame)
+            try:
+                one = specs.spec(index)[0]
+            except InputError:
+                continue  # no points in this frame: it fails with the reason when measured
+            found = focal_estimate(one, frame)
             if found is not None:
                 estimates.append(found)
                 fitted.append(index)
@@ -105,7 +151,8 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
     indices = select_frames(path, spec.frames, info, max_frames=max_frames)
     console.print(f"{path}: {info.width}x{info.height} {info.codec}, {info.frame_count} frames at "
                   f"{info.fps:g} fps; measuring {len(indices)}")
-    found = _pooled_focal(spec, path, indices)
+    specs = _FrameSpecs(spec, path, indices)
+    found = _pooled_focal(spec, specs, path, indices)
     pooled = found[0] if found else None
     if found is not None:
         console.print(f"focal length pooled over {len(found[1])} frames: {found[0].focal_px:.1f} "
@@ -117,7 +164,7 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
         for index, frame in frames:
             decode_ms = (time.perf_counter() - tick) * 1000
             try:
-                report = _measure(spec, index, frame, info, out, tiles, decode_ms, pooled)
+                report = _measure(specs, index, frame, info, out, tiles, decode_ms, pooled)
             except InputError as exc:
                 per_frame[index] = {"error": str(exc)}
                 console.print(f"[red]{frame_folder(index)} failed:[/] {exc}")

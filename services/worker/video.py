@@ -4,7 +4,10 @@ uploaded video shown to a person to mark.
 Split (`split_video`): read the video once, select the frames, store each one as a lossless PNG
 and send its scan task as soon as it is stored, so frames are measured while the split goes on.
 One decoded frame is in memory at a time. Without a focal length, every frame's own fit is
-pooled into one (one camera) before any frame is measured.
+pooled into one (one camera) before any frame is measured. With points "auto" the split also
+finds each frame's points, in frame order (`prismcore.video_points.FrameSearch`: each search
+starts at the box the frame before showed), and stores them beside the frame (``points.json``:
+the points, or the search's reason, which fails that frame).
 
 Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frame_spec`)
 and gets its own outputs and record; after the item's last frame (`frame_finished`) the item's
@@ -43,13 +46,15 @@ from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView
 from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
 
-from prismcore import InputError, run_scan
+from prismcore import InputError, ReferencePoints, ScanSpec, run_scan
+from prismcore.auto_points import found_box_guard, record_found
 from prismcore.containers import HEAD_BYTES, video_container
 from prismcore.images import load_image
 from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.spec import SUMMARY_NAME
 from prismcore.summary import frame_info, summarize
 from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video_points import FrameSearch
 
 from . import lifecycle
 from .artifacts import frame_key, item_key, write_outputs
@@ -57,13 +62,14 @@ from .context import WorkerContext
 from .inputs import save_input
 from .steps import max_pixels
 
-__all__ = ["FOCAL_NAME", "FRAMES_NAME", "client_message", "extract_frame", "frame_failed",
+__all__ = ["FOCAL_NAME", "FRAMES_NAME", "POINTS_NAME", "client_message", "extract_frame", "frame_failed",
            "frame_finished", "png_bytes", "scan_frame", "split_video"]
 
 log = logging.getLogger(__name__)
 
 FRAMES_NAME = "frames.json"
 FOCAL_NAME = "focal.json"  # the focal length pooled over the frames' own fits, when one was
+POINTS_NAME = "points.json"  # per frame, points "auto": what the search found, or its reason
 _PNG_FAST = [cv2.IMWRITE_PNG_COMPRESSION, 1]  # lossless either way; level 1 is ~5x faster than 3
 
 
@@ -115,12 +121,14 @@ def split_video(ctx: WorkerContext, view: ItemView) -> list[int]:
         pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
         estimates: list[tuple[float, float]] = []
         stored: list[int] = []
+        search = FrameSearch(spec) if spec.auto_points is not None else None
         for index, rgb in iter_frames(path, frames):
             if store.state(job_id) != State.running:
                 break  # cancelled (or ended) meanwhile: the remaining frames are not wanted
             objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
+            photo = frame_spec(spec, index) if search is None else _search(ctx, view, search, index, rgb)
             if pool:
-                if (found := focal_estimate(frame_spec(spec, index), rgb)) is not None:
+                if photo is not None and (found := focal_estimate(photo, rgb)) is not None:
                     estimates.append(found)
                 stored.append(index)
             else:
@@ -136,14 +144,52 @@ def split_video(ctx: WorkerContext, view: ItemView) -> list[int]:
     return frames
 
 
+def _search(ctx: WorkerContext, view: ItemView, search: FrameSearch, index: int,
+            rgb: np.ndarray) -> ScanSpec | None:
+    """Find the frame's points (the next frame's search starts from them) and store them, or
+    the reason there are none, as points.json; the frame's photo spec, None without points."""
+    key = frame_key(view.job_id, view.item.index, index, POINTS_NAME)
+    try:
+        photo, found = search.resolve(index, rgb)
+    except InputError as exc:
+        ctx.objects.put_json(key, {"error": str(exc)})
+        return None
+    assert photo.points is not None
+    ctx.objects.put_json(key, {"points": photo.points.model_dump(mode="json"), "side_face": photo.side_face,
+                               "found": found.report()})
+    return photo
+
+
+def _frame_spec(ctx: WorkerContext, view: ItemView, frame: int) -> tuple[ScanSpec, dict[str, Any] | None]:
+    """The frame's photo spec, and with points "auto" what the search found (points.json).
+
+    Raises InputError with the search's reason for a frame where it found no points.
+    """
+    spec = view.item.spec
+    photo = frame_spec(spec, frame)
+    if spec.auto_points is None:
+        return photo, None
+    doc = ctx.objects.get_json(frame_key(view.job_id, view.item.index, frame, POINTS_NAME))
+    if doc is None:  # the split stores it before the frame's task is sent
+        raise RuntimeError(f"frame {frame} has no {POINTS_NAME}")
+    if "error" in doc:
+        raise InputError(doc["error"])
+    points = ReferencePoints.model_validate(doc["points"])
+    return photo.model_copy(update={"points": points, "side_face": doc["side_face"],
+                                    "auto_points": None}), doc["found"]
+
+
 def scan_frame(ctx: WorkerContext, view: ItemView, frame: int) -> None:
     """Measure the frame and record it: its outputs, or the error that stopped it."""
     job_id, item, spec = view.job_id, view.item.index, view.item.spec
     try:
-        photo_spec = frame_spec(spec, frame)
+        photo_spec, auto = _frame_spec(ctx, view, frame)
         data = ctx.objects.get_bytes(frame_key(job_id, item, frame, "frame.png"))
         image = load_image(data, max_pixels=max_pixels(ctx, spec.max_pixels), name=f"frame {frame}")
-        scan = run_scan(photo_spec, image, pooled_focal=_pooled(ctx, item_key(job_id, item, FOCAL_NAME)))
+        with found_box_guard(auto is not None):
+            scan = run_scan(photo_spec, image, pooled_focal=_pooled(ctx, item_key(job_id, item, FOCAL_NAME)))
+        if auto is not None:
+            record_found(scan.report, auto)
         fps = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
         scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
         result, outputs = write_outputs(ctx, job_id, item, photo_spec, scan, [image], frame=frame)

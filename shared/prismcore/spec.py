@@ -203,7 +203,9 @@ def _auto_schema(schema: dict[str, Any]) -> None:
 class AutoPoints(_Strict):
     """Where the zero-click search looks: the box around `hint`, or inside `roi`."""
 
-    hint: Point | None = Field(default=None, description="(x, y) px on the box wanted.")
+    hint: Point | None = Field(default=None, description="(x, y) px on the box wanted (a video: in "
+                               "its first selected frame; each later frame starts at the box the "
+                               "frame before showed).")
     roi: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] | None = Field(
         default=None, description="(x0, y0, x1, y1) px: look for the box inside this region only.")
 
@@ -222,8 +224,8 @@ class ScanSpec(_Strict):
     )
     points: ReferencePoints | None = Field(
         default=None, description="Reference points (every frame of a video); required unless "
-        "frame_points is given. \"auto\" (one photo): found in the photo (prismcore.locate), see "
-        "auto_points.", json_schema_extra=_auto_schema,
+        "frame_points is given. \"auto\": found in the photo, or in each frame of a video "
+        "(prismcore.locate), see auto_points.", json_schema_extra=_auto_schema,
     )
     auto_points: AutoPoints | None = Field(
         default=None, description="Set when points is \"auto\": where to look for the box.")
@@ -301,6 +303,8 @@ class ScanSpec(_Strict):
             raise ValueError("a shooting distance needs focal_px (the focal length in pixels), "
                              "a camera, or p6 and p7 in one photo (the focal length is fitted)")
         if self.frame_points is not None:
+            if self.auto_points is not None:
+                raise ValueError("points \"auto\" finds the points in every frame: drop frame_points")
             if self.points is not None:
                 raise ValueError("give points (the same for every frame) or frame_points "
                                  "(per frame), not both")
@@ -311,8 +315,9 @@ class ScanSpec(_Strict):
         elif self.auto_points is not None:
             if self.points is not None:
                 raise ValueError("auto_points goes with points \"auto\": drop one of them")
-            if self.side_image is not None or self.frames is not None:
-                raise ValueError("points \"auto\" is for one photo: not with side_image or frames")
+            if self.side_image is not None:
+                raise ValueError("points \"auto\" is for one photo (or a video's frames): not with "
+                                 "side_image")
             if self.side_face != "auto":
                 raise ValueError(f"side_face {self.side_face!r} goes with clicked points: with points "
                                  "\"auto\" the search tells the face itself; drop side_face")

@@ -2,7 +2,8 @@
 redis-server and SeaweedFS): photo items with ``"points": "auto"`` and no clicks get their
 points from the engine's search in the worker, scanned whole (an item of a batch) and by tiles
 (a lone item); a photo with no box fails its item with the search's reason; the item results,
-report.json and the job's results table say the points were found, with the confidence.
+report.json and the job's results table say the points were found, with the confidence. A
+video item with points "auto" has them found in each frame.
 
 The truth is the renderer's projection of the box's corners (`prismsynth.scenes`); the search
 names the faces its own way, so each found point is matched to its nearest true corner, and the
@@ -24,7 +25,9 @@ import pytest
 
 from prism_cli.stack import start_api, start_worker
 from prismcore.locate import CONFIDENCE_MIN, find_points
-from prismsynth.scenes import ClutterScene, clutter_scene, empty_scene
+from prismsynth import Box, write_video
+from prismsynth.scenes import ClutterScene, box_vertices_px, clutter_scene, empty_scene
+from prismsynth.video import render_clip
 
 from .conftest import API_KEYS
 from .servers import service_env
@@ -39,10 +42,12 @@ class Stack:
     def __init__(self, port: int) -> None:
         self.http = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30, headers=ACME)
 
-    def upload(self, image: np.ndarray, name: str) -> str:
-        ok, data = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-        assert ok
-        r = self.http.post("/v1/uploads", files={"file": (name, data.tobytes())})
+    def upload(self, image: np.ndarray | bytes, name: str) -> str:
+        if isinstance(image, np.ndarray):
+            ok, encoded = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+            assert ok
+            image = encoded.tobytes()
+        r = self.http.post("/v1/uploads", files={"file": (name, image)})
         assert r.status_code in (200, 201), r.text
         return str(r.json()["reference"])
 
@@ -166,6 +171,43 @@ def test_a_lone_item_scanned_by_tiles_measures_as_the_batch_did(stack, batch):
         assert item["result"][key] == whole[key], key
     assert httpx.get(item["downloads"]["report"]).json()["auto_points"]["confidence"] == \
         whole["points_confidence"]
+
+
+EMPTY_FRAME = 2
+
+
+def test_a_video_is_measured_with_no_clicks_frame_by_frame(stack, tmp_path):
+    """A hand-held clip of a box with one frame of clutter and no box put in (as
+    tests/cli/test_scan_auto_video.py): that frame fails with the reason, the others are found."""
+    clip = render_clip(Box(120.0, 80.0, 60.0), 4, sway_deg=3)
+    pictures = [s.image for s in clip]
+    pictures[EMPTY_FRAME] = empty_scene(0, image_size=SIZE)
+    video = tmp_path / "clip.avi"
+    write_video(pictures, video)
+    corners = [None if i == EMPTY_FRAME else box_vertices_px(s)[1] for i, s in enumerate(clip)]
+    job = stack.run([{"image": stack.upload(video.read_bytes(), "clip.avi"), "points": "auto",
+                      "frames": {}}])
+    assert job["state"] == "succeeded", job
+    [item] = job["items"]
+    assert item["state"] == "succeeded", item
+    frames = {f["index"]: f for f in item["frames"]}
+    assert sorted(frames) == list(range(len(corners)))
+    for index, truth in enumerate(corners):
+        frame = frames[index]
+        if truth is None:
+            assert frame["state"] == "failed" and frame["error"].startswith("points auto: "), frame
+            continue
+        assert frame["state"] == "succeeded", frame
+        result = frame["result"]
+        assert result["points_source"] == "auto" and result["points_confidence"] >= CONFIDENCE_MIN
+        for xy in result["reference_points"].values():
+            if xy is not None:
+                assert np.linalg.norm(truth - xy, axis=1).min() <= 3.0, (index, xy)
+    assert item["result"]["summary"]["frames"] == {"selected": 4, "measured": 3, "failed": 1}
+    [failed] = item["result"]["summary"]["failed"]
+    assert failed["frame"] == EMPTY_FRAME
+    rows = list(csv.DictReader(io.StringIO(stack.http.get(f"/v1/jobs/{job['id']}/results.csv").text)))
+    assert [row["points_source"] for row in rows] == ["auto"] * 5  # the item's row, then its frames'
 
 
 @pytest.mark.parametrize(("extra", "words"), [
