@@ -22,6 +22,7 @@ import cv2
 import httpx
 import numpy as np
 import pytest
+from prism_common.storage import ObjectStore
 
 from prism_cli.stack import start_api, start_worker
 from prismcore.locate import CONFIDENCE_MIN, find_points
@@ -32,6 +33,7 @@ from prismsynth.video import render_clip
 from .conftest import API_KEYS
 from .servers import service_env
 
+BUCKET = "zero-click-e2e"
 SIZE = (640, 512)  # small photos: the search and the scan stay cheap
 SEEDS = (0, 2)  # scenes where the search finds the box (checked against the truth below)
 EMPTY = empty_scene(0, image_size=SIZE)  # clutter and no box
@@ -68,7 +70,7 @@ class Stack:
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("zero-click")
     # Three tiles per face: a job of three items is scanned whole per item, a lone item by tiles.
-    env = service_env(redis_server.port, s3_server.port, db=13, bucket="zero-click-e2e",
+    env = service_env(redis_server.port, s3_server.port, db=13, bucket=BUCKET,
                       TILES_PER_FACE="3", ITEMS_IN_FLIGHT_PER_JOB="3")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
@@ -161,10 +163,14 @@ def test_results_table_marks_the_found_points(stack, batch):
             assert row["points_confidence"] == "" and row["error"] == item["error"]
 
 
-def test_a_lone_item_scanned_by_tiles_measures_as_the_batch_did(stack, batch):
+def test_a_lone_item_scanned_by_tiles_measures_as_the_batch_did(stack, batch, settings):
     job, items = batch
     lone = stack.run([items[0]])  # one item: planned, scanned in tiles, finished
     assert lone["state"] == "succeeded", lone
+    objects = ObjectStore.from_settings(settings.model_copy(update={"s3_bucket": BUCKET}))
+    plan = objects.get_json(f"jobs/{lone['id']}/items/0/plan.json")
+    assert plan is not None and plan["auto_points"]["points_source"] == "auto" and plan["tiles"]
+    assert objects.get_json(f"jobs/{job['id']}/items/0/plan.json") is None  # the batch's: whole
     [item] = lone["items"]
     whole = job["items"][0]["result"]
     for key in ("points_source", "points_confidence", "reference_points", "dimensions", "points"):
