@@ -82,6 +82,22 @@ export async function call(path: string, init: RequestInit = {}, key = savedKey(
   return response;
 }
 
+const sleep = (ms: number) => new Promise((resolve) => window.setTimeout(resolve, ms));
+const WAIT_LIMIT_MS = 180_000; // a worker busy with long scans may take a while to get to it
+
+/** GET `path`, asking again while the API answers 202 (a worker is still on it); past the wait
+ *  limit, an ApiError saying `tooLong`. */
+export async function whenReady(path: string, tooLong: string): Promise<Response> {
+  const deadline = Date.now() + WAIT_LIMIT_MS;
+  for (;;) {
+    const response = await call(path);
+    if (response.status !== 202) return response;
+    if (Date.now() > deadline) throw new ApiError(tooLong, 202);
+    const after = Number(response.headers.get("Retry-After")) || 1;
+    await sleep(Math.min(after, 5) * 1000);
+  }
+}
+
 export async function getJson<T>(path: string, key?: string): Promise<T> {
   return (await call(path, {}, key)).json() as Promise<T>;
 }

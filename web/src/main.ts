@@ -4,6 +4,7 @@
 import "./style.css";
 
 import { getJson, message, saveKey, savedKey } from "./api";
+import { FindPoints } from "./find-points";
 import { FramePicker } from "./frame-picker";
 import { FrameSelectionForm } from "./frame-selection";
 import { History } from "./history";
@@ -19,6 +20,7 @@ const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as 
 
 const settings = new SettingsForm(() => state.twoPhoto);
 const marking = new Marking(() => settings.paper());
+const finder = new FindPoints((change) => marking.changed(change));
 const photos = new Photos();
 const picker = new FramePicker();
 const frames = new FrameSelectionForm(() => photoShown("front")?.video?.info ?? null);
@@ -40,6 +42,7 @@ photos.onChange = (what) => {
   if (what === "side") marking.changed(() => clear(["p4", "p5", "p7"]));
   if (what === "mode") {
     settings.render();
+    finder.render();
     marking.changed(() => clear(["p4", "p5", "p7"]));
   }
   if (what !== "photos") marking.show(state.shown === "side" && state.twoPhoto ? "side" : "front");

@@ -1,5 +1,6 @@
-// Painting the photo canvas: the photo at the view's zoom, the face outlines, and each point
-// as a crosshair with its label (P1...P7) on a dark tab so it reads on any photo.
+// Painting the photo canvas: the photo at the view's zoom, the faces the service found (dashed),
+// the face outlines, and each point as a crosshair with its label (P1...P7) on a dark tab so it
+// reads on any photo.
 
 import type { MarkerHost } from "./marker";
 import type { Point, PointName } from "./types";
@@ -7,6 +8,7 @@ import type { View } from "./view";
 
 const OUTLINE_COLOURS = ["rgba(0, 200, 255, 0.95)", "rgba(255, 140, 0, 0.95)"];
 const FILL_COLOURS = ["rgba(0, 200, 255, 0.14)", "rgba(255, 140, 0, 0.14)"];
+const FOUND_COLOUR = "rgba(60, 255, 120, 0.95)";
 
 export function drawMarker(canvas: HTMLCanvasElement, view: View, host: MarkerHost,
                            selected: PointName | null): void {
@@ -30,6 +32,7 @@ export function drawMarker(canvas: HTMLCanvasElement, view: View, host: MarkerHo
   // Past 2x the pixels are shown as squares, so a corner can be put on the right one.
   ctx.imageSmoothingEnabled = view.scale < 2;
   ctx.drawImage(image, view.ox, view.oy, image.width * view.scale, image.height * view.scale);
+  host.found().forEach((quad) => dashed(ctx, view, quad));
   host.outlines().forEach((quad, i) => outline(ctx, view, quad, i));
   for (const [name, p] of host.marks()) mark(ctx, view.toScreen(p), name, name === selected);
 }
@@ -43,6 +46,17 @@ function outline(ctx: CanvasRenderingContext2D, view: View, quad: Point[], i: nu
   ctx.strokeStyle = OUTLINE_COLOURS[i % 2];
   ctx.lineWidth = 1.5;
   ctx.stroke();
+}
+
+function dashed(ctx: CanvasRenderingContext2D, view: View, quad: Point[]): void {
+  ctx.beginPath();
+  quad.map((p) => view.toScreen(p)).forEach(([x, y], k) => (k ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+  ctx.closePath();
+  ctx.setLineDash([6, 4]);
+  ctx.strokeStyle = FOUND_COLOUR;
+  ctx.lineWidth = 2;
+  ctx.stroke();
+  ctx.setLineDash([]);
 }
 
 function mark(ctx: CanvasRenderingContext2D, [x, y]: Point, name: string, selected: boolean): void {

@@ -10,6 +10,7 @@ export interface MarkerHost {
   image(): ImageBitmap | null;
   marks(): [PointName, Point][]; // the points on the photo shown
   outlines(): Point[][];
+  found(): Point[][]; // the faces the service's search found, drawn dashed under the outlines
   place(p: Point): void; // the next point goes here
   snapshot(): void; // before a drag or nudge, so undo can take it back
   move(name: PointName, p: Point): void;

@@ -1,6 +1,7 @@
 // Step 2 of the page: the photo canvas and everything around it (the prompt for the next point,
 // the photo switch, undo and clear, the pointer readout and the table of points).
 
+import { foundFaces } from "./find-points";
 import { Marker } from "./marker";
 import { renderPointTable } from "./point-table";
 import { describe, photoOf, regions, setFaceChoice, type FaceChoice, type Photo } from "./points";
@@ -18,6 +19,7 @@ export class Marking {
       image: () => S.photoShown()?.bitmap ?? null,
       marks: () => S.marksOn(S.state.shown),
       outlines: () => this.outlines(),
+      found: () => foundFaces(),
       place: (p) => this.place(p),
       snapshot: () => S.snapshot(),
       move: (name, p) => this.changed(() => S.move(name, p)),

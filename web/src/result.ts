@@ -220,6 +220,10 @@ function summary(item: Item): HTMLElement[] {
   }
   if (r.fit_rms_px !== undefined && r.fit_rms_px !== null) add("Fit", `${r.fit_rms_px.toFixed(2)} px RMS`);
   if (r.side_face) add("Second face", r.side_face);
+  if (r.points_source === "auto") {
+    const c = r.points_confidence;
+    add("Reference points", `found automatically${c !== undefined && c !== null ? ` (confidence ${c.toFixed(2)})` : ""}`);
+  }
   out.push(dl);
   const links = document.createElement("p");
   links.className = "downloads";

@@ -2,6 +2,7 @@
 // or a sentence saying what is still missing. A video's item has `frames` and `points`, or
 // `frame_points` (per-frame points: exactly the frames marked are measured).
 
+import { foundAsIs, pointsOrigin } from "./find-points";
 import { describe, sequence, type Marks } from "./points";
 import type { Settings } from "./settings";
 import { allFrameMarks, photoShown, state } from "./state";
@@ -47,9 +48,18 @@ export function currentScan(settings: Settings, selectFrames: SelectFrames): Sca
   const video = photoShown("front")?.video;
   if (video) return videoScan(front, video.info, settings, selectFrames);
   const side = state.twoPhoto ? reference("side") : null;
+  const asFound = side ? null : foundAsIs();
+  if (asFound) {
+    // The search tells the second face itself: the spec names none.
+    const { side_face: _face, ...rest } = settings;
+    const spec: ScanSpec = { image: front.ref, points: "auto", ...rest };
+    if (asFound.hint) spec.auto_points = { hint: asFound.hint };
+    return { spec, label: `${front.name} (${pointsOrigin()})` };
+  }
   const spec: ScanSpec = { image: front.ref, points: complete(state.marks), ...settings };
   if (side) spec.side_image = side.ref;
-  return { spec, label: side ? `${front.name} + ${side.name}` : front.name };
+  const origin = pointsOrigin();
+  return { spec, label: side ? `${front.name} + ${side.name}` : origin ? `${front.name} (${origin})` : front.name };
 }
 
 function videoScan(front: { ref: string; name: string }, info: VideoInfo | null, settings: Settings,
@@ -58,7 +68,8 @@ function videoScan(front: { ref: string; name: string }, info: VideoInfo | null,
   if (!info) throw new Error(`Wait for the service to read ${front.name}.`);
   if (!state.perFrame) {
     const spec = { image: front.ref, points: complete(state.marks), frames: selectFrames(info, state.markedFrame) };
-    return { spec: { ...spec, ...settings }, label: `${front.name} (video)` };
+    const origin = pointsOrigin();
+    return { spec: { ...spec, ...settings }, label: `${front.name} (video${origin ? `, ${origin}` : ""})` };
   }
   const marked = Object.entries(allFrameMarks()).sort(([a], [b]) => Number(a) - Number(b));
   if (!marked.length) throw new Error("Mark the points on at least one frame.");

@@ -54,6 +54,13 @@ export function place(name: PointName, p: Point): void {
   move(name, p);
 }
 
+/** Every point at once (found by the service), undoable as one change. */
+export function placeAll(marks: Marks): void {
+  snapshot();
+  state.marks = { ...marks };
+  state.markedFrame = frameShown();
+}
+
 export function move(name: PointName, p: Point): void {
   state.marks = { ...state.marks, [name]: p };
   state.markedFrame = frameShown();

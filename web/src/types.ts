@@ -75,6 +75,9 @@ export interface Result {
   fit_rms_px?: number | null;
   side_face?: string | null;
   quality?: Quality | null;
+  /** "clicked" (given in the spec) or "auto" (found by the service's search). */
+  points_source?: string | null;
+  points_confidence?: number | null;
 }
 
 export interface Frame {
@@ -132,6 +135,21 @@ export interface JobList {
   next_cursor: string | null;
 }
 
+/** GET /v1/uploads/{id}/points: the box the service's search found, or why none. */
+export interface FoundPoints {
+  id: string;
+  frame: number | null;
+  hint: [number, number] | null;
+  width: number;
+  height: number;
+  points: Partial<Record<PointName, Point>> | null;
+  side_face: "right" | "left" | "top" | null;
+  confidence: number;
+  reason: string | null;
+  warnings: string[];
+  faces: Point[][];
+}
+
 export type Point = [number, number];
 export type PointName = "p1" | "p2" | "p3" | "p4" | "p5" | "p6" | "p7";
 
@@ -153,7 +171,9 @@ export type PointSet = Partial<Record<PointName, Point>>;
 export interface ScanSpec {
   image: string;
   side_image?: string;
-  points?: PointSet;
+  /** "auto": the worker finds them (prismcore.locate), around `auto_points.hint` if given. */
+  points?: PointSet | "auto";
+  auto_points?: { hint?: Point };
   frames?: FrameSelection;
   frame_points?: Record<string, PointSet>;
   tolerance: number;

@@ -2,7 +2,7 @@
 // the API, which has a worker decode them: the frame shown here is the very PNG the worker's
 // decoder makes, so it is the frame measured, whatever the codec (MJPEG AVI plays in no browser).
 
-import { ApiError, call } from "./api";
+import { whenReady as ready } from "./api";
 import type { VideoInfo } from "./types";
 
 const HEAD_BYTES = 16;
@@ -10,7 +10,6 @@ const HEAD_BYTES = 16;
 const NOT_VIDEO_BRANDS = new Set(["heic", "heix", "heim", "heis", "hevc", "hevx", "hevm", "hevs", "mif1",
   "msf1", "avif", "avis", "avio", "jxl ", "crx ", "jp2 ", "jpx ", "jpm ", "M4A ", "M4B ", "M4P ", "F4A ", "F4B "]);
 const QUICKTIME_ATOMS = new Set(["moov", "mdat", "wide", "free", "skip", "pnot"]);
-const WAIT_LIMIT_MS = 180_000; // a worker busy with long scans may take a while to get to it
 const CACHED_FRAMES = 24;
 
 /** Is this file a video (AVI, MP4, MOV, MKV/WebM)? The content decides, as on the service. */
@@ -26,20 +25,9 @@ export async function isVideo(file: File): Promise<boolean> {
   return false;
 }
 
-const sleep = (ms: number) => new Promise((resolve) => window.setTimeout(resolve, ms));
-
-/** GET `path`, asking again while the API answers 202 (the worker is still decoding). */
-async function whenReady(path: string): Promise<Response> {
-  const deadline = Date.now() + WAIT_LIMIT_MS;
-  for (;;) {
-    const response = await call(path);
-    if (response.status !== 202) return response;
-    if (Date.now() > deadline) {
-      throw new ApiError("The service has not decoded the video yet; try again in a while.", 202);
-    }
-    const after = Number(response.headers.get("Retry-After")) || 1;
-    await sleep(Math.min(after, 5) * 1000);
-  }
+/** GET `path`, asking again while the worker is still decoding. */
+function whenReady(path: string): Promise<Response> {
+  return ready(path, "The service has not decoded the video yet; try again in a while.");
 }
 
 export async function videoInfo(uploadId: string): Promise<VideoInfo> {
