@@ -8,7 +8,7 @@ import json
 import pytest
 from prism_common.queue import TASK_FINISH_ITEM, TASK_PLAN_ITEM, TASK_RUN_JOB
 from prism_common.records import State
-from prism_common.upload_keys import frame_png_key, upload_key, video_info_key
+from prism_common.upload_keys import frame_png_key, points_key, upload_key, video_info_key
 
 from prism_worker import lifecycle, watchdog
 
@@ -168,7 +168,8 @@ def test_uploads_past_their_ttl_go_with_their_frames(fakes: Fakes) -> None:
     for upload_id in ids.values():
         key = upload_key("acme", upload_id)
         fakes.store.put_upload(upload_id, tenant="acme", key=key, size=3, name="clip.avi")
-        for k in (key, video_info_key("acme", upload_id), frame_png_key("acme", upload_id, 7)):
+        for k in (key, video_info_key("acme", upload_id), frame_png_key("acme", upload_id, 7),
+                  points_key("acme", upload_id, None, (3, 4))):
             fakes.objects.put_bytes(k, b"abc")
     fakes.objects.put_bytes("jobs/" + "c" * 32 + "/items/0/cloud.csv", b"1,2,3\n")
     now = fakes.clock.now
@@ -176,7 +177,7 @@ def test_uploads_past_their_ttl_go_with_their_frames(fakes: Fakes) -> None:
     fakes.redis.zadd("prism:uploads", {ids["new"]: now})
     assert watchdog.expire_uploads(fakes.ctx, now) == 1
     assert not any(ids["old"] in k for k in fakes.objects.objects)
-    assert sum(ids["new"] in k for k in fakes.objects.objects) == 3
+    assert sum(ids["new"] in k for k in fakes.objects.objects) == 4
     assert fakes.store.get_upload(ids["old"]) is None and fakes.store.get_upload(ids["new"]) is not None
     assert watchdog.expire_uploads(fakes.ctx, now) == 0
 
