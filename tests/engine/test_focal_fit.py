@@ -154,6 +154,7 @@ def scene_1187():
     return _scene(focal=1187.3, seed=11)
 
 
+@pytest.mark.slow  # a sweep of many whole fits
 def test_sweeping_the_given_focal_length_changes_the_result_continuously(scene_1187):
     # The case: 1187.2 and 1187.35 agreed, 1187.3 landed in another minimum.
     spec = ScanSpec(image="x", points=_points(scene_1187), scale=EDGE)
@@ -162,6 +163,7 @@ def test_sweeping_the_given_focal_length_changes_the_result_continuously(scene_1
     _assert_continuous(dims, 1e-4)
 
 
+@pytest.mark.slow  # a sweep of many whole fits
 @pytest.mark.parametrize("axis", [0, 1])
 def test_sweeping_the_clicks_changes_the_result_continuously(scene_1187, axis):
     dims = []
@@ -173,6 +175,7 @@ def test_sweeping_the_clicks_changes_the_result_continuously(scene_1187, axis):
     _assert_continuous(dims, 2e-3)
 
 
+@pytest.mark.slow  # a sweep of many whole fits
 def test_sweeping_the_known_edge_scales_the_result_continuously(scene_1187):
     dims = [_dims(ScanSpec(image="x", points=_points(scene_1187),
                            scale={"kind": "edge", "edge": "width", "length_mm": length}), scene_1187.image)

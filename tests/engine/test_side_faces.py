@@ -51,13 +51,36 @@ def _cases():
             yield pytest.param(face, yaw, pitch, id=f"{face}-{yaw:g}-{pitch:g}")
 
 
-@pytest.mark.parametrize(("face", "yaw", "pitch"), list(_cases()))
-@pytest.mark.parametrize("box", BOXES, ids=str)
-@pytest.mark.parametrize("scale", ["distance", "width"])
-def test_seven_points_with_focal_within_two_percent(face, yaw, pitch, box, scale):
+@pytest.fixture(scope="module")
+def view():
+    """view(box, face, yaw, pitch, seed): the render, made once per module (renders are
+    deterministic, and the tests only read them)."""
+    made = {}
+
+    def render(box: Box, face: str, yaw: float, pitch: float, seed: int):
+        if (key := (box, face, yaw, pitch, seed)) not in made:
+            made[key] = render_oblique_view(box, yaw_deg=yaw, pitch_deg=pitch, seed=seed, side_face=face)
+        return made[key]
+
+    return render
+
+
+def _sweep():
+    """Every view x box x scale; one case per view (the boxes and scales in turn) stays in the
+    fast tier, the rest is marked slow."""
+    views = [c.values for c in _cases()]
+    for i, (face, yaw, pitch) in enumerate(views):
+        for j, box in enumerate(BOXES):
+            for k, scale in enumerate(["distance", "width"]):
+                fast = j == i % len(BOXES) and k == i % 2
+                yield pytest.param(face, yaw, pitch, box, scale, id=f"{scale}-{box}-{face}-{yaw:g}-{pitch:g}",
+                                   marks=() if fast else pytest.mark.slow)
+
+
+@pytest.mark.parametrize(("face", "yaw", "pitch", "box", "scale"), list(_sweep()))
+def test_seven_points_with_focal_within_two_percent(view, face, yaw, pitch, box, scale):
     # The bound test_accuracy sets for the right side.
-    scene = render_oblique_view(box, yaw_deg=yaw, pitch_deg=pitch, seed=int(abs(yaw) + pitch),
-                                side_face=face)
+    scene = view(box, face, yaw, pitch, int(abs(yaw) + pitch))
     clicks = _clicks(scene, np.random.default_rng(int(abs(yaw))), 2.0)
     spec_scale = ({"kind": "pinhole", "distance_mm": scene.distance_mm} if scale == "distance"
                   else {"kind": "edge", "edge": "width", "length_mm": box.width_mm})
@@ -143,9 +166,9 @@ def _as_right(face: str, image: np.ndarray, p: dict[str, np.ndarray]):
 
 @pytest.mark.parametrize(("face", "yaw", "pitch"), [c for c in _cases() if c.values[0] != "right"])
 @pytest.mark.parametrize("mode", ["5 points", "7 points", "7 points, focal"])
-def test_same_as_the_right_side_engine_on_the_mirrored_or_turned_photo(face, yaw, pitch, mode):
+def test_same_as_the_right_side_engine_on_the_mirrored_or_turned_photo(view, face, yaw, pitch, mode):
     box = BOXES[0]
-    scene = render_oblique_view(box, yaw_deg=yaw, pitch_deg=pitch, seed=7, side_face=face)
+    scene = view(box, face, yaw, pitch, 7)
     clicks = dict(zip(NAMES, _clicks(scene, np.random.default_rng(5), 2.0), strict=True))
     p = {n: np.asarray(v) for n, v in clicks.items()}
     if mode == "5 points":
