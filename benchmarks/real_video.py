@@ -1,12 +1,16 @@
 """Real video: the hand-marked frames of OpenCV's cookie-box video, measured with one known edge.
 
-Run: .venv/bin/python benchmarks/real_video.py [--frames 127,141] [--pooled] [--json out.json]
+Run: .venv/bin/python benchmarks/real_video.py [--frames 127,141] [--pooled] [--focal 560,620]
+     [--clicks-only] [--json out.json]
 For each marked frame (benchmarks/data/opencv_box_marks.json) the engine measures the photo with
 the front's width as the known edge and no focal length (fitted from the box), one table for the
 frames whose second face is the lid (``side: top``, spec ``side_face: top``) and one for those with
 the right end wall (``side: right``), then again with the tutorial's published camera intrinsics
 as a baseline. With --pooled, every frame's fitted focal length (plan only) is pooled with
-``prismcore.pooling.pool_focal`` and every frame is measured again with that focal length given.
+``prismcore.pooling.pool_focal`` and every frame is measured again with that focal length given;
+with --focal, again with each of those focal lengths given (is any one focal length right for the
+video?). With --clicks-only, every run takes the clicked sides as the edges (no edge refinement):
+what the refinement adds or costs on this box.
 Prints measured height and depth against the truth (258 x 189 x 75 mm), their % errors, the report's camera
 and uncertainty fields when present, and the median over frames. Needs Debian's opencv-doc package.
 """
@@ -14,9 +18,11 @@ and uncertainty fields when present, and the median over frames. Needs Debian's 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import statistics
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +39,29 @@ from real_video_data import (
     video_path,
 )
 
+import prismcore.pipeline
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
+from prismcore.edges import EdgeFit, line_through
+from prismcore.faces import FaceQuads
 from prismcore.pooling import pool_focal
+
+
+@contextlib.contextmanager
+def clicks_as_edges() -> Iterator[None]:
+    """Within the block the engine takes each clicked side as its edge (no refinement), as its
+    snap guard does when it rejects the refined edges."""
+    def unrefined(spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]
+                  ) -> tuple[FaceQuads, dict[str, list[EdgeFit]]]:
+        fits = {n: [EdgeFit(line_through(q[i], q[(i + 1) % 4]), 0.0, 0.0, False) for i in range(4)]
+                for n, q in (("front", clicked.front), ("side", clicked.side))}
+        return clicked, fits
+
+    saved = prismcore.pipeline._refine
+    prismcore.pipeline._refine = unrefined
+    try:
+        yield
+    finally:
+        prismcore.pipeline._refine = saved
 
 
 def frame_spec(frame: dict, camera: dict | None = None, focal_px: float | None = None) -> ScanSpec:
@@ -120,8 +147,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", help="comma-separated frame indices (default: every marked frame)")
     parser.add_argument("--pooled", action="store_true",
                         help="also measure every frame with the focal length pooled over the frames' fits")
+    parser.add_argument("--focal", help="comma-separated focal lengths (px): also measure with each given")
+    parser.add_argument("--clicks-only", action="store_true",
+                        help="take the clicked sides as the edges (no edge refinement)")
     parser.add_argument("--json", type=Path, help="also write the figures here")
     args = parser.parse_args(argv)
+    focals = [float(f) for f in args.focal.split(",")] if args.focal else []
     marks = load_marks()
     frames = marks["frames"]
     if args.frames:
@@ -131,6 +162,20 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"frames {sorted(unknown)} are not marked")
         frames = [f for f in frames if f["index"] in wanted]
     images = read_frames(video_path(), [f["index"] for f in frames])
+    with clicks_as_edges() if args.clicks_only else contextlib.nullcontext():
+        runs, pooled_info = _runs(frames, images, args.pooled, focals)
+    console = Console(width=190)
+    for title, rows in runs.items():
+        console.print(_table(title + (" [clicks only]" if args.clicks_only else ""), rows))
+    if args.json:
+        figures = {"runs": runs, "pooled": pooled_info}
+        args.json.write_text(json.dumps(figures, indent=1, default=float) + "\n")
+    return 0
+
+
+def _runs(frames: list[dict], images: dict[int, np.ndarray], pooled: bool, focals: list[float]
+          ) -> tuple[dict[str, list[dict]], dict[str, dict]]:
+    """Every table's rows, by title, and the pooled focal length's details per side."""
     runs: dict[str, list[dict]] = {}
     pooled_info: dict[str, dict] = {}
     for side in ("top", "right"):
@@ -138,26 +183,23 @@ def main(argv: list[str] | None = None) -> int:
         if not group:
             continue
         runs[f"{side}: no focal (fitted)"] = [measure(f, images[f["index"]]) for f in group]
-        if args.pooled:
+        if pooled:
             fits = [fitted_focal(f, images[f["index"]]) for f in group]
             usable = [(f, fit) for f, fit in zip(group, fits, strict=True) if fit is not None]
-            pooled = pool_focal([fit for _, fit in usable])
-            if pooled is not None:
-                pooled_info[side] = {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
-                                     "used": [usable[k][0]["index"] for k in pooled.used],
+            found = pool_focal([fit for _, fit in usable])
+            if found is not None:
+                pooled_info[side] = {"focal_px": found.focal_px, "std_px": found.std_px,
+                                     "used": [usable[k][0]["index"] for k in found.used],
                                      "fits": {f["index"]: fit for f, fit in usable}}
-                runs[f"{side}: pooled focal {pooled.focal_px:.0f} +- {pooled.std_px:.0f} px "
-                     f"({len(pooled.used)}/{len(group)} fits)"] = [
-                    measure(f, images[f["index"]], focal_px=pooled.focal_px) for f in group]
+                runs[f"{side}: pooled focal {found.focal_px:.0f} +- {found.std_px:.0f} px "
+                     f"({len(found.used)}/{len(group)} fits)"] = [
+                    measure(f, images[f["index"]], focal_px=found.focal_px) for f in group]
+        for focal in focals:
+            runs[f"{side}: focal {focal:g} px given"] = [
+                measure(f, images[f["index"]], focal_px=focal) for f in group]
         runs[f"{side}: tutorial camera (fx 1578, fy 1772)"] = [
             measure(f, images[f["index"]], TUTORIAL_CAMERA) for f in group]
-    console = Console(width=190)
-    for title, rows in runs.items():
-        console.print(_table(title, rows))
-    if args.json:
-        figures = {"runs": runs, "pooled": pooled_info}
-        args.json.write_text(json.dumps(figures, indent=1, default=float) + "\n")
-    return 0
+    return runs, pooled_info
 
 
 if __name__ == "__main__":
