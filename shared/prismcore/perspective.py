@@ -218,6 +218,11 @@ def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
     The solver's sigmas weigh the terms (clicks only decide what the lines leave open); the
     data's noise is NOISE_*: with whitened Jacobian J and robust weights w,
     cov = A^-1 J^T W N W J A^-1, A = J^T W J, N the data noise over the solver's sigma squared.
+    Where the residuals scatter more than that noise explains, N is scaled up by the weighted
+    residuals' variance factor (never down): real clicks and edges that disagree with one box
+    (a printed border taken for an edge, a mark a few px off) make the answer that much less
+    sure, and the assumed noise alone claimed a 2-sigma interval that missed half the real
+    video's frames.
     """
     J = np.asarray(res.jac, dtype=np.float64)
     z = (res.fun / _F_SCALE) ** 2
@@ -229,7 +234,17 @@ def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
     A_inv = np.linalg.pinv(A, rcond=1e-12)
     B = Jw.T @ (Jw * noise[:, None])
     cov: np.ndarray = A_inv @ B @ A_inv
-    return cov
+    return cov * _variance_factor(res.fun, w, noise, res.x.size)
+
+
+def _variance_factor(fun: np.ndarray, w: np.ndarray, noise: np.ndarray, n_params: int) -> float:
+    """Weighted residual variance over the assumed noise's, at least 1 (1 when nothing is
+    over-determined). The robust weights keep one outlier, which the fit already discounts,
+    from inflating every dimension."""
+    dof = float(w.sum()) - n_params
+    if dof < 1.0:
+        return 1.0
+    return max(1.0, float(np.sum(w * fun ** 2 / noise)) / dof)
 
 
 def _influence(res: OptimizeResult) -> np.ndarray:
