@@ -181,3 +181,15 @@ def test_another_tenants_upload_is_not_there(api, env):
     assert r.status_code == 404 and r.json()["detail"] == f"no upload {upload_id!r}", r.text
     assert api.get(path).status_code == 401
     assert not env.redis.keys(f"prism:upload:{upload_id}:points:*")  # nothing was sent for them
+
+
+def test_a_hint_off_any_image_is_a_problem_when_the_size_is_unknown(api, env):
+    # A damaged video is kept with no size in its probe: the hint is still bounded (a huge one
+    # once made an object key too long to store, a 500).
+    upload_id = _id(upload(api, b"RIFF\x10\x00\x00\x00AVI junk" * 50, name="junk.avi"))
+    runs = env.runs(TASK_FIND_POINTS)
+    for hint in ("1e100,1e100", "-3,4"):
+        r = api.get(f"/v1/uploads/{upload_id}/points?frame=0&hint={hint}", headers=ACME)
+        assert r.status_code == 422 and r.json()["errors"][0]["parameter"] == "hint", r.text
+        assert r.json()["detail"] == f"hint {hint!r} is outside any image", r.text
+    assert env.runs(TASK_FIND_POINTS) == runs  # nothing was sent

@@ -27,6 +27,7 @@ from .upload_video import _PENDING, CLAIM_TTL_S, RETRY_AFTER_S, _own_upload
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 
 _HINT_PATTERN = r"^\s*[-+0-9.eE]+\s*,\s*[-+0-9.eE]+\s*$"
+_MAX_SIDE = 2**31 - 1
 
 
 def _invalid(parameter: str, detail: str) -> Problem:
@@ -45,8 +46,12 @@ def _hint(text: str | None, size: tuple[int, int] | None) -> tuple[int, int] | N
     if not (math.isfinite(x) and math.isfinite(y)):
         raise _invalid("hint", f"hint {text!r} is not x,y (pixels, e.g. 320,240)")
     hint = (round(x), round(y))
-    if size is not None and not (0 <= hint[0] < size[0] and 0 <= hint[1] < size[1]):
-        raise _invalid("hint", f"hint {text!r} is outside the {size[0]}x{size[1]} image")
+    # Without a size (a probe that could not read it) the hint is still bounded: it names the
+    # stored answer, whose key has room for sides up to OpenCV's (int) image size.
+    w, h = size or (_MAX_SIDE, _MAX_SIDE)
+    if not (0 <= hint[0] < w and 0 <= hint[1] < h):
+        where = f"the {w}x{h} image" if size else "any image"
+        raise _invalid("hint", f"hint {text!r} is outside {where}")
     return hint
 
 
