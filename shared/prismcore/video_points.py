@@ -5,7 +5,9 @@ A hand-held video shows one box moving a little from frame to frame; other objec
 and go. Searching every frame afresh could pick another box (or refuse two candidates), so the
 centre of the last points found is the next frame's hint (`locate.find_points`: the box around
 it is chosen). The spec's own hint, if any, starts the first frame; its region applies to every
-frame. A frame where nothing is found keeps the last hint for the next one.
+frame. A frame where nothing is found around the last box is searched again from the spec's
+own hint (or none): a box that moved far between two selected frames is found again, not lost
+for the rest of the video.
 """
 
 from __future__ import annotations
@@ -52,10 +54,19 @@ class FrameSearch:
         """
         photo = frame_spec(self._spec, index)
         assert photo.auto_points is not None  # frame_spec keeps the spec's auto_points
-        photo = photo.model_copy(update={"auto_points": photo.auto_points.model_copy(
-            update={"hint": self._hint})})
-        resolved, found = resolve_points(photo, image)
+        first = photo.auto_points.hint
+        try:
+            resolved, found = resolve_points(self._from(photo, self._hint), image)
+        except InputError:
+            if self._hint == first:
+                raise
+            resolved, found = resolve_points(self._from(photo, first), image)
         if found.points is None:  # resolve_points raises first: kept for the type checker
             raise InputError(f"points auto: frame {index}: no points found")
         self._hint = points_centre(found.points)
         return resolved, found
+
+    @staticmethod
+    def _from(photo: ScanSpec, hint: tuple[float, float] | None) -> ScanSpec:
+        assert photo.auto_points is not None
+        return photo.model_copy(update={"auto_points": photo.auto_points.model_copy(update={"hint": hint})})

@@ -16,7 +16,7 @@ import pytest
 from prismcore import InputError, ScanSpec
 from prismcore.locate import find_points
 from prismcore.video_points import FrameSearch, points_centre
-from prismsynth.scenes import empty_scene, two_box_scene
+from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 
 SHIFTS = (0, 40, None, 60)  # px to the right per frame; None: a frame without the boxes
 
@@ -74,3 +74,18 @@ def test_auto_points_on_a_video_refuse_what_cannot_go_with_them(extra, words):
 def test_frame_search_needs_a_video_spec_with_points_auto():
     with pytest.raises(ValueError, match="video spec"):
         FrameSearch(ScanSpec.model_validate({"image": "x.png", "points": "auto"}))
+
+
+def test_a_box_that_jumped_away_from_the_last_hint_is_found_again():
+    # Between two selected frames (every: 30, say) the box moved 200 px: the search around the
+    # last box finds nothing there, so the frame is searched again as the spec says (no hint).
+    image = clutter_scene(0, image_size=(640, 512)).image
+    search = FrameSearch(ScanSpec.model_validate({"image": "clip.avi", "points": "auto", "frames": {}}))
+    _, first = search.resolve(0, image)
+    assert not find_points(_shifted(image, 200), hint=points_centre(first.points)).ok  # the premise
+    _, again = search.resolve(1, _shifted(image, 200))
+    for name, xy in again.points.as_dict().items():
+        before = first.points.as_dict()[name]
+        assert (xy is None) == (before is None)
+        if xy is not None:
+            assert np.hypot(xy[0] - before[0] - 200, xy[1] - before[1]) <= 1.0, name
