@@ -148,8 +148,11 @@ def test_a_videos_frame_is_searched_as_the_page_shows_it(api, env, tmp_path: Pat
     assert png.status_code == 200, png.text
     assert found == {"id": upload_id, "frame": 1, "hint": None,
                      **found_document(find_points(load_image(png.content)), 640, 512)}
-    past = _poll(api, f"/v1/uploads/{upload_id}/points?frame=3")
-    assert past.status_code == 422 and past.json()["detail"] == "no frame 3: 'clip.avi' has 3 frames (0-2)"
+    # A frame past the end is refused at once (the upload's probe counted the frames): no search.
+    past = api.get(f"/v1/uploads/{upload_id}/points?frame=3", headers=ACME)
+    assert past.status_code == 422 and past.json()["errors"][0]["parameter"] == "frame", past.text
+    assert past.json()["detail"] == f"upload {upload_id} has 3 frames (0-2): no frame 3"
+    assert not env.redis.keys(f"prism:upload:{upload_id}:points:frame_000003*")
 
 
 @pytest.mark.parametrize(("query", "parameter", "detail"), [

@@ -75,6 +75,9 @@ def get_points(upload_id: str, tenant: TenantDep, store: StoreDep, objects: Obje
         raise _invalid("frame", f"upload {upload_id} is a video: say which frame to search (frame=N)")
     if probe.get("kind") == "image" and frame is not None:
         raise _invalid("frame", f"upload {upload_id} is a photo: it has no frame {frame}")
+    count = probe.get("frame_count")
+    if frame is not None and isinstance(count, int) and count > 0 and frame >= count:
+        raise _invalid("frame", f"upload {upload_id} has {count} frames (0-{count - 1}): no frame {frame}")
     size = (probe["width"], probe["height"]) if isinstance(probe.get("width"), int) and \
         isinstance(probe.get("height"), int) else None
     found_hint = _hint(hint, size)
