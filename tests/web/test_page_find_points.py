@@ -86,3 +86,19 @@ def test_a_photo_without_a_box_says_why_and_places_nothing(page, tmp_path):
     assert reason and reason[1:] in status.text_content(), (reason, status.text_content())
     expect(status).to_contain_text("Click P1 on the box you want")
     assert all(d.mark(n) is None for n in NAMES[:5])  # P6 and P7 are not asked for
+
+
+def test_a_second_face_the_person_changed_counts_as_adjusted(page, tmp_path):
+    # The points as found but another second face chosen: the scan must not go as "auto" (the
+    # worker's search would put its own face back), but as the person set it.
+    scene = clutter_scene(0, image_size=SIZE)
+    d = PageDriver(page)
+    d.log_in()
+    d.add_photos(save_photo(scene, tmp_path / "scene.png"))
+    page.get_by_role("button", name="Find points").click()
+    expect(page.locator("#find-status")).to_contain_text("Found the box", timeout=WAIT_MS)
+    select = page.get_by_label("Second face", exact=True)
+    found = select.input_value()
+    select.select_option(next(f for f in ("right", "left", "top") if f != found))
+    page.get_by_role("button", name="Add this scan to the batch").click()
+    expect(page.locator("#batch")).to_contain_text("scene.png (points found, then adjusted)")

@@ -6,7 +6,7 @@
 // dragged is sent as points "auto" (see foundAsIs), so its results say the points were found.
 
 import { message, whenReady } from "./api";
-import { setFaceChoice, type Marks } from "./points";
+import { faceChoice, setFaceChoice, type Marks } from "./points";
 import * as S from "./state";
 import type { FoundPoints, Point, PointName } from "./types";
 
@@ -17,6 +17,7 @@ interface Placed {
   frame: number | null;
   hint: Point | null; // as searched (whole px)
   marks: Marks;
+  face: string; // the second face the search found (a person may choose another)
   faces: Point[][];
 }
 
@@ -35,6 +36,7 @@ export function foundFaces(): Point[][] {
 }
 
 function moved(found: Placed): boolean {
+  if (faceChoice() !== found.face) return true; // the person corrected the second face
   return Object.keys({ ...found.marks, ...S.state.marks }).some((n) => {
     const [a, b] = [found.marks[n as PointName], S.state.marks[n as PointName]];
     return !a || !b || a[0] !== b[0] || a[1] !== b[1];
@@ -119,7 +121,7 @@ export class FindPoints {
       setFaceChoice(face);
       $<HTMLSelectElement>("second-face").value = face;
       S.placeAll(marks);
-      placed = { photo: S.state.front, frame, hint, marks: { ...marks }, faces: found.faces };
+      placed = { photo: S.state.front, frame, hint, marks: { ...marks }, face, faces: found.faces };
     });
     const warned = found.warnings.length ? ` ${found.warnings.map(sentence).join(" ")}` : "";
     status.textContent = `Found the box (confidence ${found.confidence.toFixed(2)}, second face: ` +
