@@ -19,7 +19,7 @@ from prism_common.settings import Settings
 from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
-from prismcore.spec import ReferencePoints, ScanSpec
+from prismcore.spec import ReferencePoints, ScanSpec, search_area_problem
 
 from .schemas import JobCreate
 
@@ -158,6 +158,9 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                 name, message = found
                 fail(("items", i, *where, *([name] if name else [])), f"item {i}: {message}")
                 break
+        auto = item.auto_points
+        if auto is not None and (found := search_area_problem(auto.hint, auto.roi, front[1], front[0])):
+            fail(("items", i, "auto_points", found[0]), f"item {i}: auto_points.{found[1]}")
     if errors:
         body: Any = None
         if raw is not None:

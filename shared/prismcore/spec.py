@@ -8,6 +8,7 @@ A spec with `frames` names a video: each selected frame is measured as a photo o
 
 from __future__ import annotations
 
+import math
 import re
 from collections import Counter
 from typing import Annotated, Any, Literal
@@ -39,6 +40,7 @@ __all__ = [
     "ScanSpec",
     "frame_folder",
     "parse_points",
+    "search_area_problem",
 ]
 
 Point = tuple[FiniteFloat, FiniteFloat]
@@ -208,6 +210,27 @@ class AutoPoints(_Strict):
                                "frame before showed).")
     roi: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] | None = Field(
         default=None, description="(x0, y0, x1, y1) px: look for the box inside this region only.")
+
+
+def search_area_problem(hint: tuple[float, float] | None, roi: tuple[float, float, float, float] | None,
+                        width: int, height: int) -> tuple[str, str] | None:
+    """Why the zero-click search cannot look where it is told in a `width` x `height` px photo:
+    ("hint" or "roi", the reason), or None. One rule for the engine (`locate.find_points`) and
+    the API (at submit, where the upload's size is known)."""
+    w, h = width, height
+    if hint is not None:
+        hx, hy = (float(v) for v in hint)
+        if not (math.isfinite(hx) and math.isfinite(hy) and 0 <= hx < w and 0 <= hy < h):
+            return "hint", f"hint {hint!r} is outside the {w}x{h} image"
+    if roi is not None:
+        x0, y0, x1, y1 = (float(v) for v in roi)
+        if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+            return "roi", f"roi {roi!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1"
+        ix0, iy0 = max(0, math.floor(x0)), max(0, math.floor(y0))
+        ix1, iy1 = min(w, math.ceil(x1) + 1), min(h, math.ceil(y1) + 1)
+        if ix1 - ix0 < 16 or iy1 - iy0 < 16:
+            return "roi", f"roi {roi!r} leaves less than 16x16 px of the {w}x{h} image"
+    return None
 
 
 class ScanSpec(_Strict):

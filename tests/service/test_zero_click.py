@@ -226,3 +226,18 @@ def test_what_the_search_cannot_do_is_refused_at_submit(stack, extra, words):
     assert r.status_code == 422, r.text
     [error] = r.json()["errors"]
     assert error["pointer"].startswith("/items/0") and words in error["detail"], error
+
+
+@pytest.mark.parametrize(("auto", "pointer", "words"), [
+    ({"hint": [640, 10]}, "hint", "hint (640.0, 10.0) is outside the 640x512 image"),
+    ({"roi": [700, 0, 800, 100]}, "roi", "leaves less than 16x16 px of the 640x512 image"),
+    ({"roi": [100, 100, 50, 200]}, "roi", "expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1"),
+])
+def test_a_search_area_off_an_uploaded_photo_is_refused_at_submit(stack, auto, pointer, words):
+    # The upload's size is known at submit: the engine's own rule (spec.search_area_problem)
+    # refuses it there, not a worker later.
+    item = {"image": stack.upload(EMPTY, "area.png"), "points": "auto", "auto_points": auto}
+    r = stack.http.post("/v1/jobs", json={"items": [item]})
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == f"/items/0/auto_points/{pointer}" and words in error["detail"], error
