@@ -4,7 +4,8 @@ Layout (all keys under ``prism:``):
 
 * ``job:{id}`` hash: ``doc`` (the record as submitted, without its items), ``n_items``,
   ``item:{i}`` (each item: its spec, state, error, result and outputs), ``state``, timestamps,
-  ``error``, ``units_total``/``units_done`` (progress), ``tenant``. Items are fields of their
+  ``error``, ``units_total``/``units_done`` (progress; ``units_at_cancel``: "done/total" when
+  the job was cancelled, what its progress stays at), ``tenant``. Items are fields of their
   own so that a task about one item of a 5000-item job reads that item, not the whole job.
 * ``frame:{i}:{n}`` fields of the same hash: frame n of video item i (written by its own task,
   so frames finishing at once never overwrite each other); ``job:{id}:frames`` hash: item ->
