@@ -131,7 +131,8 @@ def main() -> None:
         print(f"  refused: {count:4d}  {key}")
     times.sort()
     print(f"ms per 1280x1024 photo (shared 2-core machine, noisy; load average {_load()}):")
-    print(f"  search (edges, faces, boxes, PnP screen): median {statistics.median(search_ms):.0f}, "
+    print(f"  search (edges, faces, boxes, proposals, PnP screen): median "
+          f"{statistics.median(search_ms):.0f}, "
           f"p90 {sorted(search_ms)[int(0.9 * (n - 1))]:.0f}, worst {max(search_ms):.0f}   (target 150)")
     print(f"  search, CPU time of the process (all its threads; less load-dependent): median "
           f"{statistics.median(search_cpu_ms):.0f}, p90 {sorted(search_cpu_ms)[int(0.9 * (n - 1))]:.0f}, "

@@ -13,6 +13,8 @@ The search, on a copy of the photo about 640 px wide (inside the region of inter
 5. Full resolution: the engine's own plan (sub-pixel edge fits and the free-focal box fit,
    `pipeline.plan_scan`) places the corners; run twice, the second from the first's corners,
    so that its click residuals measure how well a box explains the edges.
+6. When no box passes: the largest faces' neighbours are proposed from the line segments and
+   the colour change along them (`locate_faces`), and those boxes go through 4 and 5 alike.
 
 The confidence combines the edge fits' support, the box fit's residuals and how far the
 corners moved from the regions' outlines; below `CONFIDENCE_MIN` the result carries the reason
@@ -34,6 +36,7 @@ import numpy as np
 from .edges import intersect
 from .errors import InputError
 from .faces import SideFace, quad_area
+from .locate_faces import propose_neighbours
 from .spec import ReferencePoints, ScanSpec
 
 __all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points", "resolve_points"]
@@ -47,6 +50,7 @@ _MIN_FACE_FRACTION = 0.002  # of the work image's area
 _SOLIDITY = 0.88
 _AMBIGUOUS = 0.6  # a runner-up this large (relative) is a second box
 _FOLD_SUPPORT = 0.6  # a silhouette's folds must lie on edges this much
+_FINE_EPS = (0.02, 0.012)  # of the outline's length: tolerances that see a faint fold's bends
 _ATTEMPTS = 3  # candidates given the full fit before giving up
 
 
@@ -134,14 +138,17 @@ _LONG_PX = 30.0  # work px: a fold this long and straight is drawn even where Ca
 _EXTEND_PX = 8.0  # work px added at both ends of such a segment
 
 
-def _long_lines(gray: np.ndarray) -> np.ndarray:
-    """(h, w) uint8: the long straight segments LSD finds (a faint fold between two faces of
-    nearly the same shade is long and straight; texture and print are short), thickened."""
-    out = np.zeros(gray.shape, np.uint8)
+def _segments(gray: np.ndarray) -> np.ndarray:
+    """(n, 4) float64: LSD's line segments (x0, y0, x1, y1), work px."""
     lines = _LSD.detect(gray)[0]
-    if lines is None:
-        return out
-    seg = lines.reshape(-1, 4)
+    return np.zeros((0, 4)) if lines is None else lines.reshape(-1, 4).astype(np.float64)
+
+
+def _long_lines(segments: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """(h, w) uint8: the long straight segments, thickened (a faint fold between two faces of
+    nearly the same shade is long and straight; texture and print are short)."""
+    out = np.zeros(shape[:2], np.uint8)
+    seg = segments
     long = seg[np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]) >= _LONG_PX]
     for x0, y0, x1, y1 in long:
         # Lengthened: a fold's ends fade where it meets the outline; bridging that gap is what
@@ -152,13 +159,22 @@ def _long_lines(gray: np.ndarray) -> np.ndarray:
     return out
 
 
-def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box]]:
+@dataclass
+class _Work:
+    """What the search saw on the work image, kept for proposing faces from one face."""
+
+    lab: np.ndarray  # (h, w, 3) uint8, blurred
+    segments: np.ndarray  # (n, 4) LSD segments, work px
+
+
+def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
     """Face quads at each edge sensitivity (a faint fold needs the lower one, a textured face
     the higher), the same face found twice kept once."""
     lab = cv2.cvtColor(cv2.GaussianBlur(small, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
     quads: list[_Quad] = []
     maps = [_edges(lab, low, high) for low, high in _LEVELS]
-    maps.append(maps[0] | _long_lines(lab[..., 0]))
+    segments = _segments(lab[..., 0])
+    maps.append(maps[0] | _long_lines(segments, lab.shape))
     folds = cv2.dilate(np.maximum.reduce(maps), np.ones((3, 3), np.uint8))
     # Needed only when a face is found twice.
     strength = functools.cache(lambda: _strength(lab))
@@ -171,7 +187,7 @@ def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box]]:
                 silhouettes.append(box)
         for q in found:
             _keep_sharper(quads, q, strength)
-    return quads, silhouettes
+    return quads, silhouettes, _Work(lab, segments)
 
 
 def _strength(lab: np.ndarray) -> np.ndarray:
@@ -220,7 +236,7 @@ def _meet(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     return np.asarray(x[:2] / x[2], dtype=np.float64)
 
 
-def _polygon_of(contour: np.ndarray, sides: int = 4) -> np.ndarray | None:
+def _polygon_of(contour: np.ndarray, sides: int = 4, eps: float = 0.03) -> np.ndarray | None:
     """(sides, 2) corners, clockwise on screen, of a region's outline when it is a convex
     polygon of that many sides (a face: 4; a box's silhouette: 6), else None.
 
@@ -229,7 +245,7 @@ def _polygon_of(contour: np.ndarray, sides: int = 4) -> np.ndarray | None:
     """
     hull = cv2.convexHull(contour)
     peri = cv2.arcLength(hull, True)
-    approx = cv2.approxPolyDP(hull, 0.03 * peri, True).reshape(-1, 2).astype(np.float64)
+    approx = cv2.approxPolyDP(hull, eps * peri, True).reshape(-1, 2).astype(np.float64)
     if len(approx) != sides:
         return None
     if quad_area(approx) < 0:
@@ -288,6 +304,13 @@ def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[np.ndarray]]:
         quad = _polygon_of(contour, 4)
         if quad is not None:
             quads.append(_Quad(quad, quad_area(quad)))
+            # Two faces whose fold is too faint to split their region, their outline's bends
+            # at the fold's ends shallow: a quad at the coarse tolerance, a hexagon at a fine one.
+            for eps in _FINE_EPS:
+                hexagon = _polygon_of(contour, 6, eps)
+                if hexagon is not None:
+                    hexagons.append(hexagon)
+                    break
             continue
         hexagon = _polygon_of(contour, 6)
         if hexagon is not None:
@@ -641,20 +664,79 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
     def full(p: np.ndarray) -> np.ndarray:  # work px -> image px (pixel centres)
         return np.asarray((p + 0.5) / scale - 0.5 + offset, dtype=np.float64)
 
-    quads, silhouettes = _all_faces(small)
+    quads, silhouettes, work = _all_faces(small)
     boxes = _boxes(quads) + silhouettes
     timings["search"] = (time.perf_counter() - start) * 1000
     # The process's CPU time too: on a shared machine the wall time mostly measures the load.
     timings["search_cpu"] = (time.process_time() - start_cpu) * 1000
     found_faces = tuple(full(q.corners) for q in quads)
-    if hint is not None and boxes:
-        hint_work = (np.array(hint) - offset + 0.5) * scale - 0.5
+    hint_work = None if hint is None else (np.array(hint) - offset + 0.5) * scale - 0.5
+    if hint is not None and hint_work is not None and boxes:
         boxes = [b for b in boxes if _contains(b, hint_work) > -3.0]
         if not boxes:
             return Found(None, None, 0.0, f"no box found around the hint ({hint[0]:g},{hint[1]:g})",
                          found_faces, 0, timings_ms=timings)
-    if not boxes:
+
+    def clock() -> None:  # the search's time so far, the corner fits' left out
+        timings["search"] = (time.perf_counter() - start) * 1000 - timings.get("fit", 0.0)
+        timings["search_cpu"] = ((time.process_time() - start_cpu) * 1000
+                                 - timings.get("fit_cpu", 0.0))
+
+    what = "region" if roi is not None else "photo"
+    result = _choose(image, boxes, small.shape[:2], full, timings, clock, threshold, hint is not None, what)
+    if result is None or not result.ok:
+        # One face found, its neighbour's region open: propose the neighbour from lines.
+        t0 = time.perf_counter()
+        proposed = _proposed_boxes(quads, work, small.shape, hint_work)
+        timings["propose"] = (time.perf_counter() - t0) * 1000
+        if proposed:
+            other = _choose(image, proposed, small.shape[:2], full, timings, clock, threshold,
+                            hint is not None, what)
+            if other is not None and other.ok:
+                result = other
+    if result is None:
         return Found(None, None, 0.0, _nothing(quads, small.shape), found_faces, 0, timings_ms=timings)
+    timings["total"] = (time.perf_counter() - start) * 1000
+    return result
+
+
+_PROPOSE_FROM = 3  # the largest faces (near the centre) a neighbour is proposed for
+
+
+def _proposed_boxes(quads: list[_Quad], work: _Work, shape: tuple[int, ...],
+                    hint_work: np.ndarray | None) -> list[_Box]:
+    """Boxes of a face found and a neighbour proposed from the line segments
+    (`locate_faces.propose_neighbours`), one per side of each large face."""
+    h, w = shape[:2]
+    big = [q for q in quads if q.area > 0.02 * h * w]
+    if hint_work is not None:
+        big = [q for q in big if cv2.pointPolygonTest(q.corners.astype(np.float32),
+                                                      (float(hint_work[0]), float(hint_work[1])),
+                                                      True) > -0.5 * math.sqrt(q.area)]
+    if not big:
+        return []
+    lab = work.lab.astype(np.float32)
+    grad = (np.asarray(cv2.Sobel(lab, cv2.CV_32F, 1, 0), dtype=np.float32) / 8,
+            np.asarray(cv2.Sobel(lab, cv2.CV_32F, 0, 1), dtype=np.float32) / 8)
+    centre = np.array([w / 2, h / 2])
+    big.sort(key=lambda q: -q.area * (1.0 - 0.6 * np.linalg.norm(q.corners.mean(axis=0) - centre)
+                                      / math.hypot(w / 2, h / 2)))
+    out = []
+    for face in big[:_PROPOSE_FROM]:
+        for corners, _ in propose_neighbours(face.corners, work.segments, grad, (h, w)):
+            faces = [face, _clockwise(corners)]
+            allc = np.concatenate([f.corners for f in faces]).astype(np.float32)
+            hull = cv2.convexHull(allc).reshape(-1, 2).astype(np.float64)
+            out.append(_Box(faces, float(cv2.contourArea(hull.astype(np.float32))), hull.mean(axis=0),
+                            hull))
+    return out
+
+
+def _choose(image: np.ndarray, boxes: list[_Box], shape: tuple[int, int],
+            full: Callable[[np.ndarray], np.ndarray], timings: dict[str, float],
+            clock: Callable[[], None], threshold: float, hinted: bool, what: str) -> Found | None:
+    """The best of the candidate boxes measured (None when none passes the PnP screen); a second
+    that fits as well makes it ambiguous unless a hint chose."""
     # The quick screen first: pairs of flat shapes that share an edge are no box.
     labelled = []
     for box in boxes:
@@ -665,11 +747,10 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
         first_in = {k: full(v) for k, v in work.items()}
         if _box_likeness(first_in, side_face, image.shape) < _PNP_MAX:
             labelled.append((box, first_in, side_face))
-    timings["search"] = (time.perf_counter() - start) * 1000
-    timings["search_cpu"] = (time.process_time() - start_cpu) * 1000
+    clock()
     if not labelled:
-        return Found(None, None, 0.0, _nothing(quads, small.shape), found_faces, 0, timings_ms=timings)
-    labelled.sort(key=lambda item: -_score(item[0], small.shape[:2]))
+        return None
+    labelled.sort(key=lambda item: -_score(item[0], shape[:2]))
     # Boxes built from the same faces (two of a box's three) are one box, not two.
     distinct = [labelled[0]]
     for item in labelled[1:]:
@@ -684,20 +765,18 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
         if attempt.ok:
             break
     assert result is not None
-    if result.ok and hint is None:
-        best = _score(distinct[chosen][0], small.shape[:2])
+    if result.ok and not hinted:
+        best = _score(distinct[chosen][0], shape[:2])
         for box, first_in, side_face in distinct[chosen + 1:chosen + 2]:
-            if _score(box, small.shape[:2]) < _AMBIGUOUS * best:
+            if _score(box, shape[:2]) < _AMBIGUOUS * best:
                 break
             other = _measure(image, first_in, side_face, box, full, timings, threshold, len(distinct))
             if other.ok:
                 # A second box that fits as well: which one is meant is the caller's to say.
-                what = "region" if roi is not None else "photo"
                 result = Found(result.points, result.side_face, min(result.confidence, threshold * 0.99),
                                f"2 candidate boxes in the {what}: give a hint (a point on the box "
                                "wanted) or a region", result.faces, len(distinct), result.fit_rms_px,
                                timings)
-    timings["total"] = (time.perf_counter() - start) * 1000
     return result
 
 
@@ -712,17 +791,22 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
              full: Callable[[np.ndarray], np.ndarray], timings: dict[str, float], threshold: float,
              candidates: int) -> Found:
     """Place the corners with the engine's plan (twice) and rate them."""
-    t0 = time.perf_counter()
+    t0, t0_cpu = time.perf_counter(), time.process_time()
+
+    def clock() -> None:
+        timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
+        timings["fit_cpu"] = timings.get("fit_cpu", 0.0) + (time.process_time() - t0_cpu) * 1000
+
     faces = tuple(full(f.corners) for f in box.faces)
     try:
         first, _ = _refined(image, first_in, side_face)
         second, info = _refined(image, first, side_face)
     except InputError as exc:
-        timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
+        clock()
         pts = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in first_in.items()})
         return Found(pts, side_face, 0.0, f"the box found does not fit a box model ({exc})", faces,
                      candidates, None, timings)
-    timings["fit"] = timings.get("fit", 0.0) + (time.perf_counter() - t0) * 1000
+    clock()
     confidence, rms = _confidence(first, second, info, image.shape[1])
     h, w = image.shape[:2]
     inside = all(-0.5 <= p[0] <= w - 0.5 and -0.5 <= p[1] <= h - 0.5 for p in second.values())

@@ -7,11 +7,13 @@ is checked against the nearest true corner and the seven must land on six distin
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec
 from prismcore.locate import CONFIDENCE_MIN, find_points, resolve_points
+from prismcore.locate_faces import propose_neighbours
 from prismsynth import Box, render_front_view
 from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 
@@ -135,3 +137,39 @@ def test_a_side_with_weak_edges_is_accepted_when_the_box_meets_every_fitted_edge
     assert found.ok, found.reason
     worst, corners = _worst(found, scene.vertices_px)
     assert worst <= 1.0 and corners == 6
+
+
+@pytest.mark.parametrize("seed", [5, 13])
+def test_a_face_whose_region_never_closes_is_proposed_from_its_neighbour(seed):
+    # The fold to a face of nearly the same shade is too faint for the second face's region to
+    # close ("only one face visible" before): the face beside the one found is proposed from
+    # the line segments leaving its corners and where the far side's colour change ends.
+    scene = clutter_scene(seed)
+    found = find_points(scene.image)
+    assert found.ok, found.reason
+    worst, corners = _worst(found, scene.vertices_px)
+    assert worst <= 3.0 and corners == 6
+
+
+def _two_faces() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A grey picture of two faces side by side (a box's front and right side, the side's
+    edges converging), the side barely darker than the front; and their corners."""
+    img = np.full((400, 500, 3), 90, np.uint8)
+    front = np.array([[150.0, 120.0], [290.0, 130.0], [288.0, 300.0], [152.0, 290.0]])
+    side = np.array([[290.0, 130.0], [380.0, 150.0], [377.0, 282.0], [288.0, 300.0]])
+    cv2.fillPoly(img, [np.round(front * 16).astype(np.int32)], (200, 180, 150), cv2.LINE_AA, 4)
+    cv2.fillPoly(img, [np.round(side * 16).astype(np.int32)], (194, 174, 144), cv2.LINE_AA, 4)
+    return img, front, side
+
+
+def test_propose_neighbours_finds_the_side_beside_a_face():
+    img, front, side = _two_faces()
+    lab = cv2.cvtColor(cv2.GaussianBlur(img, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
+    segments = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD).detect(lab[..., 0])[0].reshape(-1, 4)
+    labf = lab.astype(np.float32)
+    grad = (cv2.Sobel(labf, cv2.CV_32F, 1, 0) / 8, cv2.Sobel(labf, cv2.CV_32F, 0, 1) / 8)
+    proposals = propose_neighbours(front, segments.astype(np.float64), grad, img.shape[:2])
+    assert proposals
+    best = min(np.linalg.norm(quad[:, None] - side[None], axis=2).min(axis=1).max()
+               for quad, _ in proposals)
+    assert best <= 3.0  # a seed: the engine's edge fit places the corners
