@@ -25,13 +25,14 @@ import numpy as np
 __all__ = ["propose_neighbours"]
 
 _NEAR_LINE_PX = 4.0  # work px: a segment's line passes this close to a corner it leaves
-_MIN_SEG_PX = 8.0  # work px: shorter segments are texture
+_MIN_SEG_PX = 6.0  # work px: shorter segments are texture
 _MERGE_DEG = 3.0  # directions this close at one corner are one ray
 _RAYS = 3  # rays kept per corner
 _MIN_TURN_DEG = 4.0  # a ray this close to a side of the face (or its extension) is that side
 _MIN_REACH_PX = 4.0  # work px: the thinnest sliver proposed
 _MIN_CORNER_DEG = 15.0  # a proposed face's sides leave the shared side at least this steeply
-_MAX_SPREAD_DEG = 25.0  # the two rays toward one vanishing point converge at most this much
+_MAX_SPREAD_DEG = 25.0  # the two rays toward one vanishing point part at most this much
+_MAX_MEET_DEG = 50.0  # or meet ahead (a thin side seen with strong perspective) at this angle
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -201,6 +202,15 @@ def _exit(p: np.ndarray, u: np.ndarray, shape: tuple[int, ...]) -> float:
     return max(out, 0.0)
 
 
+def _meet_ahead(a: np.ndarray, ua: np.ndarray, b: np.ndarray, ub: np.ndarray) -> bool:
+    """Whether the rays a + t ua and b + s ub meet at t, s > 0."""
+    m = np.column_stack([ua, -ub])
+    if abs(np.linalg.det(m)) < 1e-12:
+        return False
+    t, s = np.linalg.solve(m, b - a)
+    return bool(t > 0 and s > 0)
+
+
 def _one_ray(a: np.ndarray, ua: np.ndarray, b: np.ndarray, vp: np.ndarray,
              grad: tuple[np.ndarray, np.ndarray], t_max: float
              ) -> tuple[np.ndarray, np.ndarray, float] | None:
@@ -311,7 +321,8 @@ def propose_neighbours(face: np.ndarray, segments: np.ndarray, grad: tuple[np.nd
                     best = (np.array([a, got[1], got[0], b]), got[2])
         for ua, _ in rays_a if rays_b else []:
             for ub, _ in rays_b:
-                if _angle_deg(ua, ub) > _MAX_SPREAD_DEG or ua @ ub <= 0:
+                if ua @ ub <= 0 or _angle_deg(ua, ub) > (_MAX_MEET_DEG if _meet_ahead(a, ua, b, ub)
+                                                         else _MAX_SPREAD_DEG):
                     continue
                 pair = _far_side(a, ua, b, ub, vp, grad, t_max)
                 if pair is not None and (best is None or pair[2] > best[1]):
