@@ -37,7 +37,7 @@ from .edges import intersect
 from .errors import InputError
 from .faces import SideFace, quad_area
 from .locate_faces import propose_neighbours
-from .spec import ReferencePoints, ScanSpec
+from .spec import ReferencePoints, ScanSpec, search_area_problem
 
 __all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points", "resolve_points"]
 
@@ -495,14 +495,9 @@ def _parse_roi(roi: tuple[float, float, float, float] | None, shape: tuple[int, 
     h, w = shape[:2]
     if roi is None:
         return 0, 0, w, h
-    x0, y0, x1, y1 = (float(v) for v in roi)
-    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
-        raise InputError(f"roi {roi!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1")
-    ix0, iy0 = max(0, math.floor(x0)), max(0, math.floor(y0))
-    ix1, iy1 = min(w, math.ceil(x1) + 1), min(h, math.ceil(y1) + 1)
-    if ix1 - ix0 < 16 or iy1 - iy0 < 16:
-        raise InputError(f"roi {roi!r} leaves less than 16x16 px of the {w}x{h} image")
-    return ix0, iy0, ix1, iy1
+    x0, y0, x1, y1 = (float(v) for v in roi)  # search_area_problem has checked it
+    return (max(0, math.floor(x0)), max(0, math.floor(y0)),
+            min(w, math.ceil(x1) + 1), min(h, math.ceil(y1) + 1))
 
 
 def _contains(box: _Box, xy: np.ndarray) -> float:
@@ -650,10 +645,8 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
     if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 16:
         raise InputError(f"image must be RGB of shape (H, W, 3), at least 16x16, got {image.shape}")
     h, w = image.shape[:2]
-    if hint is not None:
-        hx, hy = (float(v) for v in hint)
-        if not (math.isfinite(hx) and math.isfinite(hy) and 0 <= hx < w and 0 <= hy < h):
-            raise InputError(f"hint {hint!r} is outside the {w}x{h} image")
+    if (problem := search_area_problem(hint, roi, w, h)) is not None:
+        raise InputError(problem[1])
     x0, y0, x1, y1 = _parse_roi(roi, image.shape)
     crop = image[y0:y1, x0:x1]
     scale = min(1.0, WORK_WIDTH / max(crop.shape[1], 1))
