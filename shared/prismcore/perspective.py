@@ -11,7 +11,8 @@ A box (front and side face in one photo) shows three mutually orthogonal edge di
 over-determine the focal length: when none is known it is a free parameter of the box fit,
 started from the vanishing points' closed form. Every fit is started several times (focal
 candidates, poses from either face) and the lowest cost wins, so that neighbouring inputs land
-in the same minimum.
+in the same minimum. The starts' work is bounded (`BoxFit.nfev`): on points that are no box
+they slide towards the focal length's bound without converging.
 
 The second face may be the right side (the paper's), the left side (in the plane X = 0) or the
 top (in the plane Y = 0): see `prismcore.faces` for which corner each point marks.
