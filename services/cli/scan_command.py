@@ -13,8 +13,8 @@ import typer
 from pydantic import ValidationError
 from rich.console import Console
 
-from prismcore import InputError, ScanSpec, parse_points, run_scan
-from prismcore.auto_points import found_box_guard, record_found
+from prismcore import InputError, ScanSpec, parse_points
+from prismcore.auto_points import scan_found
 from prismcore.camera import CameraModel
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
@@ -283,11 +283,8 @@ def scan(
         auto = None
         if spec.auto_points is not None:
             spec, auto = resolve_points(spec, front)
-        with found_box_guard(auto is not None):
-            result = run_scan(spec, front, side_img, tiles=tiles,
-                              exif_focal_px=found.focal_px if found else None)
-        if auto is not None:
-            record_found(result.report, auto.report())
+        result = scan_found(spec, auto.report() if auto else None, front, side_img, tiles=tiles,
+                            exif_focal_px=found.focal_px if found else None)
     except ValidationError as exc:
         raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)

@@ -19,8 +19,8 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from prismcore import InputError, ScanSpec, run_scan
-from prismcore.auto_points import found_box_guard, record_found
+from prismcore import InputError, ScanSpec
+from prismcore.auto_points import scan_found
 from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.summary import DIMENSIONS, frame_info, summarize
@@ -84,10 +84,7 @@ class _FrameSpecs:
 def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
              decode_ms: float, pooled: PooledFocal | None) -> dict:
     one, auto = specs.spec(index)
-    with found_box_guard(auto is not None):
-        result = run_scan(one, frame, tiles=tiles, pooled_focal=pooled)
-    if auto is not None:
-        record_found(result.report, auto)
+    result = scan_found(one, auto, frame, tiles=tiles, pooled_focal=pooled)
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)

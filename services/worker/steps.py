@@ -30,8 +30,8 @@ from botocore.exceptions import ClientError
 from prism_common.records import ItemResult, ItemView
 from prism_common.storage import ObjectStore, is_missing
 
-from prismcore import ScanPlan, ScanSpec, finish_scan, plan_scan, run_scan
-from prismcore.auto_points import found_box_guard, record_found
+from prismcore import ScanPlan, ScanSpec, finish_scan, plan_scan
+from prismcore.auto_points import found_box_guard, record_found, scan_found
 from prismcore.exif import exif_focal
 from prismcore.images import load_image
 from prismcore.locate import resolve_points
@@ -199,9 +199,6 @@ def scan_whole_item(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dic
         side = load_image(data, max_pixels=limit, name=label)
     del data
     spec, auto = _located(spec, front)
-    with found_box_guard(auto is not None):
-        result = run_scan(spec, front, side, exif_focal_px=found.focal_px if found else None)
-    if auto is not None:
-        record_found(result.report, auto)
+    result = scan_found(spec, auto, front, side, exif_focal_px=found.focal_px if found else None)
     return write_outputs(ctx, view.job_id, view.item.index, spec, result,
                          [front] + ([side] if side is not None else []))

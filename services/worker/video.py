@@ -46,8 +46,8 @@ from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView
 from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
 
-from prismcore import InputError, ReferencePoints, ScanSpec, run_scan
-from prismcore.auto_points import found_box_guard, record_found
+from prismcore import InputError, ReferencePoints, ScanSpec
+from prismcore.auto_points import scan_found
 from prismcore.containers import HEAD_BYTES, video_container
 from prismcore.images import load_image
 from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
@@ -186,10 +186,8 @@ def scan_frame(ctx: WorkerContext, view: ItemView, frame: int) -> None:
         photo_spec, auto = _frame_spec(ctx, view, frame)
         data = ctx.objects.get_bytes(frame_key(job_id, item, frame, "frame.png"))
         image = load_image(data, max_pixels=max_pixels(ctx, spec.max_pixels), name=f"frame {frame}")
-        with found_box_guard(auto is not None):
-            scan = run_scan(photo_spec, image, pooled_focal=_pooled(ctx, item_key(job_id, item, FOCAL_NAME)))
-        if auto is not None:
-            record_found(scan.report, auto)
+        pooled = _pooled(ctx, item_key(job_id, item, FOCAL_NAME))
+        scan = scan_found(photo_spec, auto, image, pooled_focal=pooled)
         fps = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
         scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
         result, outputs = write_outputs(ctx, job_id, item, photo_spec, scan, [image], frame=frame)

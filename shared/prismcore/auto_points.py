@@ -12,8 +12,10 @@ from contextlib import contextmanager
 from typing import Any
 
 from .errors import InputError
+from .pipeline import ScanResult, run_scan
+from .spec import ScanSpec
 
-__all__ = ["found_box_guard", "record_found"]
+__all__ = ["found_box_guard", "record_found", "scan_found"]
 
 
 @contextmanager
@@ -36,3 +38,14 @@ def record_found(report: dict[str, Any], found: dict[str, Any]) -> None:
     report["points_source"] = "auto"
     report["auto_points"] = found
     report["warnings"] = [*report.get("warnings", []), *found.get("warnings", [])]
+
+
+def scan_found(spec: ScanSpec, found: dict[str, Any] | None, *args: Any, **kwargs: Any) -> ScanResult:
+    """`run_scan(spec, *args, **kwargs)` under the found points' rules: with `found` (the
+    search's `Found.report()`; None: the points were given) a refusal is the search's and the
+    report is marked as measured with found points."""
+    with found_box_guard(found is not None):
+        result = run_scan(spec, *args, **kwargs)
+    if found is not None:
+        record_found(result.report, found)
+    return result

@@ -30,12 +30,16 @@ class Ctx:
     oracle: Oracle
 
 
+# Issue 14 allows a skip only where the machine cannot make namespaces, that is without root.
+# As root (CI) the test runs, and a root machine that cannot build the network fails it.
+pytestmark = pytest.mark.skipif(os.geteuid() != 0, reason="network namespaces need root: "
+                                "run scripts/test-cluster as root")
+
+
 @pytest.fixture(scope="module")
 def ctx(tmp_path_factory) -> Iterator[Ctx]:
     if (why := cannot_make_namespaces()) is not None:
-        if os.geteuid() == 0:  # root can make namespaces: a root machine without them is broken
-            pytest.fail(why)
-        pytest.skip(f"{why} (run scripts/test-cluster as root)")
+        pytest.fail(why)
     net = Network(f"pcl{os.getpid()}", HOSTS)
     try:
         net.create()

@@ -12,12 +12,11 @@ import cv2
 import numpy as np
 import pytest
 from prism_common.queue import TASK_EXTRACT_FRAME
-from prism_common.settings import get_settings
 from prism_common.upload_keys import tenant_hash
 
-from prism_api.main import create_app
 from prismsynth import Box, render_clip, write_video
 
+from .pending import app_client, poll, wait_for
 from .test_api import ACME, GLOBEX, TestClient, upload
 from .worker_env import Env, encode, worker_env
 
@@ -34,9 +33,7 @@ def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
 
 @pytest.fixture(scope="module")
 def api(env) -> Iterator[TestClient]:
-    app = create_app()
-    app.dependency_overrides[get_settings] = lambda: env.settings
-    with TestClient(app) as client:
+    with app_client(env.settings) as client:
         yield client
 
 
@@ -55,15 +52,7 @@ def clip(tmp_path_factory) -> tuple[list, bytes, list[np.ndarray]]:
 
 
 def _poll(api: TestClient, path: str, timeout: float = 60, headers: dict = ACME):
-    """GET until the answer is not 202; every 202 says when to ask again."""
-    deadline = time.monotonic() + timeout
-    while True:
-        r = api.get(path, headers=headers)
-        if r.status_code != 202:
-            return r
-        assert r.headers["Retry-After"] == "1" and "decoding" in r.json()["detail"], r.text
-        assert time.monotonic() < deadline, f"{path} still 202 after {timeout} s"
-        time.sleep(0.1)
+    return poll(api, path, working="decoding", headers=headers, timeout=timeout)
 
 
 def _id(reference: str) -> str:
@@ -100,23 +89,16 @@ def test_polling_sends_one_extraction_and_a_repeat_rewrites_nothing(api, env, cl
     answers = [api.get(path, headers=ACME).status_code for _ in range(5)]
     assert answers[0] == 202 and set(answers) <= {200, 202}
     png = _poll(api, path).content
-    _wait_for(lambda: env.runs(TASK_EXTRACT_FRAME) >= runs + 1)
+    wait_for(lambda: env.runs(TASK_EXTRACT_FRAME) >= runs + 1)
     key = f"uploads/{tenant_hash('acme')}/{upload_id}.frames/frame_000002.png"
     written = env.objects.client.head_object(Bucket=env.objects.bucket, Key=key)["LastModified"]
 
     time.sleep(1.1)  # S3 times have 1 s resolution: a rewrite would show
     env.celery.send_task(TASK_EXTRACT_FRAME, (upload_id, 2))  # redelivered, say
-    _wait_for(lambda: env.runs(TASK_EXTRACT_FRAME) >= runs + 2)
+    wait_for(lambda: env.runs(TASK_EXTRACT_FRAME) >= runs + 2)
     assert env.runs(TASK_EXTRACT_FRAME) == runs + 2  # the polls above sent one task, not five
     assert env.objects.client.head_object(Bucket=env.objects.bucket, Key=key)["LastModified"] == written
     assert api.get(path, headers=ACME).content == png
-
-
-def _wait_for(condition, timeout: float = 30) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.1)
 
 
 def test_frames_out_of_range(api, clip):

@@ -6,23 +6,21 @@ found is matched to its nearest true corner."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 from prism_common.queue import TASK_FIND_POINTS
-from prism_common.settings import get_settings
 from prism_common.upload_keys import tenant_hash
 
-from prism_api.main import create_app
 from prism_worker.upload_points import found_document
 from prismcore.images import load_image
 from prismcore.locate import CONFIDENCE_MIN, find_points
 from prismsynth import Box, render_clip, write_video
 from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 
+from .pending import app_client, poll, wait_for
 from .test_api import ACME, GLOBEX, TestClient, upload
 from .worker_env import Env, encode, worker_env
 
@@ -38,29 +36,12 @@ def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
 
 @pytest.fixture(scope="module")
 def api(env) -> Iterator[TestClient]:
-    app = create_app()
-    app.dependency_overrides[get_settings] = lambda: env.settings
-    with TestClient(app) as client:
+    with app_client(env.settings) as client:
         yield client
 
 
 def _poll(api: TestClient, path: str, timeout: float = 120):
-    """GET until the answer is not 202; every 202 says when to ask again."""
-    deadline = time.monotonic() + timeout
-    while True:
-        r = api.get(path, headers=ACME)
-        if r.status_code != 202:
-            return r
-        assert r.headers["Retry-After"] == "1" and "searching" in r.json()["detail"], r.text
-        assert time.monotonic() < deadline, f"{path} still 202 after {timeout} s"
-        time.sleep(0.1)
-
-
-def _wait_for(condition, timeout: float = 30) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.1)
+    return poll(api, path, working="searching", headers=ACME, timeout=timeout)
 
 
 def _id(reference: str) -> str:
@@ -99,7 +80,7 @@ def test_a_box_is_found_within_3_px_and_polling_sends_one_search(api, env):
     assert len(found["faces"]) >= 2 and all(len(q) == 4 for q in found["faces"])
     # Many polls, one search: the worker ran it once (its run is counted as the task returns,
     # just after the answer is stored), and polls now are served from the store.
-    _wait_for(lambda: env.runs(TASK_FIND_POINTS) >= runs + 1)
+    wait_for(lambda: env.runs(TASK_FIND_POINTS) >= runs + 1)
     assert all(api.get(path, headers=ACME).json() == found for _ in range(3))
     assert env.runs(TASK_FIND_POINTS) == runs + 1
     key = f"uploads/{tenant_hash('acme')}/{upload_id}.points/photo.json"

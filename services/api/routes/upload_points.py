@@ -12,9 +12,8 @@ from __future__ import annotations
 import math
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Query, status
+from fastapi import APIRouter, Query
 from fastapi.responses import JSONResponse
-from kombu.exceptions import OperationalError
 from prism_common.queue import TASK_FIND_POINTS
 from prism_common.upload_keys import points_key
 from prism_common.upload_records import upload_probe
@@ -22,7 +21,7 @@ from prism_common.upload_records import upload_probe
 from ..deps import CeleryDep, ObjectsDep, StoreDep, TenantDep
 from ..problems import Problem
 from ..schemas import FoundPointsPublic
-from .upload_video import _PENDING, CLAIM_TTL_S, RETRY_AFTER_S, _own_upload
+from .upload_video import _PENDING, CLAIM_TTL_S, _own_upload, _refused, ask_worker
 
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 
@@ -84,16 +83,9 @@ def get_points(upload_id: str, tenant: TenantDep, store: StoreDep, objects: Obje
     key = points_key(upload["tenant"], upload_id, frame, found_hint)
     doc = objects.get_json(key)
     if doc is None:
-        if store.claim_points(upload_id, key.rsplit("/", 1)[-1], CLAIM_TTL_S):
-            try:
-                celery.send_task(TASK_FIND_POINTS, args=[upload_id, frame, found_hint and list(found_hint)],
-                                 ignore_result=True)
-            except OperationalError:
-                raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE,
-                                    "the worker queue is unavailable; try again shortly") from None
-        return JSONResponse({"detail": f"the worker is searching upload {upload_id} for the box; "
-                                       f"ask again in {RETRY_AFTER_S} s"},
-                            status_code=status.HTTP_202_ACCEPTED, headers={"Retry-After": str(RETRY_AFTER_S)})
+        return ask_worker(store.claim_points(upload_id, key.rsplit("/", 1)[-1], CLAIM_TTL_S), celery,
+                          TASK_FIND_POINTS, [upload_id, frame, found_hint and list(found_hint)],
+                          f"searching upload {upload_id} for the box")
     if "error" in doc:
-        raise HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, doc["error"])
+        raise _refused(doc)
     return FoundPointsPublic(id=upload_id, frame=frame, hint=found_hint, **doc)

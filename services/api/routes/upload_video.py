@@ -44,16 +44,23 @@ def _refused(found: dict) -> HTTPException:
     return HTTPException(status.HTTP_422_UNPROCESSABLE_CONTENT, found["error"])
 
 
-def _pending(store: JobStore, celery: Celery, upload_id: str, frame: int, what: str) -> JSONResponse:
-    """Ask a worker for the frame (once per CLAIM_TTL_S, however often this is polled): 202."""
-    if store.claim_extraction(upload_id, frame, CLAIM_TTL_S):
+def ask_worker(claimed: bool, celery: Celery, task: str, args: list, doing: str) -> JSONResponse:
+    """Send `task` when this poll `claimed` it (an expiring claim: once per CLAIM_TTL_S, however
+    often the page polls) and answer 202: "the worker is `doing`; ask again"."""
+    if claimed:
         try:
-            celery.send_task(TASK_EXTRACT_FRAME, args=[upload_id, frame], ignore_result=True)
+            celery.send_task(task, args=args, ignore_result=True)
         except OperationalError:
             raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE,
                                 "the worker queue is unavailable; try again shortly") from None
-    return JSONResponse({"detail": f"the worker is decoding {what}; ask again in {RETRY_AFTER_S} s"},
+    return JSONResponse({"detail": f"the worker is {doing}; ask again in {RETRY_AFTER_S} s"},
                         status_code=status.HTTP_202_ACCEPTED, headers={"Retry-After": str(RETRY_AFTER_S)})
+
+
+def _pending(store: JobStore, celery: Celery, upload_id: str, frame: int, what: str) -> JSONResponse:
+    """Ask a worker for the frame: 202."""
+    return ask_worker(store.claim_extraction(upload_id, frame, CLAIM_TTL_S), celery, TASK_EXTRACT_FRAME,
+                      [upload_id, frame], f"decoding {what}")
 
 
 @router.get("/{upload_id}/video", response_model=VideoPublic,
