@@ -24,7 +24,8 @@ from .servers import service_env, start_s3
 
 MASTER = "prism"
 JOBS = 12
-KILL_AFTER = 4  # jobs submitted before the primary is killed
+KILL_AFTER = 4  # jobs submitted before the test looks for one running, to kill the primary
+MAX_JOBS = 60  # ends the submitting if no job is ever seen running
 SUBMIT_EVERY_S = 0.7
 
 
@@ -137,15 +138,18 @@ def test_primary_killed_with_jobs_in_flight_sentinel_promotes_and_nothing_is_los
             started.set()
 
     def submit_jobs() -> None:
-        for n in range(JOBS):
-            if n == KILL_AFTER:
+        # Submitting goes on until the kill: a pause there let a fast machine finish every
+        # job before the test saw one running, and it then waited for one that never came.
+        after_kill = 0
+        while after_kill < JOBS - KILL_AFTER and len(accepted) < MAX_JOBS:
+            if len(accepted) == KILL_AFTER:
                 started.set()
-                while not killed_at:
-                    time.sleep(0.01)
             key = uuid.uuid4().hex
+            killed_before = bool(killed_at)
             accepted[key] = stack.submit([spec, spec], key=key)  # retries 503s and refusals
             if killed_at and not first_after_kill:
                 first_after_kill.append(time.monotonic() - killed_at[0])
+            after_kill += killed_before
             time.sleep(SUBMIT_EVERY_S)
 
     submitter = threading.Thread(target=submit_all)
