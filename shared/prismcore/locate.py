@@ -48,8 +48,16 @@ _EDGE_DILATE = 3  # px (work scale): closes small gaps in a face's outline
 _SHRINK_PX = 1.5  # px (work scale): how far inside its edges a region's outline lies
 _MIN_FACE_FRACTION = 0.002  # of the work image's area
 _SOLIDITY = 0.88
+_SILHOUETTE_SOLIDITY = 0.8  # a box's silhouette (faces merged) may be notched more
 _AMBIGUOUS = 0.6  # a runner-up this large (relative) is a second box
 _FOLD_SUPPORT = 0.6  # a silhouette's folds must lie on edges this much
+# A fold guessed inside a silhouette whose outline shows one end of it (a pentagon) or neither
+# (a quad): the colour change (`_fold_strength`, Lab units) it must show. A single face's print
+# splits a quad as well as a fold would: the PnP screen and the fit refuse a flat "box".
+_PENTAGON_FOLD_STRENGTH = 1.2
+_QUAD_FOLD_STRENGTH = 2.5
+_MIN_SPLIT = 0.08  # of the silhouette's area: the smallest face split off it
+_SPLIT_MIN_FRACTION = 0.02  # of the work image's area: the smallest silhouette split
 _FINE_EPS = (0.02, 0.012)  # of the outline's length: tolerances that see a faint fold's bends
 _ATTEMPTS = 3  # candidates given the full fit before giving up
 
@@ -165,6 +173,9 @@ class _Work:
 
     lab: np.ndarray  # (h, w, 3) uint8, blurred
     segments: np.ndarray  # (n, 4) LSD segments, work px
+    # Silhouettes (4 or 5 sides) two faces may have merged into, with their regions' outlines
+    # ((n, 2) work px): split only when nothing else is found (`_split_boxes`).
+    merged: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
@@ -179,15 +190,44 @@ def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
     # Needed only when a face is found twice.
     strength = functools.cache(lambda: _strength(lab))
     silhouettes: list[_Box] = []
+    work = _Work(lab, segments)
     for edges in maps:
-        found, hexagons = _faces(edges)
-        for hexagon in hexagons:
-            box = _hexagon_box(hexagon, folds)
+        found, outlines = _faces(edges)
+        for outline, contour in outlines:
+            if len(outline) != 6:
+                work.merged.append((outline, contour.reshape(-1, 2).astype(np.float64)))
+                continue
+            box = _hexagon_box(outline, folds)
             if box is not None:
                 silhouettes.append(box)
         for q in found:
             _keep_sharper(quads, q, strength)
-    return quads, silhouettes, _Work(lab, segments)
+    return quads, silhouettes, work
+
+
+def _split_boxes(work: _Work, shape: tuple[int, ...], hint_work: np.ndarray | None) -> list[_Box]:
+    """Two faces each from the large silhouettes of 4 or 5 sides (`_pentagon_box`,
+    `_quad_box`), those around the hint only when there is one."""
+    h, w = shape[:2]
+    grad = _gradient(work.lab)
+    out = []
+    for outline, contour in work.merged:
+        if abs(quad_area(outline)) < _SPLIT_MIN_FRACTION * h * w:
+            continue
+        if hint_work is not None and cv2.pointPolygonTest(
+                outline.astype(np.float32), (float(hint_work[0]), float(hint_work[1])), False) < 0:
+            continue
+        box = (_pentagon_box if len(outline) == 5 else _quad_box)(outline, contour, grad)
+        if box is not None:
+            out.append(box)
+    return out
+
+
+def _gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x and y derivatives of the Lab work image, each (h, w, 3) float32 (Lab units per px)."""
+    f = lab.astype(np.float32)
+    return (np.asarray(cv2.Sobel(f, cv2.CV_32F, 1, 0), dtype=np.float32) / 8,
+            np.asarray(cv2.Sobel(f, cv2.CV_32F, 0, 1), dtype=np.float32) / 8)
 
 
 def _strength(lab: np.ndarray) -> np.ndarray:
@@ -281,13 +321,16 @@ def _polygon_of(contour: np.ndarray, sides: int = 4, eps: float = 0.03) -> np.nd
     return quad if quad_area(quad) > 0 else None
 
 
-def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[np.ndarray]]:
-    """The face quads among the regions the edges enclose, and the hexagons (a box whose
-    faces' regions merged where a fold is too faint: its silhouette)."""
+def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[tuple[np.ndarray, np.ndarray]]]:
+    """The face quads among the regions the edges enclose, and the silhouettes a box's faces
+    may have merged into where a fold is too faint: hexagons, pentagons (a hexagon whose bend
+    at one end of the fold is too shallow to see) and the quads themselves (both bends), each
+    with its region's outline ((n, 2) work px)."""
     h, w = edges.shape
     n, labels, stats, _ = cv2.connectedComponentsWithStats((edges == 0).astype(np.uint8), connectivity=4)
     min_area = _MIN_FACE_FRACTION * h * w
-    quads, hexagons = [], []
+    quads: list[_Quad] = []
+    hexagons: list[tuple[np.ndarray, np.ndarray]] = []
     for i in range(1, n):
         x, y, bw, bh, area = stats[i]
         if area < min_area or area > 0.6 * h * w:
@@ -299,22 +342,29 @@ def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[np.ndarray]]:
         contour = max(contours, key=cv2.contourArea) + np.array([x, y])
         outer = cv2.contourArea(contour)
         hull_area = cv2.contourArea(cv2.convexHull(contour))
-        if hull_area <= 0 or outer / hull_area < _SOLIDITY:
+        solidity = outer / hull_area if hull_area > 0 else 0.0
+        if solidity < _SILHOUETTE_SOLIDITY:
             continue
-        quad = _polygon_of(contour, 4)
+        # A silhouette's outline is notched where a label or a fold's thick edge meets it.
+        quad = _polygon_of(contour, 4) if solidity >= _SOLIDITY else None
         if quad is not None:
             quads.append(_Quad(quad, quad_area(quad)))
             # Two faces whose fold is too faint to split their region, their outline's bends
-            # at the fold's ends shallow: a quad at the coarse tolerance, a hexagon at a fine one.
+            # at the fold's ends shallow: a quad at the coarse tolerance, a hexagon at a fine one
+            # (or no bend to see at all: the quad is their silhouette).
             for eps in _FINE_EPS:
                 hexagon = _polygon_of(contour, 6, eps)
                 if hexagon is not None:
-                    hexagons.append(hexagon)
+                    hexagons.append((hexagon, contour))
                     break
+            else:
+                hexagons.append((quad, contour))
             continue
-        hexagon = _polygon_of(contour, 6)
-        if hexagon is not None:
-            hexagons.append(hexagon)
+        for sides in (6, 5):
+            polygon = _polygon_of(contour, sides)
+            if polygon is not None:
+                hexagons.append((polygon, contour))
+                break
     return quads, hexagons
 
 
@@ -377,6 +427,137 @@ def _hexagon_box(hexagon: np.ndarray, edges: np.ndarray) -> _Box | None:
         return None
     hull = hexagon.astype(np.float64)
     return _Box(best[1], abs(quad_area(hull)), hull.mean(axis=0), hull)
+
+
+_FOLD_TURN_DEG = 6.0  # a fold's direction lies between its two neighbour sides' within this
+
+
+def _fold_strength(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(m,): how surely a fold runs along each segment a[i]-b[i] (a, b: (m, 2)): the colour
+    change across it that its middle 80 % shows nearly everywhere (the 20th percentile of 24
+    samples, each the best of three offsets across). A fold between two faces of nearly one
+    shade is faint but runs their whole height; a label's border or a stripe is strong over
+    part of it and absent elsewhere."""
+    gx, gy = grad
+    h, w = gx.shape[:2]
+    d = b - a
+    n = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+    base = a[:, None] + np.linspace(0.1, 0.9, 24)[None, :, None] * d[:, None]
+    best = np.zeros(base.shape[:2], dtype=np.float32)
+    for o in (-1.0, 0.0, 1.0):
+        xy = np.rint(base + o * n[:, None]).astype(int)
+        x, y = np.clip(xy[..., 0], 0, w - 1), np.clip(xy[..., 1], 0, h - 1)
+        across = np.abs(gx[y, x] * n[:, None, 0, None] + gy[y, x] * n[:, None, 1, None]).sum(axis=-1)
+        best = np.maximum(best, across)
+    return np.asarray(np.percentile(best, 20, axis=1), dtype=np.float64)
+
+
+def _fold_between(origins: np.ndarray, left: np.ndarray, right: np.ndarray, p: np.ndarray,
+                  q: np.ndarray, grad: tuple[np.ndarray, np.ndarray]
+                  ) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """The fold from one of `origins` (k, 2) to the side p-q that the colour change shows best
+    (`_fold_strength`), among the directions between `left` and `right` (the box's edges
+    parallel to the fold in 3D: in the photo its direction lies between theirs): its strength,
+    origin and end; None when no such direction meets the side inside its middle 90 %."""
+    a, b = _unit(left), _unit(right)
+    if a @ b < 0:
+        b = -b
+    turn = math.atan2(a[0] * b[1] - a[1] * b[0], float(a @ b))  # signed, a to b
+    margin = math.copysign(math.radians(_FOLD_TURN_DEG), turn)
+    steps = max(7, int(math.degrees(abs(turn)) / 2) + 7)
+    angles = math.atan2(a[1], a[0]) + np.linspace(-margin, turn + margin, steps)
+    d = np.tile(np.column_stack([np.cos(angles), np.sin(angles)]), (len(origins), 1))
+    start = np.repeat(origins, steps, axis=0)
+    side = q - p
+    det = d[:, 1] * side[0] - d[:, 0] * side[1]  # start + t d = p + s side, by Cramer's rule
+    ok = np.abs(det) > 1e-9
+    rhs = p - start
+    safe = np.where(ok, det, 1.0)
+    t = np.where(ok, (rhs[:, 1] * side[0] - rhs[:, 0] * side[1]) / safe, -1.0)
+    s = np.where(ok, (d[:, 0] * rhs[:, 1] - d[:, 1] * rhs[:, 0]) / safe, -1.0)
+    ok &= (t > 0) & (s > 0.05) & (s < 0.95)
+    if not ok.any():
+        return None
+    ends = p + s[ok, None] * side
+    got = _fold_strength(grad, start[ok], ends)
+    k = int(np.argmax(got))
+    return float(got[k]), start[ok][k], ends[k]
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v / max(float(np.linalg.norm(v)), 1e-12), dtype=np.float64)
+
+
+def _snap_fold(o: np.ndarray, x: np.ndarray, contour: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fold o-x run on to where its line leaves the region (`contour`, (n, 2)): a shallow
+    bend's vertex, which the outline's polygon misplaces, is where the fold meets the outline."""
+    u = _unit(x - o)
+    along = (contour - o) @ u
+    near = np.abs((contour - o) @ np.array([-u[1], u[0]])) < 2.0
+    length = float(np.linalg.norm(x - o))
+    first = near & (along < 0.5 * length)
+    last = near & (along > 0.5 * length)
+    t0 = float(along[first].min()) if first.any() else 0.0
+    t1 = float(along[last].max()) if last.any() else length
+    # The region lies inside its thickened edges: its outline _SHRINK_PX short of the corner.
+    return o + (t0 - _SHRINK_PX) * u, o + (t1 + _SHRINK_PX) * u
+
+
+def _split_box(outline: np.ndarray, contour: np.ndarray, fold: tuple[np.ndarray, np.ndarray],
+               halves: Callable[[np.ndarray, np.ndarray], list[np.ndarray]]) -> _Box | None:
+    """The box of the two faces a fold splits a silhouette into (`halves(o, x)` from the fold's
+    ends, snapped to the region's outline); None when one is a sliver (a fold found beside a
+    side is that side's own edge)."""
+    hull = outline.astype(np.float64)
+    area = abs(quad_area(hull))
+    faces = [_clockwise(h) for h in halves(*_snap_fold(*fold, contour))]
+    if min(f.area for f in faces) < _MIN_SPLIT * area:
+        return None
+    return _Box(faces, area, hull.mean(axis=0), hull)
+
+
+_FOLD_SLIDE = np.linspace(0.0, 0.3, 5)[1:]  # of a side: a shallow bend's vertex is vague
+
+
+def _pentagon_box(pentagon: np.ndarray, contour: np.ndarray, grad: tuple[np.ndarray, np.ndarray]
+                  ) -> _Box | None:
+    """The two faces whose silhouette is `pentagon`: a hexagon whose bend at one end of the
+    fold is too shallow to see. The fold runs from near a vertex (a shallow bend's vertex lies
+    anywhere along it: the fold starts on either side beside it) to the opposite side, between
+    the directions of the two sides beside that one (the box's edges parallel to the fold)."""
+    v = pentagon
+    best: tuple[float, np.ndarray, np.ndarray, int] | None = None
+    for i in range(5):
+        a, b, c, d, e = (v[(i + k) % 5] for k in range(5))  # fold from near a to the side c-d
+        origins = np.concatenate([a[None], a + _FOLD_SLIDE[:, None] * (b - a),
+                                  a + _FOLD_SLIDE[:, None] * (e - a)])
+        got = _fold_between(origins, c - b, d - e, c, d, grad)
+        if got is not None and (best is None or got[0] > best[0]):
+            best = (*got, i)
+    if best is None or best[0] < _PENTAGON_FOLD_STRENGTH:
+        return None
+    _, b, c, d, e = (v[(best[3] + k) % 5] for k in range(5))
+    return _split_box(v, contour, (best[1], best[2]),
+                      lambda o, x: [np.array([o, b, c, x]), np.array([x, d, e, o])])
+
+
+def _quad_box(quad: np.ndarray, contour: np.ndarray, grad: tuple[np.ndarray, np.ndarray]
+              ) -> _Box | None:
+    """The two faces whose silhouette is `quad` (both bends at the fold's ends too shallow):
+    a fold from one side to the opposite one, between the directions of the other two."""
+    v = quad
+    best: tuple[float, np.ndarray, np.ndarray, int] | None = None
+    for i in range(2):
+        a, b, c, d = (v[(i + k) % 4] for k in range(4))  # fold from side a-b to side c-d
+        origins = a + np.linspace(0.1, 0.9, 11)[:, None] * (b - a)
+        got = _fold_between(origins, c - b, d - a, c, d, grad)
+        if got is not None and (best is None or got[0] > best[0]):
+            best = (*got, i)
+    if best is None or best[0] < _QUAD_FOLD_STRENGTH:
+        return None
+    a, b, c, d = (v[(best[3] + k) % 4] for k in range(4))
+    return _split_box(v, contour, (best[1], best[2]),
+                      lambda o, x: [np.array([o, b, c, x]), np.array([x, d, a, o])])
 
 
 # --------------------------------------------------------------------------- boxes
@@ -553,8 +734,8 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
     return best
 
 
-def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace
-             ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFace, *,
+             rough: bool = False) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """The engine's plan from these points: the fitted box's corners and the plan's fit/edges.
 
     The focal length is fitted too (from points far from any box that can take the solver
@@ -566,7 +747,7 @@ def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFa
 
     ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
     spec = ScanSpec(image="auto", points=ref, side_face=side_face)
-    plan = plan_scan(spec, image)
+    plan = plan_scan(spec, image, rough_points=rough)
     front, side = plan.faces[0].region, plan.faces[1].region
     if side_face == "right":
         named = {"p4": side[0], "p5": side[1], "p7": side[2]}
@@ -687,6 +868,16 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
                             hint is not None, what)
             if other is not None and other.ok:
                 result = other
+    if result is None or not result.ok:
+        # Two faces merged into one region, the fold between them too faint for its edges.
+        t0 = time.perf_counter()
+        split = _split_boxes(work, small.shape, hint_work)
+        timings["split"] = (time.perf_counter() - t0) * 1000
+        if split:
+            other = _choose(image, split, small.shape[:2], full, timings, clock, threshold,
+                            hint is not None, what)
+            if other is not None and other.ok:
+                result = other
     if result is None:
         return Found(None, None, 0.0, _nothing(quads, small.shape), found_faces, 0, timings_ms=timings)
     timings["total"] = (time.perf_counter() - start) * 1000
@@ -792,7 +983,7 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
 
     faces = tuple(full(f.corners) for f in box.faces)
     try:
-        first, _ = _refined(image, first_in, side_face)
+        first, _ = _refined(image, first_in, side_face, rough=True)
         second, info = _refined(image, first, side_face)
     except InputError as exc:
         clock()

@@ -390,7 +390,8 @@ def prepare_images(spec: ScanSpec, images: list[np.ndarray]) -> list[np.ndarray]
 
 
 def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
-              exif_focal_px: float | None = None, pooled_focal: PooledFocal | None = None) -> ScanPlan:
+              exif_focal_px: float | None = None, pooled_focal: PooledFocal | None = None,
+              rough_points: bool = False) -> ScanPlan:
     """Validate the points, locate the faces and measure the prism.
 
     The focal length is, in this order of trust: the spec's `focal_px`, its `camera`,
@@ -398,6 +399,10 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     `pooled_focal` (fitted over the photos of one camera, `prismcore.pooling.pool_focal`), or
     fitted from the box itself (one photo, seven points). A camera with lens distortion has it
     removed from the images and the points first (see `prepare_images`).
+
+    `rough_points`: the points are seeds a few px off (the point search's), not clicks: the
+    refined edges' box is kept even when it sits far from them (a person's clicks win over
+    edges that snapped to a printed border; a rough seed's do not).
 
     Raises
     ------
@@ -460,7 +465,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
             raise InputError("a shooting distance needs the focal length: give focal_px, a camera, or "
                              "P6 and P7 in one photo (the focal length is then fitted)")
         dims, quads, camera = _measure(work, quads, marked, fits, images, focal, warnings)
-        if fits and dims.perspective and not spec.two_photo:
+        if fits and dims.perspective and not spec.two_photo and not rough_points:
             dims, quads, camera, fits = _unless_snapped(work, marked, fits, images, focal, warnings,
                                                         (dims, quads, camera))
         camera["undistorted"] = undistorted
