@@ -15,6 +15,10 @@ The search, on a copy of the photo about 640 px wide (inside the region of inter
    so that its click residuals measure how well a box explains the edges.
 6. When no box passes: the largest faces' neighbours are proposed from the line segments and
    the colour change along them (`locate_faces`), and those boxes go through 4 and 5 alike.
+7. When still none passes: two faces whose fold is too faint to split their region are split
+   at it; their region's outline, a pentagon or a quad (the bends at the fold's ends too
+   shallow to see), is cut where the colour change runs its whole length in a direction
+   between the box's two edges beside it (`_pentagon_box`, `_quad_box`).
 
 The confidence combines the edge fits' support, the box fit's residuals and how far the
 corners moved from the regions' outlines; below `CONFIDENCE_MIN` the result carries the reason
