@@ -32,7 +32,11 @@ _MIN_TURN_DEG = 4.0  # a ray this close to a side of the face (or its extension)
 _MIN_REACH_PX = 4.0  # work px: the thinnest sliver proposed
 _MIN_CORNER_DEG = 15.0  # a proposed face's sides leave the shared side at least this steeply
 _MAX_SPREAD_DEG = 25.0  # the two rays toward one vanishing point part at most this much
-_MAX_MEET_DEG = 50.0  # or meet ahead (a thin side seen with strong perspective) at this angle
+# Or meet ahead at any angle short of a right one: a top face seen from little above it, its
+# sides converging toward a vanishing point close by, shows them up to 87 deg apart (clutter
+# scenes 71, 128 and 135: 87, 62 and 57 deg); `_plausible`'s convexity keeps the far side short
+# of where they meet, and the PnP screen and the fit judge the box.
+_MAX_MEET_DEG = 90.0
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -154,7 +154,14 @@ def test_boxes_the_first_fit_or_the_regions_missed_are_found_within_a_pixel(seed
     assert worst <= 1.0 and corners == 6
 
 
-@pytest.mark.parametrize("seed", [5, 13, 42])
+@pytest.mark.parametrize("seed", [
+    5, 13, 42,
+    # A thin top face seen from little above it: its sides, converging toward a vanishing point
+    # close by, leave the front's corners 57-87 deg apart (proposals stopped at 50 deg).
+    pytest.param(71, id="converging-top-71"),
+    pytest.param(128, id="converging-top-128"),
+    pytest.param(135, id="converging-top-135"),
+])
 def test_a_face_whose_region_never_closes_is_proposed_from_its_neighbour(seed):
     # The fold to a face of nearly the same shade is too faint for the second face's region to
     # close (5, 13), or the side is a sliver 15 px wide (42): "only one face visible" before.
@@ -165,6 +172,27 @@ def test_a_face_whose_region_never_closes_is_proposed_from_its_neighbour(seed):
     assert found.ok, found.reason
     worst, corners = _worst(found, scene.vertices_px)
     assert worst <= 3.0 and corners == 6
+
+
+def _neighbour_error(img: np.ndarray, face: np.ndarray, truth: np.ndarray) -> float:
+    """How far (px) the best of the neighbours proposed beside `face` lies from `truth`."""
+    lab = cv2.cvtColor(cv2.GaussianBlur(img, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
+    segments = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD).detect(lab[..., 0])[0].reshape(-1, 4)
+    labf = lab.astype(np.float32)
+    grad = (cv2.Sobel(labf, cv2.CV_32F, 1, 0) / 8, cv2.Sobel(labf, cv2.CV_32F, 0, 1) / 8)
+    proposals = propose_neighbours(face, segments.astype(np.float64), grad, img.shape[:2])
+    return min((float(np.linalg.norm(quad[:, None] - truth[None], axis=2).min(axis=1).max())
+                for quad, _ in proposals), default=np.inf)
+
+
+def test_propose_neighbours_finds_a_top_whose_sides_converge_steeply():
+    # The top's sides leave the front's upper corners 76 deg apart, meeting ahead.
+    img = np.full((400, 500, 3), 90, np.uint8)
+    front = np.array([[150.0, 200.0], [350.0, 202.0], [348.0, 380.0], [152.0, 378.0]])
+    top = np.array([[150.0, 200.0], [175.0, 168.0], [325.0, 170.0], [350.0, 202.0]])
+    cv2.fillPoly(img, [np.round(front * 16).astype(np.int32)], (200, 180, 150), cv2.LINE_AA, 4)
+    cv2.fillPoly(img, [np.round(top * 16).astype(np.int32)], (150, 140, 120), cv2.LINE_AA, 4)
+    assert _neighbour_error(img, front, top) <= 3.0
 
 
 def _two_faces() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
