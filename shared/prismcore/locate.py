@@ -63,6 +63,7 @@ _QUAD_FOLD_STRENGTH = 2.5
 _MIN_SPLIT = 0.08  # of the silhouette's area: the smallest face split off it
 _SPLIT_MIN_FRACTION = 0.02  # of the work image's area: the smallest silhouette split
 _FINE_EPS = (0.02, 0.012)  # of the outline's length: tolerances that see a faint fold's bends
+_PER_CLUSTER = 3  # boxes over one place (other faces or neighbours) measured before the next
 _ATTEMPTS = 3  # candidates given the full fit before giving up
 
 
@@ -939,14 +940,23 @@ def _choose(image: np.ndarray, boxes: list[_Box], shape: tuple[int, int],
     if not labelled:
         return None
     labelled.sort(key=lambda item: -_score(item[0], shape[:2]))
-    # Boxes built from the same faces (two of a box's three) are one box, not two.
+    # Boxes built from the same faces (two of a box's three) are one box, not two; but the
+    # largest of them is not always the right one (a neighbour proposed on the wrong side, two
+    # faces merged into one quad), so the next few over the same place are measured too.
     distinct = [labelled[0]]
+    members = [[labelled[0]]]
     for item in labelled[1:]:
-        if all(_contains(d[0], item[0].centre) < 0 and _contains(item[0], d[0].centre) < 0 for d in distinct):
+        for d, m in zip(distinct, members, strict=True):
+            if not (_contains(d[0], item[0].centre) < 0 and _contains(item[0], d[0].centre) < 0):
+                m.append(item)
+                break
+        else:
             distinct.append(item)
+            members.append([item])
     result: Found | None = None
     chosen = 0
-    for rank, (box, first_in, side_face) in enumerate(distinct[:_ATTEMPTS]):
+    tries = [(rank, item) for rank, group in enumerate(members[:_ATTEMPTS]) for item in group[:_PER_CLUSTER]]
+    for rank, (box, first_in, side_face) in tries:
         attempt = _measure(image, first_in, side_face, box, full, timings, threshold, len(distinct))
         if result is None or (not result.ok and attempt.confidence > result.confidence):
             result, chosen = attempt, rank

@@ -145,8 +145,12 @@ def test_boxes_once_refused_are_found_within_a_pixel(seed):
     # Front and side merged into one region (a fold too faint to close it) whose outline is a
     # pentagon: the bend at the fold's lower end too shallow to see. Split at the fold.
     pytest.param(19, id="merged-pentagon-19"),
+    # The largest of the boxes over one place was the wrong one (a neighbour proposed on the
+    # wrong side of the face); the right one, over the same place, was never measured.
+    pytest.param(176, id="second-over-one-place-176"),
+    pytest.param(187, id="second-over-one-place-187"),
 ])
-def test_boxes_the_first_fit_or_the_regions_missed_are_found_within_a_pixel(seed):
+def test_boxes_once_missed_by_the_fit_the_regions_or_the_ranking_are_found_within_a_pixel(seed):
     scene = clutter_scene(seed)
     found = find_points(scene.image)
     assert found.ok, found.reason
