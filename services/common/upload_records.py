@@ -124,3 +124,7 @@ class UploadRecords:
     def claim_points(self, upload_id: str, search: str, ttl_s: int) -> bool:
         """`claim_extraction` for a point search (`search` names it: frame and hint)."""
         return bool(self._r.set(f"{_P}upload:{upload_id}:points:{search}", 1, nx=True, ex=ttl_s))
+
+    def release_points(self, upload_id: str, search: str) -> None:
+        """Forget a point search's claim: the next asker sends it again (its task gave up)."""
+        self._r.delete(f"{_P}upload:{upload_id}:points:{search}")

@@ -9,7 +9,10 @@ upload (`prism_common.upload_keys.points_key`), which the API serves:
   found faces' quads), ``warnings``; ``reason`` null;
 * refused: ``reason`` (no box, two candidates, one face, uncertain: words a person can act
   on), ``points`` null;
-* ``{"error": ...}`` when the file (or frame) does not decode or is gone.
+* ``{"error": ...}`` when the file (or frame) does not decode or is gone;
+* ``{"error": ..., "retry": true}`` when the search's task gave up (the store down through its
+  retries, a time limit): the API says so once and then forgets it, so asking again searches
+  again instead of meeting the same passing trouble until the upload expires.
 
 Idempotent: the search is deterministic, so a document already written is not redone.
 """
@@ -60,13 +63,13 @@ def find_upload_points(ctx: WorkerContext, upload_id: str, frame: int | None, hi
 
 def search_failed(ctx: WorkerContext, upload_id: str, frame: int | None, hint: Hint | None,
                   reason: str) -> None:
-    """Record a search whose task gave up for good (a time limit, a store down), so the page
-    that waits on it hears why instead of asking again and again."""
+    """Record a search whose task gave up (a time limit, a store down), so the page that waits
+    on it hears why instead of asking again and again; marked ``retry``: the cause may pass."""
     upload = ctx.store.get_upload(upload_id)
     if upload is not None:
         ctx.objects.put_json(points_key(upload["tenant"], upload_id, frame, hint),
                              {"error": f"the point search {reason}" if reason.startswith("took")
-                              else f"the point search failed: {reason}"})
+                              else f"the point search failed: {reason}", "retry": True})
 
 
 def found_document(found: Found, width: int, height: int) -> dict[str, Any]:

@@ -87,6 +87,29 @@ def test_a_box_is_found_within_3_px_and_polling_sends_one_search(api, env):
     assert env.objects.exists(key)
 
 
+def test_a_search_that_gave_up_is_said_once_then_searched_again(api, env):
+    scene = clutter_scene(0, image_size=SIZE)
+    upload_id = _id(upload(api, encode(scene.image), name="scene.png"))
+    path = f"/v1/uploads/{upload_id}/points"
+    assert _poll(api, path).status_code == 200
+    key = f"uploads/{tenant_hash('acme')}/{upload_id}.points/photo.json"
+    # What the worker stores when the search's task ran out of retries (search_failed): a
+    # cause that may pass, unlike a photo that does not decode.
+    env.objects.put_json(key, {"error": "the point search failed: the object store was unreachable",
+                               "retry": True})
+    gave_up = api.get(path, headers=ACME)
+    assert gave_up.status_code == 503 and gave_up.headers["Retry-After"] == "1", gave_up.text
+    assert gave_up.json()["detail"] == ("the point search failed: the object store was unreachable; "
+                                        "ask again to search again")
+    assert not env.objects.exists(key)
+    runs = env.runs(TASK_FIND_POINTS)
+    # Sent again at once: the first search's claim (30 s) is released with the answer.
+    assert api.get(path, headers=ACME).status_code == 202
+    wait_for(lambda: env.runs(TASK_FIND_POINTS) >= runs + 1, timeout=20)
+    again = _poll(api, path)
+    assert again.status_code == 200 and again.json()["reason"] is None, again.text
+
+
 def test_no_box_is_refused_with_the_reason(api):
     empty = empty_scene(0, image_size=SIZE)  # clutter and no box
     upload_id = _id(upload(api, encode(empty), name="empty.png"))

@@ -4,7 +4,8 @@
 (no numpy or OpenCV here): like a video's frames (`upload_video`), it sends `prism.find_points`
 to a worker, once however often the page polls (an expiring claim), and answers 202 with
 Retry-After until the worker has stored what it found beside the upload; then 200 with the
-points, or with the reason the search refused. Another tenant's upload answers 404.
+points, or with the reason the search refused; 503 once when the search's task gave up on a
+cause that may pass (asking again searches again). Another tenant's upload answers 404.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, HTTPException, Query, status
 from fastapi.responses import JSONResponse
 from prism_common.queue import TASK_FIND_POINTS
 from prism_common.upload_keys import points_key
@@ -21,7 +22,7 @@ from prism_common.upload_records import upload_probe
 from ..deps import CeleryDep, ObjectsDep, StoreDep, TenantDep
 from ..problems import Problem
 from ..schemas import FoundPointsPublic
-from .upload_video import _PENDING, CLAIM_TTL_S, _own_upload, _refused, ask_worker
+from .upload_video import _PENDING, CLAIM_TTL_S, RETRY_AFTER_S, _own_upload, _refused, ask_worker
 
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 
@@ -56,7 +57,9 @@ def _hint(text: str | None, size: tuple[int, int] | None) -> tuple[int, int] | N
 
 @router.get("/{upload_id}/points", response_model=FoundPointsPublic,
             responses={**_PENDING, 404: {"description": "No such upload"},
-                       422: {"description": "A bad hint or frame, or a file (frame) that does not decode"}})
+                       422: {"description": "A bad hint or frame, or a file (frame) that does not decode"},
+                       503: {"description": "The search gave up (the store down, a time limit): "
+                                            "ask again to search again"}})
 def get_points(upload_id: str, tenant: TenantDep, store: StoreDep, objects: ObjectsDep, celery: CeleryDep,
                hint: Annotated[str | None, Query(
                    pattern=_HINT_PATTERN, max_length=64,
@@ -86,6 +89,13 @@ def get_points(upload_id: str, tenant: TenantDep, store: StoreDep, objects: Obje
         return ask_worker(store.claim_points(upload_id, key.rsplit("/", 1)[-1], CLAIM_TTL_S), celery,
                           TASK_FIND_POINTS, [upload_id, frame, found_hint and list(found_hint)],
                           f"searching upload {upload_id} for the box")
+    if doc.get("retry"):
+        # The search's task gave up on a cause that may pass (the store down, a time limit
+        # under load): said once, then forgotten, so the next ask searches again.
+        objects.delete_keys([key])
+        store.release_points(upload_id, key.rsplit("/", 1)[-1])
+        raise HTTPException(status.HTTP_503_SERVICE_UNAVAILABLE, f"{doc['error']}; ask again to search "
+                            "again", headers={"Retry-After": str(RETRY_AFTER_S)})
     if "error" in doc:
         raise _refused(doc)
     return FoundPointsPublic(id=upload_id, frame=frame, hint=found_hint, **doc)

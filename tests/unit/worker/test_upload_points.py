@@ -56,10 +56,10 @@ def test_a_search_that_gave_up_says_why(fakes: Fakes) -> None:
     upload_points.search_failed(fakes.ctx, upload_id, None, None, "took longer than the worker's "
                                 "time limit of 5 s: the input may be too large")
     assert _answer(fakes, upload_id) == {"error": "the point search took longer than the worker's time "
-                                         "limit of 5 s: the input may be too large"}
+                                         "limit of 5 s: the input may be too large", "retry": True}
     upload_points.search_failed(fakes.ctx, upload_id, None, (1, 2), "the object store was unreachable")
     assert _answer(fakes, upload_id, (1, 2)) == {
-        "error": "the point search failed: the object store was unreachable"}
+        "error": "the point search failed: the object store was unreachable", "retry": True}
 
 
 def test_an_expired_upload_leaves_nothing(fakes: Fakes) -> None:
