@@ -22,6 +22,7 @@ TASK_PLAN_ITEM = "prism.plan_item"
 TASK_SCAN_TILE = "prism.scan_tile"
 TASK_FINISH_ITEM = "prism.finish_item"
 TASK_SCAN_FRAME = "prism.scan_frame"
+TASK_SPLIT_VIDEO = "prism.split_video"  # a video's split, from the part a time-bounded one left
 TASK_DELIVER_WEBHOOK = "prism.deliver_webhook"
 TASK_EXTRACT_FRAME = "prism.extract_frame"
 TASK_FIND_POINTS = "prism.find_points"  # an upload's box and points, for the web page
@@ -54,8 +55,8 @@ def queue_depth(client: redis.Redis, queue: str) -> int:
 
 # Tasks that only start others or post a webhook are short whatever the input: a tight limit.
 _SHORT_TASK_S = {TASK_RUN_JOB: 60.0, TASK_DELIVER_WEBHOOK: 60.0}
-_ITEM_TASKS = (TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME, TASK_EXTRACT_FRAME,
-               TASK_FIND_POINTS)
+_ITEM_TASKS = (TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME, TASK_SPLIT_VIDEO,
+               TASK_EXTRACT_FRAME, TASK_FIND_POINTS)
 
 
 def time_limits(settings: Settings) -> dict[str, dict[str, float]]:

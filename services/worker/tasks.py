@@ -14,8 +14,9 @@ the logic, which lives in one place each:
 Graph: run_job -> plan_item (a window of items per job) -> chord(scan_tile per face band)
 -> finish_item -> the next plan_item, and after the job's last item deliver_webhook. An item
 of a batch (one tile per face) is scanned whole inside plan_item instead. A video item's
-plan_item splits it and sends a scan_frame task per frame as it goes; the last frame summarises
-the item and completes it. Apart from jobs, extract_frame probes an uploaded video and stores
+plan_item splits it and sends a scan_frame task per frame as it goes (a long split hands the
+rest of its frames on to split_video, part after part); the last frame summarises the item and
+completes it. Apart from jobs, extract_frame probes an uploaded video and stores
 one frame for the web page to mark, and find_points searches an upload for the box and its
 points (both on the frames queue). Tasks pass ids and object keys only; each is
 idempotent (deterministic keys, exists-checks, counting by set membership), since late acks
@@ -44,6 +45,7 @@ from prism_common.queue import (
     TASK_RUN_JOB,
     TASK_SCAN_FRAME,
     TASK_SCAN_TILE,
+    TASK_SPLIT_VIDEO,
 )
 from prism_common.records import ItemView, State
 from prism_common.references import ReferenceError
@@ -57,7 +59,7 @@ from .context import WorkerContext
 from .inputs import FetchError
 
 __all__ = ["deliver_webhook", "extract_frame", "find_points", "finish_item", "plan_item", "run_job",
-           "scan_frame", "scan_tile"]
+           "scan_frame", "scan_tile", "split_video"]
 
 log = logging.getLogger(__name__)
 
@@ -168,12 +170,22 @@ def _plan_tiles(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
     chord(scan_tile.s(job_id, item, *tile) for tile in tiles)(finish_item.s(job_id, item))
 
 
-def _split_video(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+def _split_video(ctx: WorkerContext, view: ItemView, repeat: bool, part: int = 0) -> None:
     """A video: its frames are stored and sent as scan_frame tasks; the last one finishes it."""
     try:
-        video.split_video(ctx, view)
+        video.split_video(ctx, view, part)
     except INPUT_ERRORS as exc:
         lifecycle.fail_and_complete(ctx, view.job_id, view.item.index, str(exc), maybe_repeat=repeat)
+
+
+@app.task(name=TASK_SPLIT_VIDEO, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+          ignore_result=True)
+def split_video(self: AnyTask, job_id: str, item: int, part: int) -> None:
+    """The rest of a video's split, from where the part before it stopped (its time was up)."""
+    ctx, repeat = worker_context(), _maybe_repeat(self)
+    view = lifecycle.open_item(ctx, job_id, item, repeat=repeat)
+    if view is not None:
+        _split_video(ctx, view, repeat, part)
 
 
 def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:

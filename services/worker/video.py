@@ -1,8 +1,9 @@
 """Video: a job's video item split into frames and each frame measured; and the frames of an
 uploaded video shown to a person to mark.
 
-Split (`split_video`): read the video once, select the frames, store each one as a lossless PNG
-and send its scan task as soon as it is stored, so frames are measured while the split goes on.
+Split (`split_video`): read the video, select the frames, store each one as a lossless PNG and
+send its scan task as soon as it is stored, so frames are measured while the split goes on; a
+split works for `video_split_part_s` at a time, each part handing the rest to the next task.
 One decoded frame is in memory at a time. Without a focal length, every frame's own fit is
 pooled into one (one camera) before any frame is measured. With points "auto" the split also
 finds each frame's points, in frame order (`prismcore.video_points.FrameSearch`: each search
@@ -32,7 +33,7 @@ import json
 import logging
 import shutil
 import tempfile
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
 from statistics import median
@@ -41,7 +42,7 @@ from typing import Any
 import cv2
 import numpy as np
 from botocore.exceptions import ClientError
-from prism_common.queue import TASK_SCAN_FRAME
+from prism_common.queue import TASK_SCAN_FRAME, TASK_SPLIT_VIDEO
 from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView, State
 from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
@@ -86,8 +87,13 @@ def client_message(exc: InputError, path: Path, name: str) -> str:
     return str(exc).replace(repr(str(path)), repr(name))
 
 
-def split_video(ctx: WorkerContext, view: ItemView) -> list[int]:
-    """Select the item's frames, store them and send one scan task per frame; the frames.
+def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
+    """Select the item's frames, store them and send one scan task per frame.
+
+    A split works for `settings.video_split_part_s`, then stores where it stopped (the next
+    frame, the point search's start, the focal estimates so far: ``split-{part}.json``) and
+    sends `TASK_SPLIT_VIDEO` for the next part, so a long video (a search on every frame: about
+    0.35 s each) is not cut off by the task's time limit. `part` 0 selects the frames.
 
     Raises
     ------
@@ -99,49 +105,96 @@ def split_video(ctx: WorkerContext, view: ItemView) -> list[int]:
     """
     job_id, item, spec = view.job_id, view.item.index, view.item.spec
     assert spec.frames is not None
-    cap, store, objects = ctx.settings.max_frames_per_job, ctx.store, ctx.objects
+    objects = ctx.objects
+    if objects.exists(item_key(job_id, item, _split_name(part + 1))):
+        return  # a repeat of a part that handed on: the next part has the rest
     with tempfile.TemporaryDirectory(prefix="prism-video-") as tmp:
         path = Path(tmp) / "video"
         with path.open("wb") as dest:
             label = save_input(ctx, view, "front", dest)
-        try:
-            info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
-            frames = select_frames(path, spec.frames, info, max_frames=cap)
-        except InputError as exc:  # quote the client's name for the video, not our temp file
-            raise InputError(client_message(exc, path, label)) from None
-        total = store.claim_frames(job_id, item, len(frames))
-        if total > cap:
-            store.release_frames(job_id, item)
-            raise InputError(f"the job's videos select {total} frames, over the cap of {cap} frames "
-                             "per job: select fewer (every, start_s/end_s, sharpest or indices)")
-        objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
-        lifecycle.count_plan(ctx, job_id, item, len(frames))  # progress counts frames from here on
-        # Without a focal length, every frame's own fit is pooled into one (one camera) before
-        # any frame is measured: the frames' tasks then wait for the split to end.
-        pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
-        estimates: list[tuple[float, float]] = []
-        stored: list[int] = []
-        search = FrameSearch(spec) if spec.auto_points is not None else None
-        for index, rgb in iter_frames(path, frames):
-            if store.state(job_id) != State.running:
-                break  # cancelled (or ended) meanwhile: the remaining frames are not wanted
-            objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
-            photo = frame_spec(spec, index) if search is None else _search(ctx, view, search, index, rgb)
-            if pool:
-                if photo is not None and (found := focal_estimate(photo, rgb)) is not None:
-                    estimates.append(found)
-                stored.append(index)
-            else:
-                ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
-        if pool:
-            pooled = pool_focal(estimates) if len(estimates) >= 2 else None
-            if pooled is not None:
-                objects.put_json(item_key(job_id, item, FOCAL_NAME),
-                                 {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
-                                  "used": list(pooled.used), "estimates": len(estimates)})
-            for index in stored:
-                ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+        if part == 0:
+            frames = _select(ctx, view, path, label)
+            left = _Split(next=0, hint=None, estimates=[], stored=[])
+        else:
+            frames = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["frames"]
+            doc = objects.get_json(item_key(job_id, item, _split_name(part)))
+            if doc is None:  # written before this part's task was sent
+                raise RuntimeError(f"video split part {part} has no {_split_name(part)}")
+            left = _Split(next=doc["next"], hint=None if doc["hint"] is None else tuple(doc["hint"]),
+                          estimates=[tuple(e) for e in doc["estimates"]], stored=doc["stored"])
+        _split_frames(ctx, view, path, frames, left, part)
+
+
+@dataclass
+class _Split:
+    """Where a split part stopped (``split-{part}.json``): the next frame's position in the
+    selection, the point search's start, and (focal pooled) the estimates and frames stored."""
+
+    next: int
+    hint: tuple[float, float] | None
+    estimates: list[tuple[float, float]]
+    stored: list[int]
+
+
+def _split_name(part: int) -> str:
+    return f"split-{part}.json"
+
+
+def _select(ctx: WorkerContext, view: ItemView, path: Path, label: str) -> list[int]:
+    """The frames to measure, checked against the caps and recorded (frames.json, the plan)."""
+    job_id, item, spec = view.job_id, view.item.index, view.item.spec
+    assert spec.frames is not None
+    cap, store = ctx.settings.max_frames_per_job, ctx.store
+    try:
+        info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
+        frames = select_frames(path, spec.frames, info, max_frames=cap)
+    except InputError as exc:  # quote the client's name for the video, not our temp file
+        raise InputError(client_message(exc, path, label)) from None
+    total = store.claim_frames(job_id, item, len(frames))
+    if total > cap:
+        store.release_frames(job_id, item)
+        raise InputError(f"the job's videos select {total} frames, over the cap of {cap} frames "
+                         "per job: select fewer (every, start_s/end_s, sharpest or indices)")
+    ctx.objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
+    lifecycle.count_plan(ctx, job_id, item, len(frames))  # progress counts frames from here on
     return frames
+
+
+def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[int], left: _Split,
+                  part: int) -> None:
+    """Store frames[left.next:] (searching each, points "auto") until the part's time is up."""
+    job_id, item, spec = view.job_id, view.item.index, view.item.spec
+    store, objects = ctx.store, ctx.objects
+    # Without a focal length, every frame's own fit is pooled into one (one camera) before any
+    # frame is measured: the frames' tasks then wait for the split to end.
+    pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
+    search = FrameSearch(spec, hint=left.hint) if spec.auto_points is not None else None
+    ends = ctx.clock() + ctx.settings.video_split_part_s
+    for index, rgb in iter_frames(path, frames[left.next:]):
+        if store.state(job_id) != State.running:
+            return  # cancelled (or ended) meanwhile: the remaining frames are not wanted
+        objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
+        photo = frame_spec(spec, index) if search is None else _search(ctx, view, search, index, rgb)
+        if pool:
+            if photo is not None and (found := focal_estimate(photo, rgb)) is not None:
+                left.estimates.append(found)
+            left.stored.append(index)
+        else:
+            ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
+        left.next += 1
+        if left.next < len(frames) and ctx.clock() >= ends:
+            left.hint = None if search is None else search.hint
+            objects.put_json(item_key(job_id, item, _split_name(part + 1)), asdict(left))
+            ctx.send_task(TASK_SPLIT_VIDEO, (job_id, item, part + 1))
+            return
+    if pool:
+        pooled = pool_focal(left.estimates) if len(left.estimates) >= 2 else None
+        if pooled is not None:
+            objects.put_json(item_key(job_id, item, FOCAL_NAME),
+                             {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
+                              "used": list(pooled.used), "estimates": len(left.estimates)})
+        for index in left.stored:
+            ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
 
 
 def _search(ctx: WorkerContext, view: ItemView, search: FrameSearch, index: int,

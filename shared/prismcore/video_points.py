@@ -35,13 +35,21 @@ class FrameSearch:
     ----------
     spec : ScanSpec
         A video spec (`frames` set) whose points are "auto" (`auto_points` set).
+    hint : (float, float) or None, optional
+        Where the first search starts (image px): `hint` of a search that went before (a split
+        taken up where it was left); by default the spec's own hint.
     """
 
-    def __init__(self, spec: ScanSpec) -> None:
+    def __init__(self, spec: ScanSpec, *, hint: tuple[float, float] | None = None) -> None:
         if spec.frames is None or spec.auto_points is None:
             raise ValueError("FrameSearch needs a video spec with points \"auto\"")
         self._spec = spec
-        self._hint = spec.auto_points.hint
+        self._hint = spec.auto_points.hint if hint is None else hint
+
+    @property
+    def hint(self) -> tuple[float, float] | None:
+        """Where the next frame's search starts: the centre of the last points found."""
+        return self._hint
 
     def resolve(self, index: int, image: np.ndarray) -> tuple[ScanSpec, Found]:
         """Frame `index`'s photo spec with the points found in `image` (H, W, 3) RGB, and what

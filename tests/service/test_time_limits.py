@@ -3,10 +3,13 @@ reason, and the worker goes on with other work (a real worker with a 1 s limit).
 
 from __future__ import annotations
 
+import inspect
+import re
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from prism_common import queue
 from prism_common.queue import (
     TASK_DELIVER_WEBHOOK,
     TASK_EXTRACT_FRAME,
@@ -16,19 +19,21 @@ from prism_common.queue import (
     TASK_RUN_JOB,
     TASK_SCAN_FRAME,
     TASK_SCAN_TILE,
+    TASK_SPLIT_VIDEO,
     make_celery,
     time_limits,
 )
 from prism_common.records import State
 from prism_common.settings import Settings
 
+import prism_worker.tasks
 from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
 from .worker_env import Env, encode, spec_for, worker_env
 
 ALL_TASKS = (TASK_RUN_JOB, TASK_PLAN_ITEM, TASK_SCAN_TILE, TASK_FINISH_ITEM, TASK_SCAN_FRAME,
-             TASK_DELIVER_WEBHOOK, TASK_EXTRACT_FRAME, TASK_FIND_POINTS)
+             TASK_SPLIT_VIDEO, TASK_DELIVER_WEBHOOK, TASK_EXTRACT_FRAME, TASK_FIND_POINTS)
 
 
 def test_every_task_has_a_soft_limit_below_its_hard_limit():
@@ -36,6 +41,10 @@ def test_every_task_has_a_soft_limit_below_its_hard_limit():
                         task_hard_margin_s=20)
     limits = time_limits(settings)
     assert set(limits) == set(ALL_TASKS)
+    # Every task the worker defines has its limits (read from its source: the app's registry
+    # would need the worker's settings).
+    registered = re.findall(r"@app\.task\(name=(TASK_\w+)", inspect.getsource(prism_worker.tasks))
+    assert {getattr(queue, name) for name in registered} == set(ALL_TASKS)
     for name, limit in limits.items():
         assert 0 < limit["soft_time_limit"] < limit["time_limit"], name
     assert limits[TASK_SCAN_TILE] == {"soft_time_limit": 100, "time_limit": 120}

@@ -70,8 +70,10 @@ class Stack:
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("zero-click")
     # Three tiles per face: a job of three items is scanned whole per item, a lone item by tiles.
+    # A video's split hands on to a new task after every frame (VIDEO_SPLIT_PART_S): a long
+    # video's split in parts, its point search carried from part to part, on a short clip.
     env = service_env(redis_server.port, s3_server.port, db=13, bucket=BUCKET,
-                      TILES_PER_FACE="3", ITEMS_IN_FLIGHT_PER_JOB="3")
+                      TILES_PER_FACE="3", ITEMS_IN_FLIGHT_PER_JOB="3", VIDEO_SPLIT_PART_S="0.001")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
     made = Stack(api.port)
@@ -182,9 +184,11 @@ def test_a_lone_item_scanned_by_tiles_measures_as_the_batch_did(stack, batch, se
 EMPTY_FRAME = 2
 
 
-def test_a_video_is_measured_with_no_clicks_frame_by_frame(stack, tmp_path):
+def test_a_video_is_measured_with_no_clicks_frame_by_frame(stack, tmp_path, settings):
     """A hand-held clip of a box with one frame of clutter and no box put in (as
-    tests/cli/test_scan_auto_video.py): that frame fails with the reason, the others are found."""
+    tests/cli/test_scan_auto_video.py): that frame fails with the reason, the others are found.
+    The split runs in four parts (one frame each, see `stack`), each starting its search where
+    the part before left it."""
     clip = render_clip(Box(120.0, 80.0, 60.0), 4, sway_deg=3)
     pictures = [s.image for s in clip]
     pictures[EMPTY_FRAME] = empty_scene(0, image_size=SIZE)
@@ -214,6 +218,11 @@ def test_a_video_is_measured_with_no_clicks_frame_by_frame(stack, tmp_path):
     assert failed["frame"] == EMPTY_FRAME
     rows = list(csv.DictReader(io.StringIO(stack.http.get(f"/v1/jobs/{job['id']}/results.csv").text)))
     assert [row["points_source"] for row in rows] == ["auto"] * 5  # the item's row, then its frames'
+    objects = ObjectStore.from_settings(settings.model_copy(update={"s3_bucket": BUCKET}))
+    parts = [objects.get_json(f"jobs/{job['id']}/items/0/split-{n}.json") for n in range(1, 5)]
+    assert [None if p is None else p["next"] for p in parts] == [1, 2, 3, None], parts
+    # Each part starts where the last box found was: frame 2 (clutter, no box) keeps frame 1's.
+    assert parts[0]["hint"] != parts[1]["hint"] == parts[2]["hint"], parts
 
 
 @pytest.mark.parametrize(("extra", "words"), [
