@@ -41,6 +41,7 @@ from .upload_records import UploadRecords
 __all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictError", "JobStore"]
 
 _P = "prism:"
+_WEBHOOKS_DUE = f"{_P}webhooks:due"  # job id -> since when (s) its webhook is due
 # A job hash's fields other than its items and frames.
 _VERDICT_FIELDS = ["verdict:pass", "verdict:fail", "verdict:uncertain"]
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
@@ -64,6 +65,12 @@ if ARGV[1] == 'cancelled' then
   redis.call('HSET', KEYS[1], 'units_at_cancel', done .. '/' .. total)
 end
 if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'error', ARGV[3]) end
+if (ARGV[1] == 'succeeded' or ARGV[1] == 'failed') and redis.call('HGET', KEYS[1], 'webhook') == '1' then
+  -- Its webhook is due, written with the ending itself: a delivery task lost with Redis's last
+  -- second (AOF everysec) is sent again by the watchdog, not forgotten.
+  local t = redis.call('TIME')
+  redis.call('ZADD', ARGV[5] .. 'webhooks:due', tonumber(t[1]), ARGV[4])
+end
 local tenant = redis.call('HGET', KEYS[1], 'tenant')
 local score = redis.call('HGET', KEYS[1], 'score')
 local id = ARGV[4]
@@ -149,7 +156,8 @@ class JobStore(UploadRecords):
                 "doc": job.model_dump_json(exclude={"items"}), "n_items": len(job.items),
                 **{f"item:{item.index}": item.model_dump_json() for item in job.items},
                 "state": State.queued.value,
-                "tenant": job.tenant, "score": score, "units_total": units, "units_done": 0})
+                "tenant": job.tenant, "score": score, "units_total": units, "units_done": 0,
+                "webhook": "1" if job.webhook_url else "0"})
             pipe.zadd(f"{_P}tenant:{job.tenant}:jobs", {job.id: score})
             pipe.zadd(f"{_P}tenant:{job.tenant}:state:queued", {job.id: score})
             pipe.zadd(f"{_P}state:queued", {job.id: score})
@@ -261,8 +269,23 @@ class JobStore(UploadRecords):
             for start in range(0, len(per_item), 1000):
                 pipe.delete(*per_item[start:start + 1000])
             pipe.delete(f"{key}:done", f"{key}:next", f"{key}:frames", f"{_P}watch:{job_id}", key)
+            pipe.zrem(_WEBHOOKS_DUE, job_id)
             pipe.execute()
         return True
+
+    # -- webhooks due -------------------------------------------------------------------------
+    def webhooks_due(self, before: float) -> builtins.list[str]:
+        """Jobs whose webhook has been due since before `before` (s, Redis's clock) and is not
+        yet delivered or given up (`webhook_done`)."""
+        return cast("builtins.list[str]", self._r.zrangebyscore(_WEBHOOKS_DUE, 0, before))
+
+    def webhook_resent(self, job_id: str, now: float) -> None:
+        """A job's delivery was sent again at `now`: due again from then (if still due)."""
+        self._r.zadd(_WEBHOOKS_DUE, {job_id: now}, xx=True)
+
+    def webhook_done(self, job_id: str) -> None:
+        """A job's webhook was delivered, or given up: no longer due."""
+        self._r.zrem(_WEBHOOKS_DUE, job_id)
 
     # -- items and progress -----------------------------------------------------------------
     def put_item(self, job_id: str, item: ItemRecord) -> None:

@@ -244,13 +244,27 @@ def finish_item(self: AnyTask, tile_keys: list[str | None], job_id: str, item: i
     lifecycle.complete_item(ctx, job_id, item, maybe_repeat=repeat)
 
 
-@app.task(name=TASK_DELIVER_WEBHOOK, base=RetryingTask, bind=True, ignore_result=True, max_retries=8,
+class WebhookTask(RetryingTask):
+    """A delivery: given up for good after its retries, it is no longer due (else the
+    watchdog, which re-sends deliveries lost with the broker, would send it for ever)."""
+
+    def on_failure(self, exc: Exception, task_id: str, args: Any, kwargs: Any, einfo: Any) -> None:
+        log.error("webhook of job %s given up: %r", args[0], exc)
+        try:
+            worker_context().store.webhook_done(args[0])
+        except Exception:
+            log.exception("could not mark the webhook of job %s given up", args[0])
+
+
+@app.task(name=TASK_DELIVER_WEBHOOK, base=WebhookTask, bind=True, ignore_result=True, max_retries=8,
           autoretry_for=(*RETRYABLE, webhooks.WebhookError, httpx.HTTPError))
 def deliver_webhook(self: AnyTask, job_id: str) -> None:
+    ctx = worker_context()
     try:
-        webhooks.deliver(worker_context(), job_id)
+        webhooks.deliver(ctx, job_id)
     except ReferenceError as exc:  # a URL we may not call will not become callable: no retry
         log.warning("webhook of job %s not sent: %s", job_id, exc)
+    ctx.store.webhook_done(job_id)
 
 
 @app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,

@@ -17,6 +17,10 @@ queued and running job:
 * any job not final `job_max_age_s` after submission fails, whatever else (a task that kills its
   worker each time it is handed out would otherwise be redelivered for ever).
 
+Webhooks, in the same sweep: a job's delivery is due from its ending (written with it) until it
+is delivered or given up; one due for `job_stall_timeout_s` with no task of its own in the
+broker was lost and is sent again (`resend_webhooks`).
+
 Retention, in the same sweep: uploads older than `upload_ttl_s` go (the file, a video's probe
 and decoded frames, what point searches found, the record), and, when the operator sets
 `job_ttl_s`, ended jobs older than that (every object under jobs/{id}/, the record). Objects go
@@ -31,6 +35,7 @@ import logging
 import threading
 from collections.abc import Callable
 
+from prism_common.queue import TASK_DELIVER_WEBHOOK
 from prism_common.records import State
 from prism_common.storage import object_key
 from prism_common.store import WATCHDOG_LOCK_KEY
@@ -40,7 +45,7 @@ from . import lifecycle
 from .broker import pending_job_ids
 from .context import WorkerContext
 
-__all__ = ["LOCK_KEY", "Watchdog", "expire_jobs", "expire_uploads", "sweep", "try_sweep"]
+__all__ = ["LOCK_KEY", "Watchdog", "expire_jobs", "expire_uploads", "resend_webhooks", "sweep", "try_sweep"]
 
 log = logging.getLogger(__name__)
 
@@ -100,9 +105,30 @@ def try_sweep(ctx: WorkerContext, holder: str) -> dict[str, int] | None:
         return None
     now = ctx.clock()
     counts = sweep(ctx, now)
+    counts["webhooks resent"] = resend_webhooks(ctx, now)
     counts["uploads expired"] = expire_uploads(ctx, now)
     counts["jobs expired"] = expire_jobs(ctx, now)
     return counts
+
+
+def resend_webhooks(ctx: WorkerContext, now: float) -> int:
+    """Send again the deliveries due for `job_stall_timeout_s` with no task of theirs in the
+    broker: lost with Redis's last second (a restart under AOF everysec), as a job's next step
+    can be. A delivery that did go out but whose mark was lost goes twice, with one
+    ``webhook-id``: receivers drop the repeat (Standard Webhooks)."""
+    due = ctx.store.webhooks_due(now - ctx.settings.job_stall_timeout_s)
+    if not due:
+        return 0
+    pending = pending_job_ids(ctx.redis)
+    sent = 0
+    for job_id in due:
+        if job_id in pending:
+            continue  # queued, or waiting to be retried
+        ctx.store.webhook_resent(job_id, now)
+        ctx.send_task(TASK_DELIVER_WEBHOOK, (job_id,))
+        log.warning("job %s: its webhook delivery was lost; sent again", job_id)
+        sent += 1
+    return sent
 
 
 # -- retention ----------------------------------------------------------------------------------

@@ -28,11 +28,13 @@ from pathlib import Path
 
 import httpx
 import pytest
+import redis
 import standardwebhooks.webhooks
 from prism_common.outbound import check_webhook_url
 from prism_common.records import State
 from prism_common.references import ReferenceError
 from prism_common.settings import Settings
+from prism_common.store import JobStore
 from prism_common.webhook_secret import signing_key
 from pydantic import ValidationError
 from standardwebhooks import Webhook, WebhookVerificationError
@@ -274,14 +276,22 @@ def test_an_altered_delivery_is_refused(delivered, tampering):
     Webhook(SECRET).verify(delivery.body, delivery.headers)  # the original still passes
 
 
-def test_a_retry_has_the_same_id_and_a_fresh_signature(stack, scene, photo):
+def test_a_retry_has_the_same_id_and_a_fresh_signature(stack, scene, photo, redis_server):
     # The first attempt gets no answer within the worker's timeout: the worker gives up on it
     # and tries again (Celery retry with back-off), signing the new attempt when it is sent.
     made = Receiver(plan=("hang", "ok"))
+    store = JobStore(redis.Redis(port=redis_server.port, db=14, decode_responses=True))
     try:
         job_id = stack.submit(photo, scene, made.url)
-        first, second = made.wait(2, timeout=60)
         assert stack.wait(job_id)["state"] == "succeeded"
+        # Due from the job's ending (the watchdog would send a lost delivery again; the first
+        # attempt hangs for seconds) until the delivery went through.
+        assert job_id in store.webhooks_due(time.time() + 86400)
+        first, second = made.wait(2, timeout=60)
+        deadline = time.monotonic() + 10
+        while job_id in store.webhooks_due(time.time() + 86400):
+            assert time.monotonic() < deadline, "the delivered webhook is still due"
+            time.sleep(0.1)
     finally:
         made.close()
     assert first.headers["webhook-id"] == second.headers["webhook-id"] == message_id(job_id)

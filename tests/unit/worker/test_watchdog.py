@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from prism_common.queue import TASK_FINISH_ITEM, TASK_PLAN_ITEM, TASK_RUN_JOB
+from prism_common.queue import TASK_DELIVER_WEBHOOK, TASK_FINISH_ITEM, TASK_PLAN_ITEM, TASK_RUN_JOB
 from prism_common.records import State
 from prism_common.upload_keys import frame_png_key, points_key, upload_key, video_info_key
 
@@ -197,3 +197,37 @@ def test_ended_jobs_past_their_ttl_go(fakes: Fakes, job_ttl_days: int, expired: 
     assert fakes.store.get(old_running) is not None  # a running job is never deleted
     if expired:
         assert not [k for k in fakes.redis.keys("*") if old_done in k]
+
+
+def _ended_with_a_webhook(fakes: Fakes, webhook_url: str | None = "https://hooks.example/prism") -> str:
+    """A job that ended with its webhook due; the fake clock set to Redis's (which dates it)."""
+    fakes.clock.now = fakes.store.server_time()
+    job_id = fakes.job(items=1, state=State.running, webhook_url=webhook_url)
+    assert fakes.store.transition(job_id, State.succeeded)
+    return job_id
+
+
+def test_a_webhook_delivery_lost_with_the_broker_is_sent_again_once(fakes: Fakes) -> None:
+    job_id = _ended_with_a_webhook(fakes)
+    silent = _ended_with_a_webhook(fakes, webhook_url=None)  # nothing to deliver: never due
+    now = fakes.clock.now
+    assert watchdog.resend_webhooks(fakes.ctx, now + STALL - 5) == 0  # its task may be on its way
+    fakes.redis.lpush("webhooks", _message(job_id))
+    assert watchdog.resend_webhooks(fakes.ctx, now + STALL + 5) == 0  # queued: waiting its turn
+    fakes.redis.delete("webhooks")  # the message lost (Redis's last second, AOF everysec)
+    assert watchdog.resend_webhooks(fakes.ctx, now + STALL + 5) == 1
+    assert fakes.sent.take() == [(TASK_DELIVER_WEBHOOK, (job_id,))]
+    # Sent again: due again from now, so the next sweeps leave the new task its time.
+    assert watchdog.resend_webhooks(fakes.ctx, now + STALL + 10) == 0
+    assert watchdog.resend_webhooks(fakes.ctx, now + 2 * STALL + 10) == 1
+    fakes.sent.take()
+    fakes.store.webhook_done(job_id)  # delivered (or given up)
+    assert watchdog.resend_webhooks(fakes.ctx, now + 10 * STALL) == 0
+    assert fakes.sent.sent == [] and silent not in fakes.store.webhooks_due(now + 10 * STALL)
+
+
+def test_a_deleted_job_has_no_webhook_due(fakes: Fakes) -> None:
+    job_id = _ended_with_a_webhook(fakes)
+    assert fakes.store.webhooks_due(fakes.clock.now + 1) == [job_id]
+    assert fakes.store.delete_job(job_id)
+    assert fakes.store.webhooks_due(fakes.clock.now + 1) == []
