@@ -77,8 +77,8 @@ class Settings(BaseSettings):
     # twice before it is stopped.
     task_time_limit_s: float = Field(default=240.0, gt=0)
     task_hard_margin_s: float = Field(default=30.0, gt=0)
-    # A video's split stores frames (and with points "auto" searches each) for this long, then
-    # hands the rest to a new task: keep it well under task_time_limit_s.
+    # A video's split stores frames (and with points "auto" searches each) for this long (at
+    # most half of task_time_limit_s), then hands the rest to a new task.
     video_split_part_s: float = Field(default=120.0, gt=0)
     public_base_url: str | None = None  # for Location headers behind a proxy
     # The outputs of an item whose spec names no formats (a spec's own list wins), e.g.

@@ -279,9 +279,10 @@ class JobStore(UploadRecords):
         yet delivered or given up (`webhook_done`)."""
         return cast("builtins.list[str]", self._r.zrangebyscore(_WEBHOOKS_DUE, 0, before))
 
-    def webhook_resent(self, job_id: str, now: float) -> None:
-        """A job's delivery was sent again at `now`: due again from then (if still due)."""
-        self._r.zadd(_WEBHOOKS_DUE, {job_id: now}, xx=True)
+    def webhook_resent(self, job_id: str, now: float) -> bool:
+        """A job's delivery is sent again at `now`: due again from then. False when it is no
+        longer due (delivered meanwhile): then it is not to be sent."""
+        return bool(self._r.zadd(_WEBHOOKS_DUE, {job_id: now}, xx=True, ch=True))
 
     def webhook_done(self, job_id: str) -> None:
         """A job's webhook was delivered, or given up: no longer due."""
@@ -326,6 +327,10 @@ class JobStore(UploadRecords):
     def release_frames(self, job_id: str, item: int) -> None:
         """The item will not measure its frames after all (it failed): free its share."""
         self._r.hdel(f"{_P}job:{job_id}:frames", str(item))
+
+    def claim_split_part(self, job_id: str, item: int, part: int) -> bool:
+        """True once per part of a video's split: the one task that hands the rest on to it."""
+        return bool(self._r.hsetnx(f"{_P}job:{job_id}", f"split:{item}:{part}", 1))
 
     def put_frame(self, job_id: str, item: int, frame: FrameRecord) -> None:
         self._r.hset(f"{_P}job:{job_id}", f"frame:{item}:{frame.index}", frame.model_dump_json())

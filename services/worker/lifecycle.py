@@ -68,8 +68,12 @@ def start_items(ctx: WorkerContext, job_id: str, n_items: int, count: int) -> No
 
 
 def job_failed(ctx: WorkerContext, job_id: str, reason: str) -> None:
-    """A job-level task gave up: the job fails with the reason (its items stay as they are)."""
-    ctx.store.transition(job_id, State.failed, error=reason)
+    """A job-level task gave up: the job fails with the reason (its items stay as they are),
+    and its client is told, as for a job that ends by itself."""
+    if ctx.store.transition(job_id, State.failed, error=reason):
+        job = ctx.store.get(job_id)
+        if job is not None and job.webhook_url:
+            ctx.send_task(TASK_DELIVER_WEBHOOK, (job_id,))
 
 
 def _end_job(ctx: WorkerContext, job: JobRecord, *, maybe_repeat: bool) -> None:

@@ -264,7 +264,10 @@ def deliver_webhook(self: AnyTask, job_id: str) -> None:
         webhooks.deliver(ctx, job_id)
     except ReferenceError as exc:  # a URL we may not call will not become callable: no retry
         log.warning("webhook of job %s not sent: %s", job_id, exc)
-    ctx.store.webhook_done(job_id)
+    try:
+        ctx.store.webhook_done(job_id)
+    except redis.RedisError as exc:  # not a reason to post it again now: the watchdog may, later
+        log.warning("webhook of job %s delivered, but not marked so: %r", job_id, exc)
 
 
 @app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,

@@ -90,9 +90,10 @@ def client_message(exc: InputError, path: Path, name: str) -> str:
 def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
     """Select the item's frames, store them and send one scan task per frame.
 
-    A split works for `settings.video_split_part_s`, then stores where it stopped (the next
-    frame, the point search's start, the focal estimates so far: ``split-{part}.json``) and
-    sends `TASK_SPLIT_VIDEO` for the next part, so a long video (a search on every frame: about
+    A split works for `settings.video_split_part_s` (at most half the task's time limit; its
+    download included), then stores where it stopped (the next frame, the point search's
+    start, the focal estimates so far: ``split-{part}.json``) and sends `TASK_SPLIT_VIDEO` for
+    the next part, so a long video (a search on every frame: about
     0.35 s each) is not cut off by the task's time limit. `part` 0 selects the frames.
 
     Raises
@@ -105,9 +106,15 @@ def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
     """
     job_id, item, spec = view.job_id, view.item.index, view.item.spec
     assert spec.frames is not None
+    settings = ctx.settings  # a part well inside the task's limit, whatever the operator set
+    ends = ctx.clock() + min(settings.video_split_part_s, settings.task_time_limit_s / 2)
     objects = ctx.objects
     if objects.exists(item_key(job_id, item, _split_name(part + 1))):
-        return  # a repeat of a part that handed on: the next part has the rest
+        if part > 0:
+            return  # a repeat of a part that handed on: the next part has the rest
+        # The split restarted (the watchdog: the job stalled): a part's task may have been
+        # lost with the broker; the split goes on from the last part that handed on.
+        part = _last_part(ctx, job_id, item)
     with tempfile.TemporaryDirectory(prefix="prism-video-") as tmp:
         path = Path(tmp) / "video"
         with path.open("wb") as dest:
@@ -122,7 +129,15 @@ def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
                 raise RuntimeError(f"video split part {part} has no {_split_name(part)}")
             left = _Split(next=doc["next"], hint=None if doc["hint"] is None else tuple(doc["hint"]),
                           estimates=[tuple(e) for e in doc["estimates"]], stored=doc["stored"])
-        _split_frames(ctx, view, path, frames, left, part)
+        _split_frames(ctx, view, path, frames, left, part, ends)
+
+
+def _last_part(ctx: WorkerContext, job_id: str, item: int) -> int:
+    """The last part of a split that was handed on (its split-N.json is stored)."""
+    part = 1
+    while ctx.objects.exists(item_key(job_id, item, _split_name(part + 1))):
+        part += 1
+    return part
 
 
 @dataclass
@@ -132,7 +147,7 @@ class _Split:
 
     next: int
     hint: tuple[float, float] | None
-    estimates: list[tuple[float, float]]
+    estimates: list[tuple[int, float, float]]  # (frame, focal_px, std_px)
     stored: list[int]
 
 
@@ -161,15 +176,14 @@ def _select(ctx: WorkerContext, view: ItemView, path: Path, label: str) -> list[
 
 
 def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[int], left: _Split,
-                  part: int) -> None:
-    """Store frames[left.next:] (searching each, points "auto") until the part's time is up."""
+                  part: int, ends: float) -> None:
+    """Store frames[left.next:] (searching each, points "auto") until `ends` (ctx.clock)."""
     job_id, item, spec = view.job_id, view.item.index, view.item.spec
     store, objects = ctx.store, ctx.objects
     # Without a focal length, every frame's own fit is pooled into one (one camera) before any
     # frame is measured: the frames' tasks then wait for the split to end.
     pool = spec.focal_px is None and spec.camera is None and spec.method == "default"
     search = FrameSearch(spec, hint=left.hint) if spec.auto_points is not None else None
-    ends = ctx.clock() + ctx.settings.video_split_part_s
     for index, rgb in iter_frames(path, frames[left.next:]):
         if store.state(job_id) != State.running:
             return  # cancelled (or ended) meanwhile: the remaining frames are not wanted
@@ -177,7 +191,7 @@ def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[i
         photo = frame_spec(spec, index) if search is None else _search(ctx, view, search, index, rgb)
         if pool:
             if photo is not None and (found := focal_estimate(photo, rgb)) is not None:
-                left.estimates.append(found)
+                left.estimates.append((index, *found))
             left.stored.append(index)
         else:
             ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
@@ -185,14 +199,19 @@ def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[i
         if left.next < len(frames) and ctx.clock() >= ends:
             left.hint = None if search is None else search.hint
             objects.put_json(item_key(job_id, item, _split_name(part + 1)), asdict(left))
-            ctx.send_task(TASK_SPLIT_VIDEO, (job_id, item, part + 1))
+            # One hand-on per part: a repeat running beside this task (a redelivery) stops at
+            # another frame, and two next parts would each run the rest of the video. Its state
+            # is written first: either copy's is whole, and a restart finds the part by it.
+            if store.claim_split_part(job_id, item, part + 1):
+                ctx.send_task(TASK_SPLIT_VIDEO, (job_id, item, part + 1))
             return
     if pool:
-        pooled = pool_focal(left.estimates) if len(left.estimates) >= 2 else None
-        if pooled is not None:
+        pooled = pool_focal([(f, s) for _, f, s in left.estimates]) if len(left.estimates) >= 2 else None
+        if pooled is not None:  # "used": the frames whose estimates were kept
             objects.put_json(item_key(job_id, item, FOCAL_NAME),
                              {"focal_px": pooled.focal_px, "std_px": pooled.std_px,
-                              "used": list(pooled.used), "estimates": len(left.estimates)})
+                              "used": [left.estimates[i][0] for i in pooled.used],
+                              "estimates": len(left.estimates)})
         for index in left.stored:
             ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
 
@@ -268,7 +287,8 @@ def frame_finished(ctx: WorkerContext, job_id: str, item: int, frame: int, *, ma
 
 @lru_cache(maxsize=32)
 def _pooled(ctx: WorkerContext, key: str) -> PooledFocal | None:
-    """focal.json: the focal length pooled over the video's frames (None: none was pooled)."""
+    """focal.json: the focal length pooled over the video's frames (None: none was pooled);
+    its `used` are frame indices (the frames whose estimates were kept)."""
     objects = ctx.objects
     if not objects.exists(key):
         return None
@@ -306,7 +326,7 @@ def _finish_video(ctx: WorkerContext, job_id: str, item: int, frames: dict[str, 
             summary["selection"] = selection.model_dump(mode="json", exclude_none=True)
             if (pooled := _pooled(ctx, item_key(job_id, item, FOCAL_NAME))) is not None:
                 summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
-                                    "frames": [frames["frames"][i] for i in pooled.used]}
+                                    "frames": list(pooled.used)}
             key = item_key(job_id, item, SUMMARY_NAME)
             ctx.objects.put_json(key, summary)
             dims = {k: v["median"] for k, v in summary["dimensions"].items()}

@@ -122,12 +122,12 @@ def resend_webhooks(ctx: WorkerContext, now: float) -> int:
     pending = pending_job_ids(ctx.redis)
     sent = 0
     for job_id in due:
-        if job_id in pending:
-            continue  # queued, or waiting to be retried
-        ctx.store.webhook_resent(job_id, now)
-        ctx.send_task(TASK_DELIVER_WEBHOOK, (job_id,))
-        log.warning("job %s: its webhook delivery was lost; sent again", job_id)
-        sent += 1
+        # Not queued nor waiting for a retry; and still due now (a delivery may have finished
+        # between the list and the broker's scan).
+        if job_id not in pending and ctx.store.webhook_resent(job_id, now):
+            ctx.send_task(TASK_DELIVER_WEBHOOK, (job_id,))
+            log.warning("job %s: its webhook was due with no delivery in the broker; sent", job_id)
+            sent += 1
     return sent
 
 

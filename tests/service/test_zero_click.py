@@ -214,6 +214,10 @@ def test_a_video_is_measured_with_no_clicks_frame_by_frame(stack, tmp_path, sett
             if xy is not None:
                 assert np.linalg.norm(truth - xy, axis=1).min() <= 3.0, (index, xy)
     assert item["result"]["summary"]["frames"] == {"selected": 4, "measured": 3, "failed": 1}
+    # The focal length pooled over the parts' estimates names the frames it used: frames, not
+    # positions among the estimates (the frame without a box gave none).
+    used = item["result"]["summary"]["focal"]["frames"]
+    assert len(used) >= 2 and set(used) <= {0, 1, 3}, used
     [failed] = item["result"]["summary"]["failed"]
     assert failed["frame"] == EMPTY_FRAME
     rows = list(csv.DictReader(io.StringIO(stack.http.get(f"/v1/jobs/{job['id']}/results.csv").text)))

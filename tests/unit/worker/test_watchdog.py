@@ -222,6 +222,8 @@ def test_a_webhook_delivery_lost_with_the_broker_is_sent_again_once(fakes: Fakes
     assert watchdog.resend_webhooks(fakes.ctx, now + 2 * STALL + 10) == 1
     fakes.sent.take()
     fakes.store.webhook_done(job_id)  # delivered (or given up)
+    # Delivered between the sweep's list and its look at the broker: not sent again.
+    assert not fakes.store.webhook_resent(job_id, now + 10 * STALL)
     assert watchdog.resend_webhooks(fakes.ctx, now + 10 * STALL) == 0
     assert fakes.sent.sent == [] and silent not in fakes.store.webhooks_due(now + 10 * STALL)
 
@@ -231,3 +233,13 @@ def test_a_deleted_job_has_no_webhook_due(fakes: Fakes) -> None:
     assert fakes.store.webhooks_due(fakes.clock.now + 1) == [job_id]
     assert fakes.store.delete_job(job_id)
     assert fakes.store.webhooks_due(fakes.clock.now + 1) == []
+
+
+def test_a_job_whose_own_task_gave_up_tells_its_client(fakes: Fakes) -> None:
+    job_id = fakes.job(items=1, state=State.running, webhook_url="https://hooks.example/prism")
+    quiet = fakes.job(items=1, state=State.running)
+    lifecycle.job_failed(fakes.ctx, job_id, "run_job gave up")
+    lifecycle.job_failed(fakes.ctx, quiet, "run_job gave up")
+    lifecycle.job_failed(fakes.ctx, job_id, "told once")  # already failed: nothing more
+    assert fakes.sent.take() == [(TASK_DELIVER_WEBHOOK, (job_id,))]
+    assert fakes.store.state(job_id) == fakes.store.state(quiet) == State.failed
