@@ -40,7 +40,7 @@ import numpy as np
 from .edges import intersect
 from .errors import InputError
 from .faces import SideFace, quad_area
-from .locate_faces import propose_neighbours
+from .locate_faces import across_samples, propose_neighbours
 from .spec import ReferencePoints, ScanSpec, search_area_problem
 
 __all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points", "resolve_points"]
@@ -182,6 +182,14 @@ class _Work:
     # ((n, 2) work px): split only when nothing else is found (`_split_boxes`).
     merged: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
+    @functools.cached_property
+    def gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """x and y derivatives of `lab`, each (h, w, 3) float32 (Lab units per px): made once,
+        for whichever proposals need it."""
+        f = self.lab.astype(np.float32)
+        return (np.asarray(cv2.Sobel(f, cv2.CV_32F, 1, 0), dtype=np.float32) / 8,
+                np.asarray(cv2.Sobel(f, cv2.CV_32F, 0, 1), dtype=np.float32) / 8)
+
 
 def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
     """Face quads at each edge sensitivity (a faint fold needs the lower one, a textured face
@@ -214,7 +222,7 @@ def _split_boxes(work: _Work, shape: tuple[int, ...], hint_work: np.ndarray | No
     """Two faces each from the large silhouettes of 4 or 5 sides (`_pentagon_box`,
     `_quad_box`), those around the hint only when there is one."""
     h, w = shape[:2]
-    grad = _gradient(work.lab)
+    grad = work.gradient
     out = []
     for outline, contour in work.merged:
         if abs(quad_area(outline)) < _SPLIT_MIN_FRACTION * h * w:
@@ -226,13 +234,6 @@ def _split_boxes(work: _Work, shape: tuple[int, ...], hint_work: np.ndarray | No
         if box is not None:
             out.append(box)
     return out
-
-
-def _gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """x and y derivatives of the Lab work image, each (h, w, 3) float32 (Lab units per px)."""
-    f = lab.astype(np.float32)
-    return (np.asarray(cv2.Sobel(f, cv2.CV_32F, 1, 0), dtype=np.float32) / 8,
-            np.asarray(cv2.Sobel(f, cv2.CV_32F, 0, 1), dtype=np.float32) / 8)
 
 
 def _strength(lab: np.ndarray) -> np.ndarray:
@@ -335,7 +336,7 @@ def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[tuple[np.ndarray, np.nd
     n, labels, stats, _ = cv2.connectedComponentsWithStats((edges == 0).astype(np.uint8), connectivity=4)
     min_area = _MIN_FACE_FRACTION * h * w
     quads: list[_Quad] = []
-    hexagons: list[tuple[np.ndarray, np.ndarray]] = []
+    outlines: list[tuple[np.ndarray, np.ndarray]] = []
     for i in range(1, n):
         x, y, bw, bh, area = stats[i]
         if area < min_area or area > 0.6 * h * w:
@@ -360,17 +361,17 @@ def _faces(edges: np.ndarray) -> tuple[list[_Quad], list[tuple[np.ndarray, np.nd
             for eps in _FINE_EPS:
                 hexagon = _polygon_of(contour, 6, eps)
                 if hexagon is not None:
-                    hexagons.append((hexagon, contour))
+                    outlines.append((hexagon, contour))
                     break
             else:
-                hexagons.append((quad, contour))
+                outlines.append((quad, contour))
             continue
         for sides in (6, 5):
             polygon = _polygon_of(contour, sides)
             if polygon is not None:
-                hexagons.append((polygon, contour))
+                outlines.append((polygon, contour))
                 break
-    return quads, hexagons
+    return quads, outlines
 
 
 def _support(edges: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
@@ -439,22 +440,12 @@ _FOLD_TURN_DEG = 6.0  # a fold's direction lies between its two neighbour sides'
 
 def _fold_strength(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(m,): how surely a fold runs along each segment a[i]-b[i] (a, b: (m, 2)): the colour
-    change across it that its middle 80 % shows nearly everywhere (the 20th percentile of 24
-    samples, each the best of three offsets across). A fold between two faces of nearly one
+    change across it (`locate_faces.across_samples`) that its middle 80 % shows nearly
+    everywhere, the 20th percentile of 24 samples. A fold between two faces of nearly one
     shade is faint but runs their whole height; a label's border or a stripe is strong over
     part of it and absent elsewhere."""
-    gx, gy = grad
-    h, w = gx.shape[:2]
-    d = b - a
-    n = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
-    base = a[:, None] + np.linspace(0.1, 0.9, 24)[None, :, None] * d[:, None]
-    best = np.zeros(base.shape[:2], dtype=np.float32)
-    for o in (-1.0, 0.0, 1.0):
-        xy = np.rint(base + o * n[:, None]).astype(int)
-        x, y = np.clip(xy[..., 0], 0, w - 1), np.clip(xy[..., 1], 0, h - 1)
-        across = np.abs(gx[y, x] * n[:, None, 0, None] + gy[y, x] * n[:, None, 1, None]).sum(axis=-1)
-        best = np.maximum(best, across)
-    return np.asarray(np.percentile(best, 20, axis=1), dtype=np.float64)
+    samples, _ = across_samples(grad, a, b, 24)
+    return np.asarray(np.percentile(samples, 20, axis=1), dtype=np.float64)
 
 
 def _fold_between(origins: np.ndarray, left: np.ndarray, right: np.ndarray, p: np.ndarray,
@@ -863,23 +854,20 @@ def find_points(image: np.ndarray, *, hint: tuple[float, float] | None = None,
 
     what = "region" if roi is not None else "photo"
     result = _choose(image, boxes, small.shape[:2], full, timings, clock, threshold, hint is not None, what)
-    if result is None or not result.ok:
+    fallbacks: tuple[tuple[str, Callable[[], list[_Box]]], ...] = (
         # One face found, its neighbour's region open: propose the neighbour from lines.
-        t0 = time.perf_counter()
-        proposed = _proposed_boxes(quads, work, small.shape, hint_work)
-        timings["propose"] = (time.perf_counter() - t0) * 1000
-        if proposed:
-            other = _choose(image, proposed, small.shape[:2], full, timings, clock, threshold,
-                            hint is not None, what)
-            if other is not None and other.ok:
-                result = other
-    if result is None or not result.ok:
+        ("propose", lambda: _proposed_boxes(quads, work, small.shape, hint_work)),
         # Two faces merged into one region, the fold between them too faint for its edges.
+        ("split", lambda: _split_boxes(work, small.shape, hint_work)),
+    )
+    for stage, more_boxes in fallbacks:
+        if result is not None and result.ok:
+            break
         t0 = time.perf_counter()
-        split = _split_boxes(work, small.shape, hint_work)
-        timings["split"] = (time.perf_counter() - t0) * 1000
-        if split:
-            other = _choose(image, split, small.shape[:2], full, timings, clock, threshold,
+        more = more_boxes()
+        timings[stage] = (time.perf_counter() - t0) * 1000
+        if more:
+            other = _choose(image, more, small.shape[:2], full, timings, clock, threshold,
                             hint is not None, what)
             if other is not None and other.ok:
                 result = other
@@ -904,9 +892,7 @@ def _proposed_boxes(quads: list[_Quad], work: _Work, shape: tuple[int, ...],
                                                       True) > -0.5 * math.sqrt(q.area)]
     if not big:
         return []
-    lab = work.lab.astype(np.float32)
-    grad = (np.asarray(cv2.Sobel(lab, cv2.CV_32F, 1, 0), dtype=np.float32) / 8,
-            np.asarray(cv2.Sobel(lab, cv2.CV_32F, 0, 1), dtype=np.float32) / 8)
+    grad = work.gradient
     centre = np.array([w / 2, h / 2])
     big.sort(key=lambda q: -q.area * (1.0 - 0.6 * np.linalg.norm(q.corners.mean(axis=0) - centre)
                                       / math.hypot(w / 2, h / 2)))

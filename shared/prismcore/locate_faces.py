@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-__all__ = ["propose_neighbours"]
+__all__ = ["across_samples", "propose_neighbours"]
 
 _NEAR_LINE_PX = 4.0  # work px: a segment's line passes this close to a corner it leaves
 _MIN_SEG_PX = 6.0  # work px: shorter segments are texture
@@ -86,11 +86,17 @@ def _rays(corner: np.ndarray, outward: np.ndarray, along: np.ndarray, adjacent: 
     return found[:_RAYS]
 
 
-def _supports(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray,
-              samples: int = 24) -> np.ndarray:
-    """(m,): mean colour change across each segment a[i]-b[i] (a, b: (m, 2); their middle
-    80 %): the gradient's component along the segment's normal, summed over the channels, the
-    best of three offsets (the segment may lie a pixel off the edge). 0 outside the image."""
+def across_samples(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray,
+                   samples: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """The colour change across each segment a[i]-b[i] (a, b: (m, 2)) at `samples` points of
+    its middle 80 %: the gradient's component along the segment's normal, summed over the
+    channels, the best of three offsets (the segment may lie a pixel off the edge).
+
+    Returns
+    -------
+    (ndarray (m, samples) float64, ndarray (m,) bool)
+        The samples (clipped to the image) and whether each segment lies inside it.
+    """
     gx, gy = grad
     h, w = gx.shape[:2]
     d = b - a
@@ -106,6 +112,14 @@ def _supports(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray,
         x, y = np.clip(xy[..., 0], 0, w - 1), np.clip(xy[..., 1], 0, h - 1)
         across = np.abs(gx[y, x] * n[:, None, 0, None] + gy[y, x] * n[:, None, 1, None]).sum(axis=-1)
         best = np.maximum(best, across)
+    return best, inside
+
+
+def _supports(grad: tuple[np.ndarray, np.ndarray], a: np.ndarray, b: np.ndarray,
+              samples: int = 24) -> np.ndarray:
+    """(m,): mean colour change across each segment a[i]-b[i] (`across_samples`); 0 outside
+    the image."""
+    best, inside = across_samples(grad, a, b, samples)
     return np.where(inside, best.mean(axis=1), 0.0)
 
 
