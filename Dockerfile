@@ -11,11 +11,15 @@ RUN npm run build  # writes /src/services/api/static
 FROM python:3.11-slim
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1
 WORKDIR /app
+# The locked, hash-checked releases the tests ran (scripts/lock makes locks/service.txt), then the
+# project without dependencies: every one is in the lock.
+COPY locks/service.txt ./locks/
+RUN pip install --require-hashes -r locks/service.txt
 COPY pyproject.toml README.md ./
 COPY shared ./shared
 COPY services ./services
 COPY --from=web /src/services/api/static ./services/api/static
-RUN pip install . && useradd --create-home --uid 10001 prism
+RUN pip install --no-deps . && useradd --create-home --uid 10001 prism
 USER prism
 EXPOSE 8000
 CMD ["uvicorn", "prism_api.main:app", "--host", "0.0.0.0", "--port", "8000"]

@@ -56,6 +56,7 @@ MARKERS = {
     "client": "export PRISM_API_KEY",
     "curl": "curl ",
     "mistakes": "refused (exit",
+    "lock": "scripts/lock",
 }
 
 
@@ -86,6 +87,14 @@ def test_two_commands_block():
     assert run.returncode == 0, run.stderr
     report = json.loads((ROOT / "out" / "demo" / "report.json").read_text())
     assert report["dimensions"]["unit"] == "mm"
+
+
+def test_lock_block_is_the_command_test_lock_runs():
+    # Running it rewrites the locks, so tests/test_lock.py runs it on a copy of the repository
+    # and requires the committed locks back unchanged.
+    block = _block(MARKERS["lock"])
+    assert [line.split("#")[0].strip() for line in block.splitlines() if line.strip()] == ["scripts/lock"]
+    assert '["scripts/lock"]' in (ROOT / "tests" / "test_lock.py").read_text()
 
 
 def test_local_scan_block(user_dir: Path):
