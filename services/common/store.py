@@ -4,9 +4,10 @@ Layout (all keys under ``prism:``):
 
 * ``job:{id}`` hash: ``doc`` (the record as submitted, without its items), ``n_items``,
   ``item:{i}`` (each item: its spec, state, error, result and outputs), ``state``, timestamps,
-  ``error``, ``units_total``/``units_done`` (progress; ``units_at_cancel``: "done/total" when
-  the job was cancelled, what its progress stays at), ``tenant``. Items are fields of their
-  own so that a task about one item of a 5000-item job reads that item, not the whole job.
+  ``error``, ``units_total``/``units_done``/``items_planned`` (progress, see `progress`;
+  ``units_at_cancel``: "done/total/planned" when the job was cancelled, what its progress stays
+  at), ``tenant``. Items are fields of their own so that a task about one item of a 5000-item
+  job reads that item, not the whole job.
 * ``frame:{i}:{n}`` fields of the same hash: frame n of video item i (written by its own task,
   so frames finishing at once never overwrite each other); ``job:{id}:frames`` hash: item ->
   frames selected (for the cap per job); ``job:{id}:frames:{i}`` set of finished frames.
@@ -38,14 +39,15 @@ from .redis_client import redis_client
 from .settings import Settings
 from .upload_records import UploadRecords
 
-__all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictError", "JobStore"]
+__all__ = ["UNITS_PER_ITEM_ESTIMATE", "WATCHDOG_LOCK_KEY", "IdempotencyConflictError", "JobStore",
+           "progress"]
 
 _P = "prism:"
 _WEBHOOKS_DUE = f"{_P}webhooks:due"  # job id -> since when (s) its webhook is due
 # A job hash's fields other than its items and frames.
 _VERDICT_FIELDS = ["verdict:pass", "verdict:fail", "verdict:uncertain"]
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
-               "units_done", "units_at_cancel", "items_done", *_VERDICT_FIELDS]
+               "units_done", "items_planned", "units_at_cancel", "items_done", *_VERDICT_FIELDS]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 WATCHDOG_LOCK_KEY = f"{_P}watchdog:lock"
 _RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
@@ -62,7 +64,8 @@ if ARGV[1] == 'cancelled' then
   -- What had finished when the job was cancelled; tasks in flight may still count units after.
   local done = redis.call('HGET', KEYS[1], 'units_done') or '0'
   local total = redis.call('HGET', KEYS[1], 'units_total') or '1'
-  redis.call('HSET', KEYS[1], 'units_at_cancel', done .. '/' .. total)
+  local planned = redis.call('HGET', KEYS[1], 'items_planned') or '0'
+  redis.call('HSET', KEYS[1], 'units_at_cancel', done .. '/' .. total .. '/' .. planned)
 end
 if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'error', ARGV[3]) end
 if (ARGV[1] == 'succeeded' or ARGV[1] == 'failed') and redis.call('HGET', KEYS[1], 'webhook') == '1' then
@@ -296,12 +299,16 @@ class JobStore(UploadRecords):
         """Claim the next item to start (0, 1, 2, ...); each index is handed out once."""
         return int(self._r.incr(f"{_P}job:{job_id}:next")) - 1
 
-    def add_units(self, job_id: str, *, total: int = 0, done: int = 0) -> None:
+    def add_units(self, job_id: str, *, total: int = 0, done: int = 0, planned: int = 0) -> None:
+        """Add to the job's units (`total`, `done`) and to its items whose size is known
+        (`planned`: an item's plan replaced its estimate in `total`)."""
         with self._r.pipeline() as pipe:
             if total:
                 pipe.hincrby(f"{_P}job:{job_id}", "units_total", total)
             if done:
                 pipe.hincrby(f"{_P}job:{job_id}", "units_done", done)
+            if planned:
+                pipe.hincrby(f"{_P}job:{job_id}", "items_planned", planned)
             pipe.execute()
 
     def tile_done(self, job_id: str, item: int, tile: str) -> bool:
@@ -437,21 +444,40 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
     job.error = fields.get("error") or None
     job.items_done = int(fields.get("items_done", 0))
     job.verdicts = {name.split(":")[1]: int(fields.get(name, 0)) for name in _VERDICT_FIELDS}
-    total, done = int(fields.get("units_total", 1)), int(fields.get("units_done", 0))
+    counts = (int(fields.get("units_done", 0)), int(fields.get("units_total", 1)),
+              int(fields.get("items_planned", 0)))
+    n_items = int(fields["n_items"])
     if job.state == State.cancelled:
         # Progress counts the work finished when the job was cancelled (a task in flight then
         # may still count its unit before it stops), and what had not finished never will: its
         # items and frames read as cancelled (the worker's tasks stop at their next step).
         if fields.get("units_at_cancel"):
-            done, total = (int(n) for n in fields["units_at_cancel"].split("/"))
-        job.progress = min(100, int(100 * done / max(total, 1)))
+            at_cancel = [int(n) for n in fields["units_at_cancel"].split("/")]
+            counts = (at_cancel[0], at_cancel[1], at_cancel[2] if len(at_cancel) > 2 else 0)
+        job.progress = min(100, int(100 * progress(*counts, n_items)))
         for item in job.items:
             _cancel_unfinished(item)
             for frame in item.frames:
                 _cancel_unfinished(frame)
     else:
-        job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * done / max(total, 1)))
+        job.progress = 100 if job.state in FINAL_STATES else min(99, int(100 * progress(*counts, n_items)))
     return job
+
+
+def progress(done: int, total: int, planned: int, n_items: int) -> float:
+    """Finished work over all work, 0-1, from the job's unit counts.
+
+    An item's work is known once it is planned (1 plan + its tiles or frames + 1 complete; a
+    batch item scanned whole is 2); until then `total` holds UNITS_PER_ITEM_ESTIMATE for it.
+    With some items planned, an unplanned one is taken to be as big as the planned ones are on
+    average: a batch of whole items (2 units each) must not read as if each item still to come
+    were 10 (4 of 40 done read 2 %, 10 of 12 read 50 %). Before any item is planned nothing is
+    done and the estimate stands.
+    """
+    if 0 < planned < n_items:
+        planned_units = total - UNITS_PER_ITEM_ESTIMATE * (n_items - planned)
+        return done / max(planned_units * n_items / planned, 1)
+    return done / max(total, 1)
 
 
 def _cancel_unfinished(record: ItemRecord | FrameRecord) -> None:

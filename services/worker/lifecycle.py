@@ -8,9 +8,10 @@ did, else failed), which writes job.json and sends the webhook. An item has an o
 the two together, what every step does when its item cannot go on.
 
 Progress is counted in units: an item is 1 (plan) + its tiles + 1 (complete); until it is
-planned the store assumes UNITS_PER_ITEM_ESTIMATE. The plan and complete units are counted
-through the store's set of finished tiles (as "plan" and "complete"), so a task that runs
-twice counts once; the "complete" entry also tells whether this is the item's first completion.
+planned it is taken to be as big as the planned items on average (`prism_common.store.progress`).
+The plan and complete units are counted through the store's set of finished tiles (as "plan"
+and "complete"), so a task that runs twice counts once; the "complete" entry also tells
+whether this is the item's first completion.
 
 A task that may be a repeat (`maybe_repeat`: redelivered after a lost worker, or retried after
 an error part way) refills the window even if an earlier run may have: starting one item too
@@ -127,7 +128,7 @@ def mark_running(ctx: WorkerContext, view: ItemView, *, repeat: bool) -> None:
 def count_plan(ctx: WorkerContext, job_id: str, item: int, tiles: int) -> None:
     """Count the plan's unit and replace the item's estimate by its real size, once."""
     if ctx.store.tile_done(job_id, item, "plan"):
-        ctx.store.add_units(job_id, total=tiles + 2 - UNITS_PER_ITEM_ESTIMATE)
+        ctx.store.add_units(job_id, total=tiles + 2 - UNITS_PER_ITEM_ESTIMATE, planned=1)
 
 
 def succeed_item(ctx: WorkerContext, job_id: str, record: ItemRecord, result: ItemResult,

@@ -146,6 +146,55 @@ def test_a_cancelled_jobs_progress_is_what_had_finished_at_the_cancel(fakes: Fak
     assert [i.state for i in fakes.store.get(job_id).items] == [State.succeeded] + [State.cancelled] * 3
 
 
+def _finish_items(fakes: Fakes, job_id: str, count: int, tiles: int = 0) -> None:
+    """Run the job as the worker does until `count` items are done: an item scanned whole
+    counts its plan when its scan is done (tiles=0); a tiled one is planned, then each tile
+    counts. The window's next items are left started (sent), not yet planned."""
+    lifecycle.start_job(fakes.ctx, job_id, maybe_repeat=False)
+    waiting = _plans_sent(fakes)
+    for _ in range(count):
+        item = waiting.pop(0)
+        view = fakes.store.get_item(job_id, item)
+        assert view is not None
+        lifecycle.count_plan(fakes.ctx, job_id, item, tiles)
+        for tile in range(tiles):
+            fakes.store.tile_done(job_id, item, f"front-{tile}")
+        lifecycle.succeed_item(fakes.ctx, job_id, view.item, RESULT, {})
+        lifecycle.complete_item(fakes.ctx, job_id, item, maybe_repeat=False)
+        waiting += _plans_sent(fakes)
+
+
+@pytest.mark.parametrize("tiles", [0, 4])
+@pytest.mark.parametrize(("done", "n_items", "expected"), [(4, 40, 10), (10, 12, 83), (0, 5, 0),
+                                                           (1, 3, 33)])
+def test_progress_is_finished_work_over_all_work(fakes: Fakes, done: int, n_items: int, expected: int,
+                                                 tiles: int) -> None:
+    # Items still to be planned are as big as the planned ones: 4 of 40 batch items (2 units
+    # each, scanned whole) read 2 % and 10 of 12 read 50 % while they were taken to be 10 units.
+    job_id = fakes.job(items=n_items)
+    _finish_items(fakes, job_id, done, tiles=tiles)
+    job = fakes.store.get(job_id)
+    assert job is not None and job.items_done == done and job.state == State.running
+    assert job.progress == expected
+
+
+def test_progress_counts_an_item_in_flight_by_its_finished_tiles(fakes: Fakes) -> None:
+    job_id = fakes.job(items=4)
+    _finish_items(fakes, job_id, 1, tiles=8)  # 10 units of 40
+    lifecycle.count_plan(fakes.ctx, job_id, 1, 8)
+    for tile in range(4):  # half of the next item's tiles
+        fakes.store.tile_done(job_id, 1, f"front-{tile}")
+    assert fakes.store.get(job_id).progress == 100 * (10 + 1 + 4) // 40
+
+
+def test_a_cancelled_batch_keeps_the_progress_of_its_finished_items(fakes: Fakes) -> None:
+    job_id = fakes.job(items=40)
+    _finish_items(fakes, job_id, 4)
+    fakes.store.transition(job_id, State.cancelled)
+    lifecycle.count_plan(fakes.ctx, job_id, 4, 0)  # a whole scan in flight counts on its way out
+    assert fakes.store.get(job_id).progress == 10
+
+
 def test_a_failure_keeps_the_first_outcome(fakes: Fakes) -> None:
     job_id = fakes.job(items=2, state=State.running)
     lifecycle.fail_item(fakes.ctx, job_id, 0, "first")
