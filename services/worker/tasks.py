@@ -30,6 +30,7 @@ runs forever.
 from __future__ import annotations
 
 import logging
+import random
 from typing import TYPE_CHECKING, Any
 
 import httpx
@@ -72,19 +73,43 @@ RETRYABLE = (BotoCoreError, ClientError, redis.ConnectionError, redis.TimeoutErr
 INPUT_ERRORS = (InputError, ReferenceError, FetchError)  # the item's own fault: never retried
 
 
-class RetryingTask(AnyTask):
-    """Waits of up to 5, 10, 20, 40, 80 s (random below each: retries of many tasks spread out),
-    so five retries ride out a store restarting, not only a dropped connection. Late acks are
-    app-wide (prism_common.queue)."""
+RETRIES = 5
+RETRY_BACKOFF_S = 5
 
-    retry_backoff = 5
-    retry_jitter = True
+
+def retry_caps_s(visibility_timeout_s: int) -> list[int]:
+    """The longest wait (s) before each retry: 5, 10, 20, 40, 80 s, at most half the visibility
+    timeout (a retry waits as an unacked message: past that timeout the broker would hand out a
+    second copy)."""
+    top = max(1, min(600, visibility_timeout_s // 2))
+    return [min(top, RETRY_BACKOFF_S * 2**n) for n in range(RETRIES)]
+
+
+def retry_window_s(visibility_timeout_s: int) -> float:
+    """How long an outage (object store, Redis) every task is sure to ride out: each wait is at
+    least half its cap, so the last retry comes no sooner than this after the first failure
+    (77.5 s with the default 300 s visibility timeout)."""
+    return sum(retry_caps_s(visibility_timeout_s)) / 2
+
+
+class RetryingTask(AnyTask):
+    """Waits before each of `RETRIES` retries drawn between half and all of `retry_caps_s`
+    ("equal jitter"): retries of many tasks spread out, yet an outage shorter than
+    `retry_window_s` is ridden out whatever the draw (Celery's full jitter may draw five waits
+    near 0 s and give up within seconds: seen when a loaded machine restarted the store). Late
+    acks are app-wide (prism_common.queue)."""
+
+    retry_backoff = RETRY_BACKOFF_S
+    retry_jitter = False  # the exact cap; `retry` draws the wait from its upper half
 
     @property
     def retry_backoff_max(self) -> int:
-        # A retry waits as an unacked message: past the visibility timeout the broker would hand
-        # out a second copy, so back-off stays below it.
-        return max(1, min(600, worker_context().settings.visibility_timeout_s // 2))
+        return retry_caps_s(worker_context().settings.visibility_timeout_s)[-1]
+
+    def retry(self, *args: Any, countdown: float | None = None, **kwargs: Any) -> Any:
+        if countdown is not None:
+            countdown = countdown * random.uniform(0.5, 1.0)
+        return super().retry(*args, countdown=countdown, **kwargs)
 
 
 def _maybe_repeat(task: AnyTask) -> bool:
@@ -135,13 +160,13 @@ class FrameTask(RetryingTask):
             log.exception("could not record the failure of frame %s of %s/%s", frame, job_id, item)
 
 
-@app.task(name=TASK_RUN_JOB, base=JobTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_RUN_JOB, base=JobTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def run_job(self: AnyTask, job_id: str) -> None:
     lifecycle.start_job(worker_context(), job_id, maybe_repeat=_maybe_repeat(self))
 
 
-@app.task(name=TASK_PLAN_ITEM, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_PLAN_ITEM, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def plan_item(self: AnyTask, job_id: str, item: int) -> None:
     ctx, repeat = worker_context(), _maybe_repeat(self)
@@ -178,7 +203,7 @@ def _split_video(ctx: WorkerContext, view: ItemView, repeat: bool, part: int = 0
         lifecycle.fail_and_complete(ctx, view.job_id, view.item.index, str(exc), maybe_repeat=repeat)
 
 
-@app.task(name=TASK_SPLIT_VIDEO, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_SPLIT_VIDEO, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def split_video(self: AnyTask, job_id: str, item: int, part: int) -> None:
     """The rest of a video's split, from where the part before it stopped (its time was up)."""
@@ -203,7 +228,7 @@ def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
     lifecycle.complete_item(ctx, job_id, item, maybe_repeat=repeat)
 
 
-@app.task(name=TASK_SCAN_TILE, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=5)
+@app.task(name=TASK_SCAN_TILE, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES)
 def scan_tile(self: AnyTask, job_id: str, item: int, face: str, r0: int, r1: int) -> str | None:
     ctx = worker_context()
     if ctx.store.state(job_id) != State.running:
@@ -213,7 +238,7 @@ def scan_tile(self: AnyTask, job_id: str, item: int, face: str, r0: int, r1: int
     return key
 
 
-@app.task(name=TASK_SCAN_FRAME, base=FrameTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_SCAN_FRAME, base=FrameTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def scan_frame(self: AnyTask, job_id: str, item: int, frame: int) -> None:
     ctx, repeat = worker_context(), _maybe_repeat(self)
@@ -224,7 +249,7 @@ def scan_frame(self: AnyTask, job_id: str, item: int, frame: int) -> None:
     video.frame_finished(ctx, job_id, item, frame, maybe_repeat=repeat)
 
 
-@app.task(name=TASK_FINISH_ITEM, base=ItemTask, bind=True, job_arg=1, ignore_result=True, max_retries=5,
+@app.task(name=TASK_FINISH_ITEM, base=ItemTask, bind=True, job_arg=1, ignore_result=True, max_retries=RETRIES,
           autoretry_for=(*RETRYABLE, steps.TilesMissingError))
 def finish_item(self: AnyTask, tile_keys: list[str | None], job_id: str, item: int) -> None:
     # tile_keys (the chord's results) are not needed: plan.json lists the tiles to merge.
@@ -270,7 +295,7 @@ def deliver_webhook(self: AnyTask, job_id: str) -> None:
         log.warning("webhook of job %s delivered, but not marked so: %r", job_id, exc)
 
 
-@app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_EXTRACT_FRAME, base=RetryingTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def extract_frame(self: AnyTask, upload_id: str, frame: int) -> None:
     video.extract_frame(worker_context(), upload_id, frame)
@@ -292,7 +317,7 @@ class PointsTask(RetryingTask):
             log.exception("could not record the failed point search in upload %s", upload_id)
 
 
-@app.task(name=TASK_FIND_POINTS, base=PointsTask, bind=True, autoretry_for=RETRYABLE, max_retries=5,
+@app.task(name=TASK_FIND_POINTS, base=PointsTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,
           ignore_result=True)
 def find_points(self: AnyTask, upload_id: str, frame: int | None, hint: list[int] | None) -> None:
     upload_points.find_upload_points(worker_context(), upload_id, frame, _hint(hint))

@@ -7,10 +7,14 @@ suite's figures.
 from __future__ import annotations
 
 import io
+import os
 import re
+import subprocess
+import sys
 import threading
 import time
 import uuid
+from collections.abc import Iterator
 from datetime import UTC, datetime
 
 import httpx
@@ -19,6 +23,7 @@ from prism_common.records import ItemRecord, JobRecord
 from prism_common.store import JobStore
 
 from prism_worker.artifacts import plan_tiles
+from prism_worker.tasks import retry_caps_s, retry_window_s
 from prismcore import ScanSpec, plan_scan, run_scan
 from prismcore.images import load_image
 from prismcore.writers import write_format
@@ -107,16 +112,36 @@ def _wait_ready(stack: FaultStack, want: int, timeout: float = 60) -> dict:
     return answer[1]
 
 
-def test_object_store_down_for_a_while_retries_and_finishes(stack, figures):
+@pytest.fixture
+def busy_machine() -> Iterator[None]:
+    """Every core busy with another process's work, as on a shared CI machine."""
+    burn = [sys.executable, "-c", "while True: pass"]
+    burners = [subprocess.Popen(burn) for _ in range(os.cpu_count() or 2)]
+    try:
+        yield
+    finally:
+        for burner in burners:
+            burner.kill()
+            burner.wait()
+
+
+def test_object_store_down_for_a_while_retries_and_finishes(stack, figures, busy_machine):
+    # The README's promise: an outage shorter than the retry window is ridden out by every task,
+    # however the waits are drawn and however busy the machine is.
+    window = retry_window_s(int(stack.env["PRISM_VISIBILITY_TIMEOUT_S"]))
     scene = tiny_scene(2)
     ref = stack.upload(png(scene.image))
     stack.s3.stop()
+    down = time.monotonic()
     assert _wait_ready(stack, 503) == {"redis": "ok", "object_store": "down"}
     ids = [stack.submit([item(ref, scene)]) for _ in range(3)]  # submit needs only Redis
-    time.sleep(8)  # the tasks meet the outage and back off
+    time.sleep(window / 2)  # the tasks meet the outage and back off
     assert all(stack.job(j)["state"] in ("queued", "running") for j in ids)
     stack.s3.start()
     assert _wait_ready(stack, 200) == {"redis": "ok", "object_store": "ok"}
+    outage = time.monotonic() - down
+    print(f"\nobject store down {outage:.1f} s of a {window:g} s retry window, machine busy")
+    assert outage < window, "the store took too long to come back for this test to mean anything"
     jobs = stack.wait(ids, timeout=180)
     assert [j["state"] for j in jobs.values()] == ["succeeded"] * 3, jobs
     figures.update({"faults survived": 1, "jobs submitted": 3, "jobs succeeded": 3})
@@ -137,10 +162,13 @@ def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(st
         stack.s3.start()
     assert job["state"] == "failed" and job["error"] == "all items failed", job
     assert job["items"][0]["error"] == "the object store was unreachable (gave up after 5 retries)"
-    # Five retries, each waiting (with jitter) at most half the visibility timeout (10 s here):
-    # a retry waits unacknowledged, and past that timeout the broker would hand out a copy.
-    waits = [int(w) for w in re.findall(r"Retry in (\d+)s", stack.workers[0].log[log_start:])]
-    assert len(waits) == 5 and all(0 <= w <= 5 for w in waits) and sum(waits) > 0, waits
+    # Five retries, each waiting between half and all of its cap, which is at most half the
+    # visibility timeout (10 s here): a retry waits unacknowledged, and past that timeout the
+    # broker would hand out a copy. The log rounds to whole seconds.
+    caps = retry_caps_s(int(stack.env["PRISM_VISIBILITY_TIMEOUT_S"]))
+    waits = [float(w) for w in re.findall(r"Retry in (\d+(?:\.\d+)?)s", stack.workers[0].log[log_start:])]
+    assert len(waits) == 5, waits
+    assert all(cap / 2 - 1 <= w <= cap for w, cap in zip(waits, caps, strict=True)), (waits, caps)
     _wait_ready(stack, 200)
     figures.update({"faults survived": 1, "jobs submitted": 1, "jobs failed": 1})
 
