@@ -133,11 +133,19 @@ def pointer(segments: Iterable[str | int]) -> str:
 _MISSING = object()
 
 
+def _index(step: str | int) -> int | None:
+    """The list index a location step names: an index, or p1..p7 of a points list."""
+    if isinstance(step, str) and len(step) == 2 and step[0] == "p" and step[1].isdigit():
+        return int(step[1]) - 1
+    return step if isinstance(step, int) else None
+
+
 def body_path(loc: Sequence[str | int], body: Any = _MISSING) -> list[str | int]:
     """Where in the body a pydantic location points, as keys and indices of the JSON sent.
 
     Pydantic's locations hold steps that are not in the document: the tag of a tagged union
-    ("pinhole"), a model's name in a plain union, a validator's name. With the parsed body at
+    ("pinhole": the object's "kind", left out even where a key has its name, as a known edge's
+    "edge"), a model's name in a plain union, a validator's name. With the parsed body at
     hand, a step is kept only where the document has it (or it is the last step: a missing
     field is pointed at where it belongs); a named point given as a list ([[x, y], ...]) is
     pointed at by its index. Without the body, the location is taken as it is.
@@ -149,15 +157,15 @@ def body_path(loc: Sequence[str | int], body: Any = _MISSING) -> list[str | int]
     for i, step in enumerate(loc):
         last = i == len(loc) - 1
         if isinstance(value, dict):
+            if not last and value.get("kind") == step:
+                continue  # the tag of a tagged union (the scale's), even where a key has its name
             if str(step) in value:
                 out.append(str(step))
                 value = value[str(step)]
             elif last:
                 out.append(str(step))
         elif isinstance(value, list):
-            index = step if isinstance(step, int) else None
-            if isinstance(step, str) and len(step) == 2 and step[0] == "p" and step[1].isdigit():
-                index = int(step[1]) - 1  # p1..p7 of a points list
+            index = _index(step)
             if index is not None and 0 <= index < len(value):
                 out.append(index)
                 value = value[index]

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveFloat, PositiveInt
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveInt
 
+from .bounds import FocalPx
 from .errors import InputError
 
 if TYPE_CHECKING:
@@ -33,8 +34,8 @@ class CameraModel(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    fx: PositiveFloat
-    fy: PositiveFloat
+    fx: FocalPx
+    fy: FocalPx
     cx: FiniteFloat
     cy: FiniteFloat
     dist: list[FiniteFloat] = Field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0],

@@ -19,10 +19,10 @@ from pydantic import (
     Field,
     FiniteFloat,
     NonNegativeInt,
-    PositiveFloat,
     model_validator,
 )
 
+from .bounds import FocalPx, MmPerPxValue, NonNegativeMm, PositiveMm
 from .camera import CameraModel
 
 __all__ = [
@@ -68,9 +68,6 @@ FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb")
 and the fitted box as a textured binary glTF model (glb)."""
 
 _DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
-
-PositiveMm = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
-NonNegativeMm = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 
@@ -119,8 +116,8 @@ class MmPerPx(_Strict):
     """Millimetres per pixel in the face plane; `side` is the side photo's (two-photo mode)."""
 
     kind: Literal["mm_per_px"] = "mm_per_px"
-    front: PositiveFloat
-    side: PositiveFloat | None = None
+    front: MmPerPxValue
+    side: MmPerPxValue | None = None
 
 
 class Pinhole(_Strict):
@@ -131,8 +128,8 @@ class Pinhole(_Strict):
     """
 
     kind: Literal["pinhole"] = "pinhole"
-    distance_mm: PositiveFloat
-    side_distance_mm: PositiveFloat | None = None
+    distance_mm: PositiveMm
+    side_distance_mm: PositiveMm | None = None
 
 
 class KnownEdge(_Strict):
@@ -140,7 +137,7 @@ class KnownEdge(_Strict):
 
     kind: Literal["edge"] = "edge"
     edge: Literal["width", "height", "depth"] = "width"
-    length_mm: PositiveFloat
+    length_mm: PositiveMm
 
 
 Scale = Annotated[MmPerPx | Pinhole | KnownEdge, Field(discriminator="kind")]
@@ -262,7 +259,7 @@ class ScanSpec(_Strict):
     tolerance: float = Field(default=12.0, ge=0.0, le=128.0, description="RGB tolerance per channel.")
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None
-    focal_px: PositiveFloat | None = Field(
+    focal_px: FocalPx | None = Field(
         default=None, description="Focal length in pixels; with p6 and p7 it corrects perspective."
     )
     principal_point: Point | None = Field(

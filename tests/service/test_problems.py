@@ -62,6 +62,10 @@ def test_headers_are_kept(make_client):
     ({"points": {"p1": [1, 1], "p2": [9, 1], "p3": "x", "p4": [1, 1], "p5": [1, 1]}}, "/items/0/points/p3"),
     ({"points": [[1, 1], [9, 1], "x", [1, 1], [1, 1]]}, "/items/0/points/2"),
     ({"scale": {"kind": "pinhole"}, "focal_px": 900}, "/items/0/scale/distance_mm"),  # no "pinhole" step
+    # The tag "edge" is also a key of a known edge: the pointer still reaches the bad value.
+    ({"scale": {"kind": "edge", "edge": "width", "length_mm": -1}}, "/items/0/scale/length_mm"),
+    ({"scale": {"kind": "edge", "edge": "width"}}, "/items/0/scale/length_mm"),
+    ({"scale": {"kind": "edge", "edge": "diagonal", "length_mm": 9}}, "/items/0/scale/edge"),
     ({"tolerance": -1}, "/items/0/tolerance"),
     ({"colour": "red"}, "/items/0/colour"),
 ])
@@ -70,6 +74,52 @@ def test_validation_points_into_the_body(client, change, pointer):
     body = problem(r, 422, "validation")
     assert pointer in [e["pointer"] for e in body["errors"]], body
     assert body["detail"].startswith(body["errors"][0]["pointer"]), body
+
+
+MM = {"kind": "mm_per_px", "front": 0.2}
+CAMERA = {"fx": 900.0, "fy": 900.0, "cx": 128.0, "cy": 64.0, "image_width": 256, "image_height": 128}
+
+
+@pytest.mark.parametrize(("change", "pointer", "quoted"), [
+    ({"scale": {"kind": "edge", "edge": "width", "length_mm": 1e300}}, "/items/0/scale/length_mm",
+     "1e+300 mm"),
+    ({"scale": {"kind": "edge", "edge": "depth", "length_mm": 1e-9}}, "/items/0/scale/length_mm",
+     "1e-09 mm"),
+    ({"scale": {"kind": "mm_per_px", "front": 5e3}}, "/items/0/scale/front", "5000 mm/px"),
+    ({"scale": {"kind": "mm_per_px", "front": 0.2, "side": 1e-7}}, "/items/0/scale/side", "1e-07 mm/px"),
+    ({"scale": {"kind": "pinhole", "distance_mm": 2e6}, "focal_px": 900}, "/items/0/scale/distance_mm",
+     "2e+06 mm"),
+    ({"scale": {"kind": "pinhole", "distance_mm": 500, "side_distance_mm": 1e300}, "focal_px": 900},
+     "/items/0/scale/side_distance_mm", "1e+300 mm"),
+    ({"scale": {"kind": "pinhole", "distance_mm": 500}, "focal_px": 1e300}, "/items/0/focal_px", "1e+300 px"),
+    ({"camera": {**CAMERA, "fy": 1e300}}, "/items/0/camera/fy", "1e+300 px"),
+    ({"scale": MM, "nominal": [120, 80, 1e300], "tolerance_mm": 1}, "/items/0/nominal/2", "1e+300 mm"),
+    ({"scale": MM, "nominal": [120, 80, 60], "tolerance_mm": 1e300}, "/items/0/tolerance_mm", "1e+300 mm"),
+    ({"scale": MM, "nominal": [120, 80, 60], "tolerance_mm": [1, 2e6, 1]}, "/items/0/tolerance_mm/1",
+     "2e+06 mm"),
+    ({"scale": MM, "spacing_mm": 1e300}, "/items/0/spacing_mm", "1e+300 mm"),
+], ids=["length-huge", "length-tiny", "mm-per-px", "mm-per-px-side", "distance", "side-distance",
+        "focal", "camera-focal", "nominal", "tolerance", "tolerance-each", "spacing"])
+def test_every_scale_and_length_is_bounded_at_submit(client, change, pointer, quoted):
+    # Issue 21: length_mm 1e300 was accepted (202) and its item failed when polled ("points hold
+    # 746250 non-finite values"). Refused at submit, the problem points at the value and quotes it.
+    r = client.post("/v1/jobs", json={"items": [item(upload(client), **change)]}, headers=ACME)
+    body = problem(r, 422, "validation")
+    # (A value of a union, as tolerance_mm's one value or three, has an error per branch.)
+    found = [e["detail"] for e in body["errors"] if e["pointer"] == pointer]
+    assert found and quoted in found[0] and "out of range" in found[0], body
+
+
+@pytest.mark.parametrize("change", [
+    {"scale": {"kind": "edge", "edge": "width", "length_mm": 1e6}},
+    {"scale": {"kind": "edge", "edge": "width", "length_mm": 1e-3}},
+    {"scale": {"kind": "mm_per_px", "front": 1e3, "side": 1e-6}},
+    {"scale": {"kind": "pinhole", "distance_mm": 1e6}, "focal_px": 1e6},
+    {"scale": MM, "nominal": [1e6, 1e-3, 60], "tolerance_mm": [0, 1e6, 1], "spacing_mm": 1e6},
+], ids=["length-max", "length-min", "mm-per-px-bounds", "distance-focal-max", "quality-bounds"])
+def test_the_bounds_themselves_are_accepted(client, change):
+    r = client.post("/v1/jobs", json={"items": [item(upload(client), **change)]}, headers=ACME)
+    assert r.status_code == 202, r.text
 
 
 def test_parameters_and_headers_are_named(client):
