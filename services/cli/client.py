@@ -31,7 +31,8 @@ from prism_common.public import JobList, JobPublic, ResultsTable
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
-__all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "format_eta", "remaining_s"]
+__all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "WaitTimeoutError", "format_eta",
+           "remaining_s"]
 
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled"})
 _RETRY_STATUSES = frozenset({429, 503})
@@ -49,6 +50,10 @@ class ApiError(Exception):
         super().__init__(message)
         self.status = status
         self.problem = problem or {}
+
+
+class WaitTimeoutError(ApiError):
+    """`ApiClient.wait` gave up: the job was not final after the time allowed (it may still be)."""
 
 
 def remaining_s(job: JobPublic, now: datetime | None = None) -> float | None:
@@ -187,8 +192,9 @@ class ApiClient:
 
     def wait(self, job_id: str, *, timeout: float, poll_s: float = 0.5,
              on_update: Callable[[JobPublic], None] | None = None) -> JobPublic:
-        """Poll until the job is final, then return it whole; ApiError if `timeout` seconds pass
-        first. The polls leave out the items: a big job's would be megabytes each time."""
+        """Poll until the job is final, then return it whole; `WaitTimeoutError` (an ApiError)
+        if `timeout` seconds pass first. The polls leave out the items: a big job's would be
+        megabytes each time."""
         deadline = time.monotonic() + timeout
         while True:
             job = self.job(job_id, items=False)
@@ -197,7 +203,7 @@ class ApiClient:
             if job.state in FINAL_STATES:
                 return self.job(job_id)
             if time.monotonic() > deadline:
-                raise ApiError(f"job {job_id} still {job.state} after {timeout:g} s")
+                raise WaitTimeoutError(f"job {job_id} still {job.state.value} after {timeout:g} s")
             self._sleep(poll_s)
 
     # -- outputs ------------------------------------------------------------------------------

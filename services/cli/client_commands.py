@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
-from prism_common.public import JobPublic
+from prism_common.public import JobPublic, ResultPublic
 from pydantic import ValidationError
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -37,7 +37,8 @@ def _upload_local(client: ApiClient, item: dict, base: Path) -> dict:
     """Replace local file paths in an item by upload references (uploading them)."""
     for field in ("image", "side_image"):
         value = item.get(field)
-        if value and not value.startswith(_REFERENCE_PREFIXES):
+        # Anything but a local path (a reference, a wrong type) goes as it is: the API judges it.
+        if isinstance(value, str) and value and not value.startswith(_REFERENCE_PREFIXES):
             path = base / value
             if not path.is_file():
                 raise InputError(f"{field} {value!r}: no such file")
@@ -53,7 +54,17 @@ def _progress_text(job: JobPublic) -> str:
     return ", ".join(parts)
 
 
+def _sizes(result: ResultPublic) -> str:
+    """'120.00 ± 0.59 x 79.99 ± 0.59 x 59.98 ± 0.90 mm': each dimension with its 1-sigma
+    uncertainty when the result has one (a video's median has none)."""
+    d, sigma = result.dimensions, result.uncertainty or {}
+    return " x ".join(f"{getattr(d, k):.2f}" + (f" ± {sigma[k]:.2f}" if k in sigma else "")
+                      for k in ("width", "height", "depth")) + f" {d.unit}"
+
+
 def _print_job(job: JobPublic) -> None:
+    """The job's line, then per item its dimensions ± sigma and, on the lines after it, every
+    warning its result carries (what report.json says about the measurement's trust)."""
     line = f"job {job.id}: [bold]{job.state.value}[/] {job.progress}%"
     if job.item_count > 1:
         line += f" ({job.items_done} of {job.item_count} items)"
@@ -63,12 +74,36 @@ def _print_job(job: JobPublic) -> None:
     for item in job.items:
         text = f"  item {item.index}: {item.state.value}"
         if item.result:
-            d = item.result.dimensions
-            text += (f"  {d.width:.2f} x {d.height:.2f} x {d.depth:.2f} {d.unit}, "
-                     f"{item.result.points:,} points")
+            text += f"  {_sizes(item.result)}, {item.result.points:,} points"
+            if item.result.focal_px:
+                text += f", focal {item.result.focal_px:.0f} px ({item.result.focal_source})"
         if item.error:
             text += f"  error: {item.error}"
         console.print(text, soft_wrap=True, markup=False)
+        for warning in item.result.warnings if item.result else []:
+            console.print(f"    warning: {warning}", soft_wrap=True, markup=False)
+
+
+def _job_document(spec_file: Path) -> dict[str, Any]:
+    """A --spec file as the job to send: a scan spec is the job's one item; a job document
+    ({"items": [...], "client_reference", "webhook_url"}) is sent whole, so every field of it
+    reaches the API (which refuses what it does not know, rather than the CLI dropping it)."""
+    name = str(spec_file)
+    try:
+        data = json.loads(spec_file.read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read spec {name!r}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(f"spec {name!r} is not JSON: {exc.msg} at line {exc.lineno}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"spec {name!r} is not JSON: not UTF-8 text") from None
+    if not isinstance(data, dict):
+        raise InputError(f"spec {name!r}: expected a JSON object, a scan spec or {{\"items\": [...]}}")
+    document = data if "items" in data else {"items": [data]}
+    items = document["items"]
+    if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
+        raise InputError(f"spec {name!r}: \"items\" must be a list of scan specs (JSON objects)")
+    return document
 
 
 def submit(
@@ -97,11 +132,11 @@ def submit(
     idempotency_key: Annotated[str | None, typer.Option(help="Resubmits return the same job.")] = None,
     then_wait: Annotated[bool, typer.Option("--wait", help="Wait for the job to finish.")] = False,
 ) -> None:
-    """Submit a job (local files are uploaded first) and print its id."""
+    """Submit a job (local files are uploaded first) and print its id; with --wait, exit 0 if it
+    succeeded, 1 otherwise."""
     client = _client(api, key)
     if spec_file is not None:
-        data = json.loads(spec_file.read_text())
-        items, base = data.get("items", [data]), spec_file.parent
+        document, base = _job_document(spec_file), spec_file.parent
     else:
         try:
             spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
@@ -116,10 +151,14 @@ def submit(
         item = spec.model_dump(mode="json", exclude_none=True)
         if not formats:
             del item["formats"]  # the service's default formats apply
-        items, base = [item], Path(".")
+        document, base = {"items": [item]}, Path(".")
+    # The flags name the job's reference and webhook; given, they override the spec file's.
+    if reference is not None:
+        document["client_reference"] = reference
+    if webhook is not None:
+        document["webhook_url"] = webhook
     # The client uploads a file once however many items name it.
-    body = {"items": [_upload_local(client, dict(item), base) for item in items],
-            "client_reference": reference, "webhook_url": webhook}
+    body = {**document, "items": [_upload_local(client, dict(item), base) for item in document["items"]]}
     job = client.submit(body, idempotency_key=idempotency_key)
     console.print(job.id)
     if then_wait:

@@ -1,6 +1,9 @@
 """Entry point of the `prism` command: wires the sub-commands and the error policy.
 
-Bad input exits with code 2 and one line on stderr, never a traceback.
+Exit codes: 0 the command succeeded; 1 it ran but what it waited for did not succeed (a job
+that failed or was cancelled, a wait that timed out, `prism serve` losing a server, Ctrl-C);
+2 bad input or usage, or an API that refused the request: one line on stderr, never a
+traceback.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from typer.exceptions import TyperException
 from prismcore import InputError
 
 from .calibrate_command import calibrate
-from .client import ApiError
+from .client import ApiError, WaitTimeoutError
 from .client_commands import cancel, download, jobs, results, status, submit, wait
 from .sample_command import sample
 from .scan_command import scan
@@ -39,9 +42,14 @@ cli.command()(serve)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit code (0 ok, 2 bad input or usage)."""
+    """Run the CLI; return the exit code (0 ok, 1 failed or cancelled, 2 bad input or usage)."""
     try:
-        cli(args=argv, standalone_mode=False)
+        # Not standalone: click then *returns* the code of a `typer.Exit` (a failed job's 1,
+        # --help's 0) instead of exiting, and raises its usage errors for the one-line policy.
+        code = cli(args=argv, standalone_mode=False)
+    except WaitTimeoutError as exc:  # the job may still succeed; this wait did not see it
+        print(f"prism: error: {exc}", file=sys.stderr)
+        return 1
     except (InputError, ApiError) as exc:
         print(f"prism: error: {exc}", file=sys.stderr)
         return 2
@@ -50,12 +58,15 @@ def main(argv: list[str] | None = None) -> int:
         if message:  # empty when the usage text was just shown
             print(f"prism: error: {message}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a file named on the command line that cannot be read or written
+        where = f" {str(exc.filename)!r}" if exc.filename else ""
+        print(f"prism: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
     except typer.Abort:
         print("prism: aborted", file=sys.stderr)
         return 1
-    except typer.Exit as exc:
-        return exc.exit_code
-    return 0
+    # The commands return None; an int is the code of a typer.Exit raised inside one.
+    return code if isinstance(code, int) else 0
 
 
 def app() -> None:

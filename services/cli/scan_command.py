@@ -190,6 +190,8 @@ def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
         raise InputError(f"cannot read spec {str(path)!r}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"spec {str(path)!r} is not JSON: {exc.msg} at line {exc.lineno}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"spec {str(path)!r} is not JSON: not UTF-8 text") from None
     return ScanSpec.model_validate(data), path.parent
 
 
