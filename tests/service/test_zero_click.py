@@ -35,7 +35,9 @@ from .servers import service_env
 
 BUCKET = "zero-click-e2e"
 SIZE = (640, 512)  # small photos: the search and the scan stay cheap
-SEEDS = (0, 2)  # scenes where the search finds the box (checked against the truth below)
+SEEDS = (4, 5)  # scenes the search finds (truth checked below), on the photo and on a photo one grey
+# level up, re-encoded or shifted 0.1 px, with and without the hint: seeds 0 and 2 were refused on
+# such changes (their regions at a knife edge), and so on another machine
 EMPTY = empty_scene(0, image_size=SIZE)  # clutter and no box
 ACME = {"X-API-Key": API_KEYS["acme"]}
 
