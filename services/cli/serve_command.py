@@ -11,7 +11,10 @@ import base64
 import json
 import os
 import secrets
+import shlex
+import shutil
 import signal
+import sys
 import threading
 from pathlib import Path
 from typing import Annotated
@@ -23,7 +26,12 @@ from prismcore import InputError
 
 from .stack import ManagedProcess, free_port, port_is_free, start_api, start_redis, start_s3, start_worker
 
-__all__ = ["serve"]
+__all__ = ["serve", "try_line"]
+
+DEFAULT_PORT = 8000  # the client commands' default API URL is on this port
+# The sample photo's seven points (prism scan's README example): with P6 and P7 the perspective
+# is fitted, so the result is the box's size within its printed ± (five points are not).
+SAMPLE_POINTS = "395,293 943,331 919,761 943,331 1035,298 411,647 1009,660"
 
 
 def _credentials(data_dir: Path) -> dict[str, str]:
@@ -53,6 +61,41 @@ def _s3_port(data_dir: Path) -> int:
     return port
 
 
+def _prism_command() -> str:
+    """How a shell runs this very prism: `prism` when that name on PATH is it, else its path."""
+    script = Path(sys.executable).parent / "prism"
+    if not script.is_file():
+        return f"{shlex.quote(sys.executable)} -m prism_cli"
+    found = shutil.which("prism")
+    if found is not None and Path(found).resolve() == script.resolve():
+        return "prism"
+    return shlex.quote(str(script))
+
+
+def _sample_photo() -> Path | None:
+    """samples/box.jpg of the source tree prism runs from (absent from a plain install)."""
+    photo = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
+    return photo if photo.is_file() else None
+
+
+def try_line(port: int, key: str | None, *, prism: str | None = None,
+             photo: Path | None = None) -> str:
+    """One command a user can paste into another shell, anywhere, as printed: the full path of
+    prism when `prism` on PATH is not this one, PRISM_API_URL when the port is not the client's
+    default, the key (None: PRISM_API_KEYS holds the keys, the user's shell has one) and the
+    sample photo by its full path (a plain install has none: `prism sample` renders one)."""
+    prism = prism or _prism_command()
+    env = []
+    if port != DEFAULT_PORT:
+        env.append(f"PRISM_API_URL=http://127.0.0.1:{port}")
+    if key is not None:
+        env.append(f"PRISM_API_KEY={shlex.quote(key)}")
+    submit = " ".join([*env, prism, "submit"])
+    if photo is None:
+        return (f"{prism} sample --out prism-sample && {submit} --spec prism-sample/job.json --wait")
+    return f"{submit} {shlex.quote(str(photo))} --points '{SAMPLE_POINTS}' --width-mm 120 --wait"
+
+
 def stack_env(creds: dict[str, str], redis_port: int, s3_port: int) -> dict[str, str]:
     """The PRISM_* environment the API and the workers of a local stack share."""
     return {
@@ -68,7 +111,8 @@ def stack_env(creds: dict[str, str], redis_port: int, s3_port: int) -> dict[str,
 def serve(
     data_dir: Annotated[Path, typer.Option(help="Where jobs, objects and keys are kept.",
                                            envvar="PRISM_SERVE_DATA_DIR")] = Path(".prism"),
-    port: Annotated[int, typer.Option(help="API port on 127.0.0.1.", envvar="PRISM_SERVE_PORT")] = 8000,
+    port: Annotated[int, typer.Option(help="API port on 127.0.0.1.",
+                                      envvar="PRISM_SERVE_PORT")] = DEFAULT_PORT,
     workers: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 2,
 ) -> None:
     """Run the API, workers, Redis and S3 storage locally until Ctrl-C."""
@@ -92,12 +136,15 @@ def serve(
         with console.status("starting the workers and the API ..."):
             started.append(start_worker(data_dir / "worker", env, concurrency=workers))
             started.append(start_api(data_dir / "api", env, port=port))
-        key = creds["api_key"] if "PRISM_API_KEYS" not in os.environ else "(from PRISM_API_KEYS)"
-        console.print(f"[bold green]ready[/]: API http://127.0.0.1:{port} (docs at /docs)\n"
-                      f"  API key: {key}\n"
-                      f"  try: PRISM_API_KEY={key} prism submit samples/box.jpg --points "
-                      f"'395,293 943,331 919,761 943,331 1035,298' --width-mm 120 --wait\n"
-                      f"  logs and data: {data_dir}   (Ctrl-C stops everything)", soft_wrap=True)
+        own_key = "PRISM_API_KEYS" not in os.environ
+        key = creds["api_key"] if own_key else "(from PRISM_API_KEYS)"
+        hint = try_line(port, creds["api_key"] if own_key else None, photo=_sample_photo())
+        console.print(f"[bold green]ready[/]: API http://127.0.0.1:{port} (docs at /docs)", soft_wrap=True)
+        # As printed, with no markup read into it: a path may hold brackets.
+        console.print(f"  API key: {key}\n  try: {hint}\n"
+                      + ("" if own_key else "       (with PRISM_API_KEY set to one of PRISM_API_KEYS)\n")
+                      + f"  logs and data: {data_dir}   (Ctrl-C stops everything)",
+                      soft_wrap=True, markup=False, highlight=False)
         stop = threading.Event()
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())

@@ -64,3 +64,24 @@ def test_serve_runs_a_job_and_stops_cleanly(served):
     proc.wait(60)
     _, alive = psutil.wait_procs(children, timeout=30)
     assert not alive, alive
+
+
+def test_serve_exits_1_when_one_of_its_servers_dies(served):
+    """A server of the stack that stops (here redis-server, killed) stops prism serve with exit
+    code 1 and the log to read; the code was lost on the way out (the command exited 0)."""
+    proc, port, _ = served
+    deadline = time.monotonic() + 90
+    while True:
+        try:
+            if httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=2).status_code == 200:
+                break
+        except httpx.HTTPError:
+            pass
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.5)
+    redis = [p for p in psutil.Process(proc.pid).children(recursive=True) if p.name() == "redis-server"]
+    assert len(redis) == 1, redis
+    redis[0].kill()
+    assert proc.wait(60) == 1
+    out = proc.stdout.read()
+    assert "redis-server stopped; see" in out and "Traceback" not in out, out
