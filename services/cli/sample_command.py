@@ -9,6 +9,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from prismcore import InputError
+from prismcore.bounds import LENGTH_MM_RANGE
 from prismsynth import Box, render_oblique_view, save_image
 
 __all__ = ["sample"]
@@ -22,6 +24,10 @@ def sample(
     seed: Annotated[int, typer.Option(help="Scene seed.")] = 1,
 ) -> None:
     """Render an oblique photo of a box and write a spec that measures it."""
+    low, high = LENGTH_MM_RANGE
+    for flag, value in (("--width-mm", width_mm), ("--height-mm", height_mm), ("--depth-mm", depth_mm)):
+        if not low <= value <= high:  # the spec written would be refused (prismcore.bounds)
+            raise InputError(f"{flag} {value:g}: a length is {low:g} to {high:g} mm")
     box = Box(width_mm, height_mm, depth_mm)
     scene = render_oblique_view(box, seed=seed)
     out.mkdir(parents=True, exist_ok=True)

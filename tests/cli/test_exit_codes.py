@@ -210,3 +210,14 @@ def test_an_unknown_field_of_a_job_file_reaches_the_api_to_be_refused(api, capsy
         if "webhok_url" in json.loads(r.content) else {})
     code, _, err = run(capsys, "submit", "--spec", str(spec), *KEY)
     assert code == 2 and one_line_error(err) and "/webhok_url" in err, err
+
+
+def test_sample_and_schema_exit_0_and_2(capsys, tmp_path: Path):
+    code, out, _ = run(capsys, "sample", "--out", str(tmp_path))
+    assert code == 0 and (tmp_path / "job.json").is_file(), out
+    assert run(capsys, "schema")[0] == 0
+    for argv in (["sample", "--out", str(tmp_path), "--width-mm", "-1"],  # was a traceback, exit 1
+                 ["sample", "--out", str(tmp_path), "--depth-mm", "1e300"],
+                 ["schema", "--bogus"]):
+        code, _, err = run(capsys, *argv)
+        assert code == 2 and one_line_error(err), (argv, err)
