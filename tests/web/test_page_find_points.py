@@ -59,7 +59,7 @@ def test_found_points_are_placed_checked_dragged_and_measured(page, stack, tmp_p
     expect(page.locator("#batch")).to_contain_text("scene.png (points found, then adjusted)")
     ended = d.submit_and_wait(timeout_ms=WAIT_MS)
     assert re.search(r"Done", ended), (ended, page.locator("#form-error").text_content())
-    expect(page.locator("#dimensions dd[data-field=reference-points]")).to_contain_text(
+    expect(page.locator("#details dd[data-field=reference-points]")).to_contain_text(
         re.compile(r"found automatically \(confidence 0\.\d\d\)"))
     job_id = re.search(r"Job ([0-9a-f]{8})", ended).group(1)
     jobs = httpx.get(f"{stack.url}/v1/jobs", headers={"X-API-Key": KEY}).json()["jobs"]

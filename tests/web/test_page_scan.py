@@ -89,7 +89,7 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     assert job["id"].startswith(job_id)
     result = job["items"][0]["result"]
     assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
-    expect(page.locator("#dimensions dd[data-field=points]")).to_have_text(f"{result['points']:,}")
+    expect(page.locator("#details dd[data-field=points]")).to_have_text(f"{result['points']:,}")
     expect(page.locator(".downloads a")).to_have_count(4)  # CSV, PLY, report, overlay
     expect(page.locator(f"#jobs tr[data-job='{job['id']}']")).to_contain_text("succeeded")
 
@@ -243,8 +243,8 @@ def test_paper_method_volume_cloud_and_a_known_edge(page, stack, tmp_path):
     job = httpx.get(f"{stack.url}/v1/jobs", headers={"X-API-Key": KEY}).json()["jobs"][0]
     result = job["items"][0]["result"]
     assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
-    expect(page.locator("#dimensions dd[data-field=points]")).to_have_text(f"{result['points']:,}")
-    expect(page.locator("#dimensions dd[data-field=point-loss]")).to_have_text(
+    expect(page.locator("#details dd[data-field=points]")).to_have_text(f"{result['points']:,}")
+    expect(page.locator("#details dd[data-field=point-loss]")).to_have_text(
         f"{result['point_loss'] * 100:.2f} %")
     # The bar followed the job's own progress: never backwards, from running to 100.
     seen = page.evaluate("window.progressSeen")

@@ -6,15 +6,15 @@
 import { call, message } from "./api";
 import type { ColourMode } from "./colours";
 import { ResultsTableView } from "./results-table";
-import type { Dimension, Frame, Item, Job, Result } from "./types";
+import type { Frame, Item, Job, Result } from "./types";
 import { badge, deviationText } from "./verdicts";
 import { isVideoItem, videoResult } from "./video-result";
 import { type BoxAnnotation, Viewer } from "./viewer";
+import { DIMENSIONS as DIMS, flag, warningList } from "./warnings";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
   ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["overlay", "Fit overlay (PNG)"]];
-const DIMS: Dimension[] = ["width", "height", "depth"];
 const SOURCES: Record<string, string> = {
   given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
   fitted: "fitted to the box", none: "not used (square-on model)",
@@ -38,6 +38,12 @@ export class ResultPanel {
     $("point-size").addEventListener("input", (e) =>
       this.viewer?.pointSize(Number((e.target as HTMLInputElement).value)));
     $("reset-view").addEventListener("click", () => this.viewer?.reset());
+    // The fit on the photo: a thumbnail beside the dimensions, the whole width when asked.
+    $("overlay-zoom").addEventListener("click", () => {
+      const large = $("overlay-figure").classList.toggle("large");
+      $("overlay-zoom").setAttribute("aria-expanded", String(large));
+      $("overlay-zoom").setAttribute("aria-label", `The fit on the photo: show it ${large ? "smaller" : "larger"}`);
+    });
   }
 
   private mode(): ColourMode {
@@ -78,7 +84,10 @@ export class ResultPanel {
   private async showItem(frameWanted: number | null = null): Promise<void> {
     const item = this.item();
     const video = isVideoItem(item);
-    $("result-body").replaceChildren(...(video ? videoResult(item) : summary(item)));
+    const shown = video ? { top: videoResult(item), warnings: [], details: [] } : summary(item);
+    $("result-body").replaceChildren(...shown.top);
+    $("result-warnings").replaceChildren(...shown.warnings);
+    $("result-details").replaceChildren(...shown.details);
     const measured = video ? item.frames.filter((f) => f.state === "succeeded") : [];
     $("result-frame-row").hidden = !measured.length;
     const chosen = measured.find((f) => f.index === frameWanted) ?? measured[0];
@@ -168,18 +177,25 @@ function frameChosen(item: Item): Frame | null | undefined {
   return item.frames.find((f) => String(f.index) === chosen);
 }
 
-function summary(item: Item): HTMLElement[] {
+interface Summary {
+  top: HTMLElement[]; // the part's verdict and the dimensions, beside the overlay thumbnail
+  warnings: HTMLElement[]; // right under them
+  details: HTMLElement[]; // after the 3D view: points, focal length, fit; downloads
+}
+
+function summary(item: Item): Summary {
   if (item.state !== "succeeded" || !item.result) {
     const p = document.createElement("p");
     p.className = item.state === "failed" ? "error" : "";
     p.textContent = item.error ? `This scan failed: ${item.error}` : `This scan is ${item.state}.`;
-    return [p];
+    return { top: [p], warnings: [], details: [] };
   }
   const r = item.result;
   const unit = r.dimensions.unit;
   const sigma = r.uncertainty ?? undefined;
   const quality = r.quality ?? null;
   const out: HTMLElement[] = [];
+  const warned = warningList(r.warnings, true);
   if (quality) {
     const p = document.createElement("p");
     p.className = "part-verdict";
@@ -191,20 +207,30 @@ function summary(item: Item): HTMLElement[] {
   }
   const dl = document.createElement("dl");
   dl.id = "dimensions";
-  const add = (key: string, value: string, cls = "wide"): HTMLElement => {
+  const details = document.createElement("dl");
+  details.id = "details";
+  const add = (key: string, value: string, cls = "wide", into = details): HTMLElement => {
     const dt = document.createElement("dt");
     const dd = document.createElement("dd");
     dt.textContent = key;
     dd.textContent = value;
     dd.className = cls;
     dd.dataset.field = key.toLowerCase().replaceAll(" ", "-");
-    dl.append(dt, dd);
+    into.append(dt, dd);
     return dd;
   };
   for (const dim of DIMS) {
     const name = dim.charAt(0).toUpperCase() + dim.slice(1);
-    const dd = add(name, withSigma(r.dimensions[dim], sigma?.[dim], unit), "dim");
+    const dd = add(name, withSigma(r.dimensions[dim], sigma?.[dim], unit), "dim", dl);
     (dd.previousElementSibling as HTMLElement).className = "big";
+    // A figure a warning qualifies is drawn plain, flagged, and described by the warning.
+    const refs = warned.of[dim];
+    if (refs.length) {
+      dd.classList.add("warned");
+      dd.dataset.warned = "true";
+      dd.setAttribute("aria-describedby", refs.map((w) => w.id).join(" "));
+    }
+    dl.append(flag(refs));
     const judged = quality?.dimensions[dim];
     const verdict = document.createElement("dd");
     verdict.className = "deviation";
@@ -235,15 +261,7 @@ function summary(item: Item): HTMLElement[] {
     a.rel = "noopener";
     links.append(a);
   }
-  out.push(links);
-  if (r.warnings.length) {
-    const ul = document.createElement("ul");
-    ul.setAttribute("aria-label", "Warnings");
-    ul.className = "warnings";
-    ul.replaceChildren(...r.warnings.map((w) => Object.assign(document.createElement("li"), { textContent: w })));
-    out.push(ul);
-  }
-  return out;
+  return { top: out, warnings: warned.list ? [warned.list] : [], details: [details, links] };
 }
 
 /** The fitted box and its dimension labels for the 3D view, from a scan's result. */
@@ -251,10 +269,13 @@ function annotation(r: Result | null): BoxAnnotation | undefined {
   if (!r) return undefined;
   const sigma = r.uncertainty ?? undefined;
   const unit = r.dimensions.unit;
+  const warned = warningList(r.warnings, true).of;
   const labels = Object.fromEntries(DIMS.map((d) => {
     const name = d.charAt(0).toUpperCase() + d.slice(1);
     const verdict = r.quality?.dimensions[d]?.verdict;
-    return [d, { text: `${name} ${withSigma(r.dimensions[d], sigma?.[d], unit)}`, verdict }];
+    const flagged = warned[d].length > 0; // a warning qualifies it: "⚠" on the label too
+    return [d, { text: `${name} ${withSigma(r.dimensions[d], sigma?.[d], unit)}${flagged ? " ⚠" : ""}`, verdict,
+      warned: flagged }];
   })) as BoxAnnotation["labels"];
   return { size: [r.dimensions.width, r.dimensions.height, r.dimensions.depth], unit, labels };
 }

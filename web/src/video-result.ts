@@ -2,6 +2,7 @@
 // small table) and the list of frames, each with its state, dimensions or error, and downloads.
 
 import type { Dimension, Frame, Item, Summary } from "./types";
+import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
 const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["report", "Report"]];
@@ -33,11 +34,8 @@ export function videoResult(item: Item): HTMLElement[] {
       out.push(links);
     }
   }
-  if (item.result?.warnings.length) {
-    const ul = el("ul", "", { "aria-label": "Warnings", class: "warnings" });
-    ul.replaceChildren(...item.result.warnings.map((w) => el("li", w)));
-    out.push(ul);
-  }
+  const warned = warningList(item.result?.warnings ?? [], false).list;
+  if (warned) out.push(warned);
   const times = new Map((summary?.per_frame ?? []).map((r) => [r.frame, r.time_s]));
   out.push(frameTable(item.frames, times));
   return out;

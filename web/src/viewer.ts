@@ -22,7 +22,7 @@ const FOV = 45;
 export interface BoxAnnotation {
   size: [number, number, number];
   unit: string;
-  labels: Record<Dimension, { text: string; verdict?: Verdict }>;
+  labels: Record<Dimension, { text: string; verdict?: Verdict; warned?: boolean }>;
 }
 
 export class Viewer {
@@ -198,7 +198,8 @@ export class Viewer {
         const tick = (p: THREE.Vector3, q: THREE.Vector3) => [p.x, p.y, p.z, q.x, q.y, q.z];
         const dimLine = line([...tick(a2, b2), ...tick(a, a3), ...tick(b, b3)], 0x7cc4ff);
         dimLine.name = `dim-${name}`;
-        const label = labelDiv(box.labels[name].text, "dim-label", box.labels[name].verdict);
+        const { text, verdict, warned } = box.labels[name];
+        const label = labelDiv(text, warned ? "dim-label warned" : "dim-label", verdict);
         label.dataset.dim = name;
         const object = new CSS2DObject(label);
         object.position.copy(a2).add(b2).multiplyScalar(0.5);
