@@ -10,16 +10,23 @@ from __future__ import annotations
 
 import re
 import shutil
+import time
 from pathlib import Path
 
-from page_driver import PageDriver
+import cv2
+import httpx
+import numpy as np
+from page_driver import KEY, PageDriver
 from playwright.sync_api import expect
 
 ARTEFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"  # gitignored, for a person
 LAPTOP = {"width": 1366, "height": 768}
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
-# The sample's points (the README's seven): P1, P2, P3 on the front, P4 on P2, P5 the side's far top.
+# The sample's points (the README's seven): P1, P2, P3 on the front, P4 on P2, P5 the side's far top,
+# and P6, P7 for the perspective-corrected scan.
 POINTS = [(395, 293), (943, 331), (919, 761), (943, 331), (1035, 298)]
+P6_P7 = [(411, 647), (1009, 660)]
+FRONT_DEPTH_RGB = (68, 1, 84)  # colours.ts's ramp at depth 0: the front face in depth colours
 
 # Per element of the result: its box in the window, and whether its content is wider or taller
 # than the box shows (scroll sizes over client sizes: a value cut off, as "mm" was).
@@ -142,3 +149,41 @@ def test_result_warnings_and_3d_view_on_the_first_screen(page, tmp_path):
     assert min(w["box"]["y"] for w in warnings) - dims_bottom < 60, (warnings, dims_bottom)
 
 
+
+def test_depth_colours_show_the_front_face_without_streaks(page, stack):
+    """The front face is all at depth 0: in depth colours it is one colour, with no streaks of the
+    faces behind it showing through slits the preview's thinning left (coverage.ts)."""
+    names = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+    with httpx.Client(base_url=stack.url, headers={"X-API-Key": KEY}, timeout=30) as http:
+        ref = http.post("/v1/uploads", files={"file": ("box.jpg", SAMPLE.read_bytes())}).json()["reference"]
+        item = {"image": ref, "points": dict(zip(names, map(list, POINTS + P6_P7), strict=True)),
+                "scale": {"kind": "edge", "edge": "width", "length_mm": 120}}
+        job = http.post("/v1/jobs", json={"items": [item]})
+        assert job.status_code == 202, job.text
+        job_id = job.json()["id"]
+        deadline = time.monotonic() + 120
+        while (state := http.get(f"/v1/jobs/{job_id}").json()["state"]) not in ("succeeded", "failed"):
+            assert time.monotonic() < deadline, state
+            time.sleep(0.5)
+    assert state == "succeeded"
+    page.set_viewport_size(LAPTOP)
+    d = PageDriver(page)
+    d.log_in()
+    page.get_by_role("button", name=f"Open job {job_id[:8]} (succeeded)").click()
+    expect(page.locator("#viewer-status")).to_contain_text("Showing", timeout=30_000)
+    page.get_by_label("Dimension lines").uncheck()  # only the points on the picture
+    page.get_by_label("Point colours").select_option("depth")
+    page.wait_for_timeout(300)
+    pixels = d.viewer_pixels()
+    ARTEFACTS.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(ARTEFACTS / "viewer-depth.png"), cv2.cvtColor(pixels, cv2.COLOR_RGB2BGR))
+    front = np.linalg.norm(pixels.astype(float) - FRONT_DEPTH_RGB, axis=-1) < 40
+    # The front face: the largest region of its colour, slits closed, its rim left out.
+    closed = cv2.morphologyEx(front.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((9, 9), np.uint8))
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(closed)
+    largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    face = cv2.erode((labels == largest).astype(np.uint8), np.ones((15, 15), np.uint8)).astype(bool)
+    assert face.sum() > 0.1 * face.size, face.sum()  # the front face fills a good part of the view
+    streaks = (~front & face).sum() / face.sum()
+    print(f"\nfront face: {face.sum()} px, other colours on it: {streaks:.3%}")
+    assert streaks < 0.002, streaks

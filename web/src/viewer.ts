@@ -12,6 +12,7 @@ import { PLYLoader } from "three/addons/loaders/PLYLoader.js";
 import { CSS2DObject, CSS2DRenderer } from "three/addons/renderers/CSS2DRenderer.js";
 
 import { colours, type ColourMode } from "./colours";
+import { gapScales } from "./coverage";
 import type { Dimension, Verdict } from "./types";
 import { verdictText } from "./verdicts";
 
@@ -42,7 +43,9 @@ export class Viewer {
   private sizeStep = 3;
   // World-sized points (size attenuation): each covers its share of the surface at any zoom, so
   // a thinned cloud shows no regular gaps (fixed-pixel points left stripes on grazing faces).
-  private material = new THREE.PointsMaterial({ size: 1, sizeAttenuation: true, vertexColors: true });
+  // Each point is further enlarged by its own factor (the attribute `gapScale`, coverage.ts) where
+  // the preview's thinning left its face with slits wider than a point.
+  private material = pointsMaterial();
 
   constructor(private host: HTMLElement) {
     // preserveDrawingBuffer: the picture stays readable after a frame (screenshots, tests).
@@ -77,6 +80,9 @@ export class Viewer {
     const shown = geometry.getAttribute("position").count;
     geometry.computeBoundingBox();
     this.spacing = spacing(geometry.boundingBox!, shown);
+    const position = geometry.getAttribute("position");
+    geometry.setAttribute("gapScale", new THREE.BufferAttribute(
+      gapScales(position, geometry.boundingBox!, this.worldSize(3)), 1));
     this.pointSize(this.sizeStep);
     this.annotate(box ?? null, geometry.boundingBox!);
     this.colour(mode);
@@ -114,8 +120,13 @@ export class Viewer {
     this.sizeStep = step;
     // PointsMaterial's attenuated size is drawn (viewport height / 2) / depth pixels per unit,
     // without the field of view; a world length L covers L (height / 2) / (depth tan(fov / 2)).
-    this.material.size = (this.spacing * 0.55 * step) / Math.tan(THREE.MathUtils.degToRad(FOV / 2));
+    this.material.size = this.worldSize(step) / Math.tan(THREE.MathUtils.degToRad(FOV / 2));
     this.render();
+  }
+
+  /** The side of a point, in cloud units, at slider step `step`. */
+  private worldSize(step: number): number {
+    return this.spacing * 0.55 * step;
   }
 
   /** Show or hide the box, its dimension lines and the axes. */
@@ -255,6 +266,17 @@ export class Viewer {
     this.labels.render(this.scene, this.camera);
     this.updateScaleBar();
   }
+}
+
+/** three's PointsMaterial, its size multiplied per point by the attribute `gapScale`. */
+function pointsMaterial(): THREE.PointsMaterial {
+  const material = new THREE.PointsMaterial({ size: 1, sizeAttenuation: true, vertexColors: true });
+  material.onBeforeCompile = (shader) => {
+    shader.vertexShader = shader.vertexShader
+      .replace("uniform float size;", "uniform float size;\nattribute float gapScale;")
+      .replace("gl_PointSize = size;", "gl_PointSize = size * gapScale;");
+  };
+  return material;
 }
 
 function labelDiv(text: string, cls: string, verdict?: Verdict): HTMLElement {
