@@ -29,10 +29,16 @@ __all__ = ["one_line", "quality_flags", "quality_lines", "scan", "spec_from_flag
 console = Console()
 
 
+def _internal(step: int | str) -> bool:
+    return isinstance(step, str) and ("[" in step or step.startswith(("constrained-", "function-")))
+
+
 def one_line(error: ValidationError) -> str:
     """A spec's validation error as one line: where, what, how many more."""
     first = error.errors()[0]
-    where = ".".join(str(p) for p in first["loc"]) or "spec"
+    # Steps that name pydantic's own validators ("function-after[check(), constrained-float]",
+    # a branch of a union) are not in the spec: left out.
+    where = ".".join(str(p) for p in first["loc"] if not _internal(p)) or "spec"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
     return f"{where}: {first['msg']}{more}"
 

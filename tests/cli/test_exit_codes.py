@@ -221,3 +221,10 @@ def test_sample_and_schema_exit_0_and_2(capsys, tmp_path: Path):
                  ["schema", "--bogus"]):
         code, _, err = run(capsys, *argv)
         assert code == 2 and one_line_error(err), (argv, err)
+
+
+def test_a_value_out_of_range_names_the_spec_field_not_pydantics_validators(capsys, tmp_path: Path):
+    code, _, err = run(capsys, "scan", "samples/box.jpg", "--points", POINTS, "--width-mm", "120",
+                       "--nominal", "120,80,60", "--tolerance-mm", "2e6", "--out", str(tmp_path))
+    assert code == 2 and one_line_error(err), err
+    assert err.startswith("prism: error: tolerance_mm: Value error, 2e+06 mm is out of range"), err
