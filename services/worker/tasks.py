@@ -31,12 +31,14 @@ from __future__ import annotations
 
 import logging
 import random
+from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
 import httpx
 import redis
 from botocore.exceptions import BotoCoreError, ClientError
 from celery import Task, chord
+from celery.exceptions import Retry
 from prism_common.queue import (
     TASK_DELIVER_WEBHOOK,
     TASK_EXTRACT_FRAME,
@@ -106,10 +108,12 @@ class RetryingTask(AnyTask):
     def retry_backoff_max(self) -> int:
         return retry_caps_s(worker_context().settings.visibility_timeout_s)[-1]
 
-    def retry(self, *args: Any, countdown: float | None = None, **kwargs: Any) -> Any:
+    def retry(self, args: tuple[Any, ...] | None = None, kwargs: dict[str, Any] | None = None,
+              exc: Exception | None = None, throw: bool = True, eta: datetime | None = None,
+              countdown: float | None = None, max_retries: int | None = None, **options: Any) -> Retry:
         if countdown is not None:
             countdown = countdown * random.uniform(0.5, 1.0)
-        return super().retry(*args, countdown=countdown, **kwargs)
+        return super().retry(args, kwargs, exc, throw, eta, countdown, max_retries, **options)
 
 
 def _maybe_repeat(task: AnyTask) -> bool:
