@@ -90,7 +90,12 @@ class Found:
     timings_ms : dict
         Stage -> milliseconds.
     warnings : tuple of str
-        An accepted result below `CONFIDENCE_WARN` says to check the points.
+        An accepted result below `CONFIDENCE_WARN` says to check the points, as does one that
+        is not `stable`.
+    stable : bool
+        False when the decision sits on a knife edge: the box rests on a face only one of the
+        search's two samplings of the photo found, so a slight change of the photo (a grey
+        level, a re-encode, a sub-pixel shift: another machine's decoder) may lose it.
     """
 
     points: ReferencePoints | None
@@ -102,6 +107,7 @@ class Found:
     fit_rms_px: float | None = None
     timings_ms: dict[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    stable: bool = True
 
     @property
     def ok(self) -> bool:
@@ -113,14 +119,19 @@ class Found:
                 "side_face": self.side_face, "reason": self.reason,
                 "points": None if self.points is None else
                 {k: [round(v[0], 2), round(v[1], 2)] for k, v in self.points.as_dict().items()},
-                "candidates": self.candidates, "warnings": list(self.warnings),
+                "candidates": self.candidates, "warnings": list(self.warnings), "stable": self.stable,
                 "fit_rms_px": None if self.fit_rms_px is None else round(self.fit_rms_px, 3)}
+
+
+_SAMPLINGS = 0b11  # the work image (bit 1) and the same half a work px along (bit 2)
+_RESAMPLE_PX = 0.5  # work px
 
 
 @dataclass
 class _Quad:
     corners: np.ndarray  # (4, 2) clockwise on screen, work px
     area: float
+    seen: int = _SAMPLINGS  # which samplings of the photo found it (found faces; others: all)
 
 
 @dataclass
@@ -192,8 +203,36 @@ class _Work:
 
 
 def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
+    """Face quads and silhouettes pooled over two samplings of the photo: the work image and the
+    same resampled half a work px along. Whether a face's region closes or leaks into its
+    surroundings can turn on one grey level; found in either sampling a face is kept, with the
+    samplings that found it (`_Quad.seen`), so a box resting on a face only one of them found
+    says that a slight change of the photo may lose it (`_measure`)."""
+    quads, silhouettes, work = _faces_once(small, 0b01)
+    move = np.array([[1, 0, _RESAMPLE_PX], [0, 1, _RESAMPLE_PX]], dtype=np.float32)
+    resampled = cv2.warpAffine(small, move, (small.shape[1], small.shape[0]), flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_REPLICATE)
+    quads2, silhouettes2, work2 = _faces_once(resampled, 0b10)
+    strength = functools.cache(lambda: _strength(work.lab))
+    for q in quads2:
+        _keep_sharper(quads, _Quad(q.corners - _RESAMPLE_PX, q.area, q.seen), strength)
+    for box in silhouettes2:
+        moved = _Box([_Quad(f.corners - _RESAMPLE_PX, f.area, f.seen) for f in box.faces], box.area,
+                     box.centre - _RESAMPLE_PX, box.hull - _RESAMPLE_PX)
+        twin = next((b for b in silhouettes if len(b.faces) == len(moved.faces) and all(
+            _same_face(f, g) for f, g in zip(b.faces, moved.faces, strict=True))), None)
+        if twin is None:
+            silhouettes.append(moved)
+        else:
+            for f in twin.faces:
+                f.seen |= 0b10
+    work.merged += [(o - _RESAMPLE_PX, c - _RESAMPLE_PX) for o, c in work2.merged]
+    return quads, silhouettes, work
+
+
+def _faces_once(small: np.ndarray, sampling: int) -> tuple[list[_Quad], list[_Box], _Work]:
     """Face quads at each edge sensitivity (a faint fold needs the lower one, a textured face
-    the higher), the same face found twice kept once."""
+    the higher), the same face found twice kept once; each tagged with `sampling`."""
     lab = cv2.cvtColor(cv2.GaussianBlur(small, (0, 0), 1.0), cv2.COLOR_RGB2Lab)
     quads: list[_Quad] = []
     maps = [_edges(lab, low, high) for low, high in _LEVELS]
@@ -212,8 +251,11 @@ def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
                 continue
             box = _hexagon_box(outline, folds)
             if box is not None:
+                for f in box.faces:
+                    f.seen = sampling
                 silhouettes.append(box)
         for q in found:
+            q.seen = sampling
             _keep_sharper(quads, q, strength)
     return quads, silhouettes, work
 
@@ -257,14 +299,21 @@ def _sharpness(strength: np.ndarray, corners: np.ndarray) -> float:
     return total / 4
 
 
-def _keep_sharper(quads: list[_Quad], q: _Quad, strength: Callable[[], np.ndarray]) -> None:
-    """Add q unless it is a face already found (one face found at two edge sensitivities, its
-    corners a few px apart); of the two, the one whose sides lie on sharper edges stays."""
+def _same_face(p: _Quad, q: _Quad) -> bool:
+    """One face found twice (at two edge sensitivities or samplings): corners a few px apart."""
     tol = 0.08 * math.sqrt(q.area) + 2.0
+    return bool(np.linalg.norm(p.corners[:, None] - q.corners[None], axis=2).min(axis=1).max() < tol)
+
+
+def _keep_sharper(quads: list[_Quad], q: _Quad, strength: Callable[[], np.ndarray]) -> None:
+    """Add q unless it is a face already found; of the two, the one whose sides lie on sharper
+    edges stays, found by the samplings either was."""
     for k, p in enumerate(quads):
-        if np.linalg.norm(p.corners[:, None] - q.corners[None], axis=2).min(axis=1).max() < tol:
+        if _same_face(p, q):
+            seen = p.seen | q.seen
             if _sharpness(strength(), q.corners) > _sharpness(strength(), p.corners):
                 quads[k] = q
+            quads[k].seen = seen
             return
     quads.append(q)
 
@@ -1006,7 +1055,15 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
     if reason is None and confidence < CONFIDENCE_WARN:
         warnings = (f"points found automatically with a modest confidence ({confidence:.2f}): "
                     "check them on overlay.png",)
-    return Found(pts, side_face, confidence, reason, faces, candidates, rms, timings, warnings)
+    stable = all(f.seen == _SAMPLINGS for f in box.faces)
+    if reason is None and not stable:
+        warnings += (_UNSTABLE,)
+    return Found(pts, side_face, confidence, reason, faces, candidates, rms, timings, warnings, stable)
+
+
+_UNSTABLE = ("a face of this box was found in only one of two samplings of the photo (its region "
+             "closes on one, not the other): a slight change of the photo may lose the box; check "
+             "the points on overlay.png")
 
 
 def resolve_points(spec: ScanSpec, image: np.ndarray) -> tuple[ScanSpec, Found]:

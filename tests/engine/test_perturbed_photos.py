@@ -12,9 +12,11 @@ The photos: the sample (`samples/box.jpg`, its clicks in `samples/job.json`), ph
 renders with clicks off by up to 3 px and no focal length, and the hand-marked frames of OpenCV's
 real cookie-box video.
 
-The zero-click search (`prismcore.locate`) is not held to this yet: its region decisions (a face's
-region closes or leaks) flipped on 14 of 216 scene-perturbations of seeds 0-71, found boxes
-included; `test_locate.py` holds its rates over many scenes and that nothing wrong is accepted.
+The zero-click search (`prismcore.locate`) decides on regions that close or leak on one grey
+level. It pools its faces over two samplings of the photo and says when a box rests on a face
+only one of them found (`Found.stable`, and a warning); a decision that flips under these changes
+must have said so on one side or the other. Over seeds 0-143 (432 scene-perturbations) the
+decision flipped 15 times (28 before the pooling), 3 of them unflagged: held as rates below.
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ import pytest
 
 from prismcore import InputError, ScanSpec, plan_scan
 from prismcore.images import load_image
+from prismcore.locate import Found, find_points
 from prismsynth import photo_like_scene
+from prismsynth.scenes import clutter_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow  # about 30 photos, each fitted four times
@@ -128,3 +132,29 @@ def test_a_slight_change_of_the_photo_keeps_the_decision_and_the_dimensions_with
                               np.round(sigma, 2).tolist()))
     assert moved == []
     assert held >= HELD_AT_LEAST[kind]  # so the test is not vacuous
+
+
+SEARCH_SEEDS = range(60, 120)  # the accuracy tests' seeds are 0-39
+
+
+def _flagged(found: Found) -> bool:
+    """The result says its decision may not hold: unstable, or accepted with a warning."""
+    return not found.stable or (found.ok and bool(found.warnings))
+
+
+def test_the_search_decision_holds_under_a_slight_change_or_says_it_may_not() -> None:
+    flips, unflagged = [], []
+    for seed in SEARCH_SEEDS:
+        image = clutter_scene(seed).image
+        first = find_points(image)
+        for how, perturb in PERTURBATIONS.items():
+            again = find_points(perturb(image))
+            if again.ok == first.ok:
+                continue
+            flips.append((seed, how))
+            if not (_flagged(first) or _flagged(again)):
+                unflagged.append((seed, how, first.reason, again.reason))
+    cases = len(SEARCH_SEEDS) * len(PERTURBATIONS)
+    # Measured over seeds 0-143: 15 flips (3.5 %), 3 unflagged (0.7 %).
+    assert len(flips) <= 0.07 * cases, flips
+    assert len(unflagged) <= 0.02 * cases, unflagged
