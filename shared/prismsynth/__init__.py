@@ -26,6 +26,7 @@ from .render import (
     vignetting_gain,
 )
 from .video import render_clip, write_video
+from .views import photo_like_views
 
 __all__ = [
     "DEFAULT_STYLE",
@@ -40,6 +41,7 @@ __all__ = [
     "encode_jpeg",
     "focal_35mm_equivalent",
     "photo_like_scene",
+    "photo_like_views",
     "render_clip",
     "render_front_view",
     "render_oblique_view",

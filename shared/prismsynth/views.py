@@ -1,0 +1,154 @@
+"""Several photo-like photos of ONE box, as a user takes them walking around it with one phone.
+
+`photo_like_views` draws one box, one camera (focal length, lens distortion), one edge rounding
+and one look (style, colours, label) from a seed, then several poses, each showing the front, the
+right side and the top at a distinct angle, and renders each as `render.photo_like_scene` renders
+its one photo (distortion, rounded edges, vignetting, noise, blur, JPEG), with its own clicks
+0-3 px off. The known edge is the same for every view. Ground truth for the engine's joint fit
+(`prismcore.joint`).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+
+import numpy as np
+
+from prismcore.errors import InputError
+
+from .render import (
+    _CLICK_RADIUS_PX,
+    _FACE_ANGLES_DEG,
+    _FILL_WIDTH,
+    _FRAME_MARGIN,
+    _PHONES,
+    _POINT_ORDER,
+    Box,
+    CameraExif,
+    PhotoLikeScene,
+    Realism,
+    Style,
+    _auto_distance,
+    _box_vertices,
+    _camera_matrix,
+    _face_angles,
+    _oblique_pose,
+    _principal,
+    _project,
+    _rotation,
+    _scene,
+    distort_points,
+)
+
+__all__ = ["MIN_VIEW_SEPARATION_DEG", "photo_like_views"]
+
+MIN_VIEW_SEPARATION_DEG = 12.0
+"""Every two views' directions to the box (from its front face's centre) differ by this much (by
+half or a quarter of it for the rare box whose poses leave too little room)."""
+
+
+def _pose(rng: np.random.Generator, box: Box, K: np.ndarray, realism: Realism, w: int, h: int,
+          taken: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """R, t and the face angles of a photo-like pose at least MIN_VIEW_SEPARATION_DEG from `taken`
+    (unit directions from the front's centre to earlier cameras, less for a box that leaves too
+    little room), which it extends."""
+    verts = _box_vertices(box)
+    lo, hi = _FACE_ANGLES_DEG
+    focal = float(K[0, 0])
+    centre = np.array([box.width_mm / 2, box.height_mm / 2, 0.0])
+    for attempt in range(6000):
+        # Past 2000 tries the box and the views drawn so far leave little room: ask for less.
+        separation = MIN_VIEW_SEPARATION_DEG / (1 << (attempt // 2000))
+        yaw, pitch = float(rng.uniform(10.0, 80.0)), float(rng.uniform(5.0, 45.0))
+        fill = float(rng.uniform(0.35, 0.6))
+        roll = math.radians(rng.uniform(-8.0, 8.0))
+        shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
+        d = _auto_distance(box, (w, h), focal, partial(_oblique_pose, box, yaw_deg=yaw, pitch_deg=pitch))
+        R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
+        camera = -R.T @ t
+        angles = _face_angles(box, camera)
+        if not all(lo <= a <= hi for a in angles):
+            continue
+        direction = (camera - centre) / np.linalg.norm(camera - centre)
+        if any(math.degrees(math.acos(min(1.0, float(direction @ o)))) < separation
+               for o in taken):
+            continue
+        turn = (_rotation(2, roll) @ _rotation(1, -math.atan2(shift[0], focal))
+                @ _rotation(0, math.atan2(shift[1], focal)))
+        R, t = turn @ R, turn @ t
+        if np.min((verts @ R.T + t)[:, 2]) <= 0:
+            continue
+        seen = distort_points(_project(K, R, t, verts), K, realism.distortion())
+        margin = _FRAME_MARGIN * w
+        if np.all((seen >= margin) & (seen <= np.array([w - 1, h - 1]) - margin)):
+            taken.append(direction)
+            return R, t, angles
+    raise RuntimeError("no photo-like pose found that differs enough from the others")  # pragma: no cover
+
+
+def photo_like_views(seed: int, views: int = 3, *, image_size: tuple[int, int] = (1280, 960),
+                     edge_radius_mm: float | None = None) -> list[PhotoLikeScene]:
+    """Photo-like photos of one random box from `views` viewpoints, one phone, one user.
+
+    Drawn from `seed` alone, with `photo_like_scene`'s ranges: box sides 40-300 x 30-220 x
+    25-180 mm; a focal length of 0.7-1.2 times the image width; distortion k1 in [-0.15, 0.10],
+    k2 in [-0.03, 0.03]; rounded edges 0.5-2.5 mm; per view a pose that shows the front, right and
+    top faces with the front's and the side's normals 20-60 degrees from the view, rolled up to 8
+    degrees and off-centre, its direction from the box at least MIN_VIEW_SEPARATION_DEG from every
+    other view's; one style and one surface (the box looks the same in every photo; each photo's
+    JPEG is the same quality, EXIF for even seeds); each view's clicks 0-3 px off; one known edge
+    for all.
+
+    Parameters
+    ----------
+    seed : int
+        Everything follows from it (same seed, same bytes). Not the same scenes as
+        `photo_like_scene(seed)`.
+    views : int
+        Number of photos, at least 1.
+    image_size : (int, int)
+        (width, height) px.
+    edge_radius_mm : float or None
+        Overrides the drawn edge radius.
+
+    Returns
+    -------
+    list of PhotoLikeScene
+        One per view, in drawing order; same box, camera matrix, distortion and known edge.
+    """
+    w, h = int(image_size[0]), int(image_size[1])
+    if min(w, h) < 64:
+        raise InputError(f"image_size must be at least 64x64 px, got {image_size!r}")
+    if views < 1:
+        raise InputError(f"views must be at least 1, got {views!r}")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 20]))
+    box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
+    focal = float(rng.uniform(0.7, 1.2) * w)
+    k1, k2 = float(rng.uniform(-0.15, 0.10)), float(rng.uniform(-0.03, 0.03))
+    radius = float(min(rng.uniform(0.5, 2.5), 0.2 * min(box.width_mm, box.height_mm, box.depth_mm)))
+    if edge_radius_mm is not None:
+        radius = float(edge_radius_mm)
+    realism = Realism(k1=k1, k2=k2, edge_radius_mm=radius,
+                      vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
+                      exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
+    style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
+                  noise_sigma=float(rng.uniform(1.0, 3.0)), blur_sigma=float(rng.uniform(0.5, 1.2)),
+                  jpeg_quality=int(rng.integers(70, 96)), background_close=bool(rng.random() < 0.3))
+    K = _camera_matrix(focal, _principal((w, h)))
+    surface = int(rng.integers(1 << 31))  # the render's seed: the same colours and label in every view
+    known = str(rng.choice(["width", "height", "depth"]))
+    taken: list[np.ndarray] = []
+    out = []
+    for _ in range(views):
+        R, t, angles = _pose(rng, box, K, realism, w, h, taken)
+        front_centre = R @ np.array([box.width_mm / 2, box.height_mm / 2, 0.0]) + t
+        scene = _scene(box, "oblique", (w, h), focal, float(front_centre[2]), R, t, style, surface,
+                       _POINT_ORDER, "front", None, realism=realism)
+        offset = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
+        angle = rng.uniform(0.0, 2 * math.pi, 7)
+        clicks = {n: (scene.points[n][0] + float(r * math.cos(a)),
+                      scene.points[n][1] + float(r * math.sin(a)))
+                  for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
+        out.append(PhotoLikeScene(scene, clicks, known, realism.exif is not None, style, realism, angles))
+    return out
