@@ -1,0 +1,134 @@
+"""Issue 20, items 1-2: several photos of one box measured as one box (`prismcore.joint.fit_views`).
+
+Oracle: `prismsynth.photo_like_views`, photo-like renders of ONE box from three viewpoints by one
+phone (focal length unknown to the engine, lens distortion, rounded edges, JPEG, clicks 0-3 px
+off, one known edge). Asserted over a fixed set of seeds, on the two dimensions the known edge
+does not set: the median and worst error and how often the stated 2-sigma covers the truth, with
+bounds set from what was measured (see each bound's comment; `benchmarks/joint_fit.py` prints the
+figures over more cases beside the single-view ones). A view whose points mark a different box is
+named and left out, and the result is what the other views measure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prismcore import InputError
+from prismcore.joint import JointResult, View, fit_views
+from prismcore.spec import KnownEdge, MmPerPx
+from prismsynth import PhotoLikeScene, photo_like_views
+
+SEEDS = tuple(range(8))
+DIMENSIONS = ("width", "height", "depth")
+pytestmark = pytest.mark.slow  # eight boxes, three photo-like renders and a joint fit each
+
+
+def _scale(p: PhotoLikeScene) -> KnownEdge:
+    return KnownEdge(edge=p.known_edge, length_mm=p.known_length_mm)  # type: ignore[arg-type]
+
+
+def _views(scenes: list[PhotoLikeScene]) -> list[View]:
+    return [View(q.image, q.click_list(), name=f"view {i + 1}") for i, q in enumerate(scenes)]
+
+
+@pytest.fixture(scope="module")
+def cases() -> list[tuple[list[PhotoLikeScene], JointResult]]:
+    out = []
+    for seed in SEEDS:
+        scenes = photo_like_views(seed, 3)
+        out.append((scenes, fit_views(_views(scenes), _scale(scenes[0]))))
+    return out
+
+
+@pytest.fixture(scope="module")
+def errors(cases) -> tuple[np.ndarray, np.ndarray]:
+    """Relative errors and relative 1-sigma of the dimensions the known edge does not set."""
+    errs, sigmas = [], []
+    for scenes, result in cases:
+        p, d = scenes[0], result.dimensions
+        assert d.uncertainty is not None
+        for name, sigma in zip(DIMENSIONS, d.uncertainty, strict=True):
+            if name == p.known_edge:
+                continue
+            true = float(getattr(p.box, f"{name}_mm"))
+            errs.append(getattr(d, name) / true - 1)
+            sigmas.append(sigma / true)
+    return np.array(errs), np.array(sigmas)
+
+
+def test_the_known_edge_is_kept_and_the_camera_is_found(cases) -> None:
+    for scenes, result in cases:
+        p = scenes[0]
+        assert getattr(result.dimensions, p.known_edge) == pytest.approx(p.known_length_mm)
+        assert result.focal_std_px is not None
+        assert result.focal_px == pytest.approx(p.camera_matrix[0, 0], rel=0.05)
+        assert len(result.views) + len(result.left_out) == 3
+
+
+# Issue 20's target: 0.5 %. Seeds 0-7 measured 0.33 % (each view alone: 0.52 %).
+def test_median_error(errors) -> None:
+    err, _ = errors
+    assert np.median(np.abs(err)) <= 0.005, np.round(err * 100, 2)
+
+
+# Issue 20's target: 1.5 %. NOT MET: seeds 0-7 measured 1.69 % (seed 0: a 47 mm known depth whose
+# rounded edges, 0.9 mm, the shading does not resolve; the three views share that bias; each view
+# alone reaches 2.01 %). The bound holds what is reached with a margin, so a loss fails here.
+def test_worst_error(errors) -> None:
+    err, _ = errors
+    assert np.abs(err).max() <= 0.02, np.round(err * 100, 2)
+
+
+# Issue 20's target: the stated 2-sigma covers the truth in at least 90 % of cases. NOT MET: seeds
+# 0-7 measured 13 of 16 (81 %; seeds 3 and 7, edges rounded 1.4 and 1.7 mm, off by 1.0-1.5 sigma
+# more than stated). The bound holds what is reached with a margin.
+def test_two_sigma_covers_the_truth(errors) -> None:
+    err, sigma = errors
+    covered = np.abs(err) <= 2 * sigma
+    assert covered.mean() >= 0.75, np.round(np.abs(err) / sigma, 2)
+    assert np.median(sigma) <= 0.01, np.round(sigma * 100, 2)  # and it says something
+
+
+@pytest.fixture(scope="module")
+def clean() -> list[PhotoLikeScene]:
+    return photo_like_views(2, 3)
+
+
+def _deeper(p: PhotoLikeScene, factor: float) -> list[tuple[float, float]]:
+    """The clicks with the second face's far corners pulled out along the depth: a deeper box."""
+    c = {k: np.asarray(v) for k, v in p.clicks.items()}
+    c["p5"] = c["p4"] + factor * (c["p5"] - c["p4"])
+    c["p7"] = c["p3"] + factor * (c["p7"] - c["p3"])
+    return [(float(c[f"p{k}"][0]), float(c[f"p{k}"][1])) for k in range(1, 8)]
+
+
+def test_a_view_with_wrong_clicks_is_named_and_left_out(clean) -> None:
+    views = _views(clean)
+    views[1] = View(clean[1].image, _deeper(clean[1], 1.15), name="wrong.jpg")
+    result = fit_views(views, _scale(clean[0]))
+    assert [o.name for o in result.left_out] == ["wrong.jpg"]
+    assert "disagrees with the other views beyond its noise" in result.left_out[0].reason
+    assert [v.name for v in result.views] == ["view 1", "view 3"]
+    box = clean[0].box
+    for name in DIMENSIONS:
+        assert getattr(result.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
+    assert result.left_out[0].index == 1
+
+
+def test_consistent_views_are_all_kept(clean) -> None:
+    result = fit_views(_views(clean), _scale(clean[0]))
+    assert result.left_out == ()
+    assert all(v.disagreement is not None for v in result.views)
+    assert all(v.click_rms_px < 4.0 for v in result.views)
+
+
+def test_refusals(clean) -> None:
+    p = clean[0]
+    with pytest.raises(InputError, match="no views"):
+        fit_views([], _scale(p))
+    with pytest.raises(InputError, match="known edge"):
+        fit_views(_views(clean), MmPerPx(front=0.5))  # type: ignore[arg-type]
+    small = View(p.image[:-10], p.click_list(), name="cropped")
+    with pytest.raises(InputError, match="one image size"):
+        fit_views([*_views(clean)[:2], small], _scale(p))
