@@ -21,6 +21,7 @@ from prismcore.images import load_image
 from prismcore.locate import resolve_points
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
+from .joint_scan import scan_views
 from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
@@ -204,7 +205,13 @@ def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
 def scan(
     out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply, report.json and overlay.png "
                                            "(a video: one folder per frame and summary.json).")],
-    image: Annotated[Path | None, typer.Argument(help="Front photo (or the only photo), or a video.")] = None,
+    image: Annotated[list[Path] | None, typer.Argument(
+        help="Front photo (or the only photo), or a video; several photos of one part with "
+             "--points-file (measured as one box).")] = None,
+    points_file: Annotated[Path | None, typer.Option(
+        help="Several photos of one part: JSON with one entry of seven points per photo (a list in "
+             "their order, or keyed by file name; an entry may be {\"points\": [...], \"side_face\": "
+             "\"top\"}): the photos are measured as ONE box (one known edge), joint.json in --out.")] = None,
     points: Annotated[str | None, typer.Option(
         help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels, or auto (found in '
              'the photo; refused, exit 2, when not sure).')] = None,
@@ -252,10 +259,26 @@ def scan(
 ) -> None:
     """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds."""
     started = time.perf_counter()
+    images = image or []
+    if points_file is not None or len(images) > 1:
+        if points_file is None:
+            raise InputError(f"{len(images)} photos: give --points-file with one entry of points per photo "
+                             "to measure them as one box")
+        if points is not None or spec_file is not None or side is not None:
+            raise InputError("--points-file goes with the photos alone: not with --points, --spec or --side")
+        if not images:
+            raise InputError("--points-file: give the photos it marks")
+        try:
+            scale = _scale(mm_per_px, distance_mm, width_mm, height_mm, depth_mm)
+            scan_views(images, points_file, out, scale, focal_px, max_pixels)
+        except ValidationError as exc:
+            raise InputError(one_line(exc)) from None
+        return
+    one: Path | None = images[0] if images else None
     try:
         selection = selection_from_flags(every, start, end, frame_list, sharpest)
         if spec_file is not None:
-            if image is not None or points is not None or selection is not None:
+            if one is not None or points is not None or selection is not None:
                 raise InputError("give either --spec or IMAGE with --points (and frame flags), not both")
             if side_face is not None:
                 raise InputError(f"--side-face {side_face!r} goes with IMAGE and --points; "
@@ -267,10 +290,10 @@ def scan(
                                      f"set {flag[2:].replace('-', '_')}")
             spec, base = _spec_from_file(spec_file)
         else:
-            if selection is None and image is not None and is_video(image):
+            if selection is None and one is not None and is_video(one):
                 selection = {}  # a video without frame flags: every frame, under --max-frames
             spec, base = spec_from_flags(
-                image, points, side=side, tolerance=tolerance, method=method,
+                one, points, side=side, tolerance=tolerance, method=method,
                 mm_per_px=mm_per_px, distance_mm=distance_mm, focal_px=focal_px,
                 width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,

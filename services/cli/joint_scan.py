@@ -1,0 +1,119 @@
+"""`prism scan A.jpg B.jpg ... --points-file points.json`: several photos of one part as ONE box.
+
+The points file holds one entry per photo: a JSON list in the photos' order, or an object keyed by
+the photos' file names (as given, or their base names). An entry is the seven points
+``[[x1, y1], ..., [x7, y7]]``, or ``{"points": [...], "side_face": "right|left|top"}``.
+The result (`prismcore.joint.fit_views`) is printed (each dimension ± its sigma, the focal length,
+the views left out and why) and written to ``joint.json`` in the output folder.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.markup import escape
+
+from prismcore import InputError
+from prismcore.images import load_image
+from prismcore.joint import JointResult, View, fit_views
+from prismcore.spec import KnownEdge
+
+__all__ = ["read_points_file", "scan_views"]
+
+console = Console()
+
+
+def _entry(entry: Any, where: str) -> tuple[list[list[float]], str]:
+    side = "auto"
+    if isinstance(entry, dict):
+        side = entry.get("side_face", "auto")
+        if side not in ("auto", "right", "left", "top"):
+            raise InputError(f"{where}: side_face {side!r} is not right, left or top")
+        entry = entry.get("points")
+    if not isinstance(entry, list) or len(entry) != 7:
+        got = f"{len(entry)} entries" if isinstance(entry, list) else repr(entry)[:40]
+        raise InputError(f"{where}: expected seven [x, y] points P1..P7, got {got}")
+    points = []
+    for k, p in enumerate(entry):
+        if not (isinstance(p, list) and len(p) == 2 and all(isinstance(v, int | float) for v in p)):
+            raise InputError(f"{where}: P{k + 1} {p!r} is not [x, y] in image pixels")
+        points.append([float(p[0]), float(p[1])])
+    return points, side
+
+
+def read_points_file(path: Path, images: list[Path]) -> list[tuple[list[list[float]], str]]:
+    """The points and side face of each photo, in the photos' order (InputError naming the file,
+    the photo or the entry when it does not fit)."""
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read --points-file {str(path)!r}: {exc.strerror}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise InputError(f"--points-file {str(path)!r} is not JSON") from None
+    if isinstance(data, list):
+        if len(data) != len(images):
+            raise InputError(f"--points-file {str(path)!r} has {len(data)} entries for {len(images)} "
+                             "photos: give one per photo, in their order")
+        return [_entry(e, f"--points-file entry {k + 1} ({images[k].name})") for k, e in enumerate(data)]
+    if isinstance(data, dict):
+        out = []
+        for image in images:
+            key = next((k for k in (str(image), image.name) if k in data), None)
+            if key is None:
+                raise InputError(f"--points-file {str(path)!r} has no entry for {image.name!r}")
+            out.append(_entry(data[key], f"--points-file entry {key!r}"))
+        return out
+    raise InputError(f"--points-file {str(path)!r}: expected a list of entries or an object keyed by "
+                     "the photos' names")
+
+
+def result_json(result: JointResult) -> dict[str, Any]:
+    """joint.json: the dimensions with their sigma, the camera, each view, the views left out."""
+    d = result.dimensions
+    assert d.uncertainty is not None
+    return {
+        "dimensions": {"width": round(d.width, 4), "height": round(d.height, 4), "depth": round(d.depth, 4),
+                       "unit": d.unit},
+        "uncertainty": dict(zip(("width", "height", "depth"), (round(s, 4) for s in d.uncertainty),
+                                strict=True)),
+        "camera": {"focal_px": round(result.focal_px, 3),
+                   "focal_std_px": None if result.focal_std_px is None else round(result.focal_std_px, 3),
+                   "distortion_kappa": result.distortion.kappa},
+        "views": [{"name": v.name, "click_rms_px": round(v.click_rms_px, 3),
+                   "line_rms_px": round(v.line_rms_px, 3),
+                   "alone": {"width": round(v.single.width, 4), "height": round(v.single.height, 4),
+                             "depth": round(v.single.depth, 4)},
+                   "disagreement": None if v.disagreement is None else round(v.disagreement, 3)}
+                  for v in result.views],
+        "left_out": [{"name": o.name, "reason": o.reason} for o in result.left_out],
+        "warnings": list(result.warnings) + list(d.notes),
+    }
+
+
+def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str, Any] | None,
+               focal_px: float | None, max_pixels: int) -> None:
+    """Measure the photos as one box; print the result and write ``out/joint.json``."""
+    if scale is None or scale.get("kind") != "edge":
+        raise InputError("several photos are measured with one known edge: give --width-mm, "
+                         "--height-mm or --depth-mm")
+    entries = read_points_file(points_file, images)
+    views = [View(load_image(path, max_pixels=max_pixels), points, side, path.name)
+             for path, (points, side) in zip(images, entries, strict=True)]
+    result = fit_views(views, KnownEdge.model_validate(scale), focal_px=focal_px)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "joint.json").write_text(json.dumps(result_json(result), indent=2) + "\n")
+    d = result.dimensions
+    assert d.uncertainty is not None
+    sizes = " x ".join(f"{v:.2f} ± {s:.2f}" for v, s in zip((d.width, d.height, d.depth), d.uncertainty,
+                                                          strict=True))
+    focal = (f"focal {result.focal_px:.0f} ± {result.focal_std_px:.0f} px (fitted)"
+             if result.focal_std_px is not None else f"focal {result.focal_px:.0f} px (given)")
+    console.print(f"[bold]{len(result.views)} of {len(images)} views as one box[/]  {sizes} mm  {focal}",
+                  soft_wrap=True)
+    for left in result.left_out:
+        console.print(f"[yellow]left out[/] {escape(left.name)}: {escape(left.reason)}", soft_wrap=True)
+    for warning in (*result.warnings, *d.notes):
+        console.print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
