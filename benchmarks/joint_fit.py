@@ -1,7 +1,7 @@
 """Joint fit of several views of one box (issue 20, items 1-2) against each view measured alone.
 
 Run: .venv/bin/python benchmarks/joint_fit.py [--cases 20] [--seed 0] [--views 3] [--no-video]
-     [--per-case] [--json out.json]
+     [--per-case] [--edge-agree-px PX] [--json out.json]
 
 Renders: `prismsynth.views.photo_like_views(seed)` for seeds S..S+N-1: one random box, one phone
 (focal 0.7-1.2 x width, unknown to the engine; distortion; rounded edges; JPEG), `--views`
@@ -14,6 +14,9 @@ Real video: the 12 hand-marked frames of OpenCV's cookie-box video (benchmarks/r
 Debian's opencv-doc), width known (258 mm), no focal: every frame alone (as
 benchmarks/real_video.py measures them) and the 12 frames as one box. Target: the joint fit
 within 2 % on height and depth.
+
+--edge-agree-px PX: the joint fit leaves out each refined edge line whose clicked end corners lie
+farther than PX from it (`fit_views(edge_agree_px=...)`; default: every line is used).
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ def _errors(dims: tuple[float, float, float], sigma: tuple[float, float, float] 
     return out
 
 
-def render_case(seed: int, views: int) -> dict:
+def render_case(seed: int, views: int, edge_agree_px: float | None = None) -> dict:
     """One case: every view alone and the joint fit, errors in %."""
     scenes = photo_like_views(seed, views)
     p = scenes[0]
@@ -68,7 +71,7 @@ def render_case(seed: int, views: int) -> dict:
         singles += _errors((d.width, d.height, d.depth), d.uncertainty, truth, p.known_edge)
     start = time.perf_counter()
     joint = fit_views([View(q.image, q.click_list(), name=f"view {i + 1}") for i, q in enumerate(scenes)],
-                      scale)
+                      scale, edge_agree_px=edge_agree_px)
     seconds = time.perf_counter() - start
     j = joint.dimensions
     return {"seed": seed, "box": str(p.box), "known": p.known_edge, "k1": float(p.distortion[0]),
@@ -86,7 +89,7 @@ def summary(pairs: list[tuple[float, float]]) -> dict:
             "coverage_2sigma": float(np.mean(covered)) if covered else float("nan")}
 
 
-def video_figures() -> dict:
+def video_figures(edge_agree_px: float | None = None) -> dict:
     """The real video's 12 marked frames: each alone, and all as one box."""
     from real_video_data import load_marks, points_of, read_frames, truth_mm, video_path
 
@@ -109,7 +112,7 @@ def video_figures() -> dict:
                         "depth_pct": 100 * (d.depth / truth["depth"] - 1)})
     start = time.perf_counter()
     joint: JointResult = fit_views([View(images[f["index"]], points_of(f), f["side"], f"frame {f['index']}")
-                                    for f in frames], scale)
+                                    for f in frames], scale, edge_agree_px=edge_agree_px)
     seconds = time.perf_counter() - start
     truth = truth_mm(frames[0])
     j = joint.dimensions
@@ -137,8 +140,11 @@ def print_renders(args: argparse.Namespace, cases: list[dict]) -> dict:
     single = summary([e for c in cases for e in c["singles"]])
     joint = summary([e for c in cases for e in c["joint"]])
     left = sum(len(c["left_out"]) for c in cases)
+    guard = ("" if args.edge_agree_px is None
+             else f"\njoint fit: edge lines > {args.edge_agree_px:g} px from their clicked corners left out")
     print(f"\nphoto-like renders: {args.cases} boxes x {args.views} views (seeds {args.seed}-"
-          f"{args.seed + args.cases - 1}), no focal, one known edge; errors on the other two dimensions")
+          f"{args.seed + args.cases - 1}), no focal, one known edge; errors on the other two "
+          f"dimensions{guard}")
     print(f"{'':28}{'single view':>14}{'joint':>10}{'target':>10}")
     print(f"{'dimensions':28}{single['n']:>14}{joint['n']:>10}")
     print(f"{'median |error| %':28}{single['median_pct']:>14.2f}{joint['median_pct']:>10.2f}{'0.5':>10}")
@@ -158,11 +164,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--views", type=int, default=3)
     parser.add_argument("--no-video", action="store_true", help="skip the real video")
     parser.add_argument("--per-case", action="store_true", help="print every case")
+    parser.add_argument("--edge-agree-px", type=float,
+                        help="joint fit: leave out edge lines this far (px) from their clicked corners")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     cases = []
     for seed in range(args.seed, args.seed + args.cases):
-        case = render_case(seed, args.views)
+        case = render_case(seed, args.views, args.edge_agree_px)
         cases.append(case)
         if args.per_case:
             single = ", ".join(f"{100 * e:+.2f}" for e, _ in case["singles"])
@@ -175,11 +183,12 @@ def main(argv: list[str] | None = None) -> int:
     if cases:
         figures["renders"] = print_renders(args, cases)
     if not args.no_video:
-        video = video_figures()
+        video = video_figures(args.edge_agree_px)
         figures["video"] = video
         j = video["joint"]
         print("\nreal video (opencv-doc box.mp4, 12 marked frames, width known 258 mm, no focal; truth "
-              f"H {video['truth']['height']:.0f} D {video['truth']['depth']:.0f} mm)")
+              f"H {video['truth']['height']:.0f} D {video['truth']['depth']:.0f} mm)"
+              + ("" if args.edge_agree_px is None else f", joint: edge guard {args.edge_agree_px:g} px"))
         print(f"{'':28}{'single (median)':>16}{'joint':>24}{'target':>10}")
         for a in ("height", "depth"):
             print(f"{a + ' |error| %':28}{video['single_median_pct'][a]:>16.2f}"

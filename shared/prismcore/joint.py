@@ -7,9 +7,13 @@ edges together, `perspective.estimate_distortion`), one width and depth (height 
 sets the millimetres); each view keeps its own pose. All views' edge lines and clicks are fitted
 in one least-squares problem with the single-view residuals (`perspective`: each model edge's end
 points on its fitted line, sigma 0.3 px, each corner weakly towards its click, sigma 5 px, a
-robust Cauchy loss), started from each view's own fit. The covariance is the single-view
-sandwich over all views' residuals, scaled by their variance factor (never down), plus the
-lens estimate's error carried through a refit at +-1 sigma of the distortion.
+robust Cauchy loss), started from each view's own fit (on request, a view's edge lines that its
+clicks disagree with are left out: `edge_agree_px`). The edges' rounding is read
+from every view's shading through the shared box and taken out as one view's fit takes it out.
+The covariance is the single-view sandwich over all views' residuals, scaled by their variance
+factor (never down), plus what the model takes as known: the lens distortion and the edge radius
+(refits at +-1 sigma of each) and where each rounded fold was found on its shading ramp (one
+physical fold alike in every view).
 
 A view that disagrees with the others beyond its noise is named and left out, not averaged in:
 with three views or more, each view's disagreement is the cost it adds by having to share the
@@ -28,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -42,6 +46,7 @@ from .perspective import (
     _F_SCALE,
     _FRONT_IDX,
     _SECOND,
+    FOLD_FRACTION,
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
     ROUNDING_RMS_MM,
@@ -54,6 +59,7 @@ from .perspective import (
     _camera,
     _n_line_terms,
     _residual_fn,
+    _rows,
     box_edge_samples,
     edge_shifts,
     estimate_distortion,
@@ -168,9 +174,23 @@ class _Prepared:
     single: Dimensions
     focal_px: float | None
     image: np.ndarray
+    edges_dropped: int = 0
+
+    def without_lines(self, drop: dict[str, set[int]] | None = None) -> _Prepared:
+        """The view with the named sides' edge lines (all, when None) taken out (its clicks stay)."""
+        faces = []
+        for name in ("front", "side"):
+            face: FaceEvidence = getattr(self, name)
+            gone = set(range(4)) if drop is None else drop.get(name, set())
+            lines = tuple(None if s in gone else line for s, line in enumerate(face.lines))
+            samples = tuple(None if s in gone else e for s, e in enumerate(face.samples))
+            faces.append(FaceEvidence(face.corners, face.clicked, lines, samples))
+        n = 0 if drop is None else sum(len(v) for v in drop.values())
+        return replace(self, front=faces[0], side=faces[1], edges_dropped=self.edges_dropped + n)
 
 
-def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None) -> _Prepared:
+def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None,
+             edge_agree_px: float | None = None) -> _Prepared:
     from .pipeline import plan_scan
 
     name = view.name or f"view {k + 1}"
@@ -189,8 +209,25 @@ def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None) -> _P
                              tuple(f.points if f.fitted else None for f in plan.edges[n]))
                 for i, n in enumerate(("front", "side"))]
     fitted = plan.camera.get("focal_px")
-    return _Prepared(k, name, face, evidence[0], evidence[1], plan.dimensions,
-                     float(fitted) if fitted is not None else None, view.image)
+    prepared = _Prepared(k, name, face, evidence[0], evidence[1], plan.dimensions,
+                         float(fitted) if fitted is not None else None, view.image)
+    return prepared if edge_agree_px is None else _agreeing(prepared, edge_agree_px)
+
+
+def _agreeing(view: _Prepared, limit_px: float) -> _Prepared:
+    """The view without the refined edge lines its clicks disagree with: a side's line is dropped
+    when the two clicked corners at its ends lie farther than `limit_px` from it (mean distance)."""
+    drop: dict[str, set[int]] = {}
+    for name, sides in (("front", (0, 1, 2, 3)), ("side", _SECOND[view.side_face].sides)):
+        face: FaceEvidence = getattr(view, name)
+        for s in sides:
+            line = face.lines[s]
+            if line is None:
+                continue
+            ends = face.clicked[[s, (s + 1) % 4]]
+            if float(np.abs(ends @ line[:2] + line[2]).mean()) > limit_px:
+                drop.setdefault(name, set()).add(s)
+    return view.without_lines(drop) if drop else view
 
 
 def _terms(view: _Prepared, lens: RadialDistortion) -> FaceTerms:
@@ -325,12 +362,7 @@ def _covariance(problem: _Problem, res: OptimizeResult) -> np.ndarray:
 
 
 def _dims_sigma(scale: KnownEdge, x: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    G = np.zeros((3, 2))
-    for c in range(2):
-        h = 1e-6 * max(1.0, abs(x[c]))
-        e = np.zeros(2)
-        e[c] = h
-        G[:, c] = (_dims(scale, x[:2] + e) - _dims(scale, x[:2] - e)) / (2 * h)
+    G = _dims_gradient(scale, x)
     sigma: np.ndarray = np.sqrt(np.clip(np.diag(G @ cov[:2, :2] @ G.T), 0.0, None))
     return sigma
 
@@ -481,7 +513,55 @@ def _model_sigma(problem: _Problem, x: np.ndarray, scale: KnownEdge, focal_px: f
     return np.hypot(lens_sigma, round_sigma), nfev + work
 
 
-def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None = None) -> JointResult:
+def _dims_gradient(scale: KnownEdge, x: np.ndarray) -> np.ndarray:
+    """d(width, height, depth) / d(W, D), (3, 2), by central differences."""
+    G = np.zeros((3, 2))
+    for c in range(2):
+        h = 1e-6 * max(1.0, abs(x[c]))
+        e = np.zeros(2)
+        e[c] = h
+        G[:, c] = (_dims(scale, x[:2] + e) - _dims(scale, x[:2] - e)) / (2 * h)
+    return G
+
+
+def _fold_sigma(problem: _Problem, res: OptimizeResult, scale: KnownEdge, rounding: _Rounding) -> np.ndarray:
+    """1-sigma (3,) of the dimensions from where the edge detector found each rounded fold (both
+    faces seen): anywhere on the shading ramp, FOLD_FRACTION radii (of the radius read plus its
+    sigma, or ROUNDING_RMS_MM), as `perspective.model_error_cov` takes it for one view. One
+    physical fold is found alike in every view (the same surface and light), so its shifts in
+    all views move together; different folds are independent. Carried to the shape by the joint
+    fit's linear response (robust weights frozen)."""
+    x = res.x
+    k = _mm_per_unit(scale, x)
+    radius = (rounding.radius_mm + rounding.std_mm) if rounding.read else ROUNDING_RMS_MM
+    J = np.asarray(res.jac, dtype=np.float64)
+    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
+    Jw = J * w[:, None]
+    influence = -np.linalg.pinv(J.T @ Jw, rcond=1e-12)[:2] @ Jw.T  # d(W, D) / d(residuals)
+    starts = np.r_[0, np.cumsum(problem.sizes)[:-1]]
+    by_edge: dict[tuple[int, int], np.ndarray] = {}
+    for v, view in enumerate(problem.views):
+        terms = problem.terms[v]
+        rows = _rows(terms)
+        patterns = rounding_shifts(problem.box_fit(x, v), terms[0][0], terms[1][0],
+                                   FOLD_FRACTION * radius / k, side_face=view.side_face)[1]
+        for pattern in patterns:
+            hit = np.flatnonzero(pattern)
+            if hit.size == 0:
+                continue
+            key = (rows[int(hit[0])][0], rows[int(hit[0])][1])
+            full = by_edge.setdefault(key, np.zeros(res.fun.size))
+            full[starts[v]: starts[v] + pattern.size] += pattern
+    G = _dims_gradient(scale, x)
+    var = np.zeros(3)
+    for full in by_edge.values():
+        var += (G @ (influence @ full)) ** 2
+    sigma: np.ndarray = np.sqrt(var)
+    return sigma
+
+
+def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None = None,
+              edge_agree_px: float | None = None) -> JointResult:
     """Measure several views of one box as one box.
 
     Parameters
@@ -493,6 +573,11 @@ def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None
         One true edge length of the part (mm): it sets the millimetres of every dimension.
     focal_px : float, optional
         The camera's focal length, px; fitted from all views together when not given.
+    edge_agree_px : float, optional
+        Use a refined edge line only when the clicked corners at its ends lie this close to it
+        (mean distance, px); all are used when None (the default). A guard against edges taken
+        from printed borders or seams, at a cost on rounded edges, whose silhouettes lie inside
+        the clicked corners: see benchmarks/joint_fit.py (--edge-agree-px) for both sides.
 
     Returns
     -------
@@ -520,7 +605,7 @@ def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None
     left_out: list[LeftOut] = []
     for k, view in enumerate(views):
         try:
-            prepared.append(_prepare(k, view, scale, focal_px))
+            prepared.append(_prepare(k, view, scale, focal_px, edge_agree_px))
         except InputError as exc:
             name = view.name or f"view {k + 1}"
             left_out.append(LeftOut(name, k, f"measured alone it is refused: {exc}"))
@@ -529,7 +614,9 @@ def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None
     radius = float(np.hypot(*(principal + 0.5)))
     samples = [s for v in prepared for s in box_edge_samples(v.front, v.side, v.side_face)]
     lens = estimate_distortion(samples, principal, radius)
-    warnings: list[str] = []
+    warnings = [f"{v.name}: {v.edges_dropped} refined edge(s) more than {edge_agree_px:g} px from the "
+                "clicked corners at their ends not used (its clicks were)"
+                for v in prepared if v.edges_dropped]
     problem, res = _fit(prepared, lens, principal, focal_px)
     nfev = int(res.nfev)
     # The edges' rounding, read through the shared box, then taken out of the fit (twice: the
@@ -573,7 +660,8 @@ def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None
     cov = _covariance(problem, res)
     model, work = _model_sigma(problem, x, scale, focal_px, lens, rounding, offsets)
     nfev += work
-    sigma = np.hypot(_dims_sigma(scale, x, cov), model)
+    folds = _fold_sigma(problem, res, scale, rounding)
+    sigma = np.sqrt(_dims_sigma(scale, x, cov) ** 2 + model**2 + folds**2)
     dims = _dims(scale, x[:2])
     free = focal_px is None
     focal = problem.focal(x)

@@ -66,7 +66,8 @@ def test_the_known_edge_is_kept_and_the_camera_is_found(cases) -> None:
         assert len(result.views) + len(result.left_out) == 3
 
 
-# Issue 20's target: 0.5 %. Seeds 0-7 measured 0.33 % (each view alone: 0.52 %).
+# Issue 20's target: 0.5 %. Seeds 0-7 measured 0.33 % (each view alone: 0.57 %); over seeds 0-19
+# (benchmarks/joint_fit.py) 0.50 %.
 def test_median_error(errors) -> None:
     err, _ = errors
     assert np.median(np.abs(err)) <= 0.005, np.round(err * 100, 2)
@@ -74,20 +75,22 @@ def test_median_error(errors) -> None:
 
 # Issue 20's target: 1.5 %. NOT MET: seeds 0-7 measured 1.69 % (seed 0: a 47 mm known depth whose
 # rounded edges, 0.9 mm, the shading does not resolve; the three views share that bias; each view
-# alone reaches 2.01 %). The bound holds what is reached with a margin, so a loss fails here.
+# alone reaches 2.01 %; over seeds 0-19 2.48 %, against 5.48 % alone). The bound holds what is
+# reached with a margin, so a loss of accuracy fails here.
 def test_worst_error(errors) -> None:
     err, _ = errors
     assert np.abs(err).max() <= 0.02, np.round(err * 100, 2)
 
 
-# Issue 20's target: the stated 2-sigma covers the truth in at least 90 % of cases. NOT MET: seeds
-# 0-7 measured 13 of 16 (81 %; seeds 3 and 7, edges rounded 1.4 and 1.7 mm, off by 1.0-1.5 sigma
-# more than stated). The bound holds what is reached with a margin.
+# Issue 20's target: the stated 2-sigma covers the truth in at least 90 % of cases. Seeds 0-7: 16 of
+# 16; seeds 0-19: 39 of 40. The sigma includes what the shared views cannot average away (the
+# rounded folds' place on their shading ramps, the lens and the radius), so it is wider than the
+# scatter alone: its median is 0.99 % here (1.25 % over seeds 0-19).
 def test_two_sigma_covers_the_truth(errors) -> None:
     err, sigma = errors
     covered = np.abs(err) <= 2 * sigma
-    assert covered.mean() >= 0.75, np.round(np.abs(err) / sigma, 2)
-    assert np.median(sigma) <= 0.01, np.round(sigma * 100, 2)  # and it says something
+    assert covered.mean() >= 0.9, np.round(np.abs(err) / sigma, 2)
+    assert np.median(sigma) <= 0.015, np.round(sigma * 100, 2)  # and it says something
 
 
 @pytest.fixture(scope="module")
@@ -132,3 +135,14 @@ def test_refusals(clean) -> None:
     small = View(p.image[:-10], p.click_list(), name="cropped")
     with pytest.raises(InputError, match="one image size"):
         fit_views([*_views(clean)[:2], small], _scale(p))
+
+
+def test_edge_lines_the_clicks_disagree_with_can_be_left_out(clean) -> None:
+    kept = fit_views(_views(clean), _scale(clean[0]), edge_agree_px=50.0)
+    assert not any("refined edge" in w for w in kept.warnings)
+    strict = fit_views(_views(clean), _scale(clean[0]), edge_agree_px=0.01)  # no line is that close
+    assert len([w for w in strict.warnings if "refined edge(s)" in w]) == 3
+    assert all(v.line_rms_px == 0.0 for v in strict.views)  # the clicks alone
+    box = clean[0].box
+    for name in DIMENSIONS:
+        assert getattr(strict.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.03)
