@@ -257,7 +257,8 @@ def scan(
     sharpest: Annotated[int | None, typer.Option(help="Video: the K sharpest frames.")] = None,
     max_frames: Annotated[int, typer.Option(help="Video: most frames measured.", min=1)] = DEFAULT_MAX_FRAMES,
 ) -> None:
-    """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds."""
+    """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds;
+    several photos of one part with --points-file: measured as one box."""
     started = time.perf_counter()
     images = image or []
     if points_file is not None or len(images) > 1:
