@@ -61,6 +61,14 @@ def test_every_locked_package_is_installed_at_its_locked_version() -> None:
     assert not _differences(pins), "the install differs from locks/test.txt; run scripts/setup"
 
 
+@pytest.mark.parametrize("name", ["numpy", "opencv-python-headless", "scipy", "pillow"])
+def test_the_numerics_have_one_pin_for_every_python(name: str) -> None:
+    # Every machine runs one release of what the engine's decisions rest on, whatever its
+    # Python 3.11+ (scripts/lock's --fork-strategy fewest).
+    pins = [line for line in LOCK.read_text().splitlines() if line.startswith(f"{name}==")]
+    assert len(pins) == 1 and ";" not in pins[0], pins
+
+
 def test_open3d_when_installed_is_the_locked_one() -> None:
     if installed("open3d-cpu") is None:
         pytest.skip("Open3D is optional and not installed here")

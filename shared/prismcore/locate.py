@@ -190,8 +190,9 @@ class _Work:
     lab: np.ndarray  # (h, w, 3) uint8, blurred
     segments: np.ndarray  # (n, 4) LSD segments, work px
     # Silhouettes (4 or 5 sides) two faces may have merged into, with their regions' outlines
-    # ((n, 2) work px): split only when nothing else is found (`_split_boxes`).
-    merged: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    # ((n, 2) work px): split only when nothing else is found (`_split_boxes`); and the sampling
+    # that saw each.
+    merged: list[tuple[np.ndarray, np.ndarray, int]] = field(default_factory=list)
 
     @functools.cached_property
     def gradient(self) -> tuple[np.ndarray, np.ndarray]:
@@ -226,7 +227,7 @@ def _all_faces(small: np.ndarray) -> tuple[list[_Quad], list[_Box], _Work]:
         else:
             for f in twin.faces:
                 f.seen |= 0b10
-    work.merged += [(o - _RESAMPLE_PX, c - _RESAMPLE_PX) for o, c in work2.merged]
+    work.merged += [(o - _RESAMPLE_PX, c - _RESAMPLE_PX, seen) for o, c, seen in work2.merged]
     return quads, silhouettes, work
 
 
@@ -247,7 +248,7 @@ def _faces_once(small: np.ndarray, sampling: int) -> tuple[list[_Quad], list[_Bo
         found, outlines = _faces(edges)
         for outline, contour in outlines:
             if len(outline) != 6:
-                work.merged.append((outline, contour.reshape(-1, 2).astype(np.float64)))
+                work.merged.append((outline, contour.reshape(-1, 2).astype(np.float64), sampling))
                 continue
             box = _hexagon_box(outline, folds)
             if box is not None:
@@ -266,7 +267,7 @@ def _split_boxes(work: _Work, shape: tuple[int, ...], hint_work: np.ndarray | No
     h, w = shape[:2]
     grad = work.gradient
     out = []
-    for outline, contour in work.merged:
+    for outline, contour, sampling in work.merged:
         if abs(quad_area(outline)) < _SPLIT_MIN_FRACTION * h * w:
             continue
         if hint_work is not None and cv2.pointPolygonTest(
@@ -274,6 +275,8 @@ def _split_boxes(work: _Work, shape: tuple[int, ...], hint_work: np.ndarray | No
             continue
         box = (_pentagon_box if len(outline) == 5 else _quad_box)(outline, contour, grad)
         if box is not None:
+            for f in box.faces:  # split from what one sampling saw: not known to be stable
+                f.seen = sampling
             out.append(box)
     return out
 
@@ -948,7 +951,10 @@ def _proposed_boxes(quads: list[_Quad], work: _Work, shape: tuple[int, ...],
     out = []
     for face in big[:_PROPOSE_FROM]:
         for corners, _ in propose_neighbours(face.corners, work.segments, grad, (h, w)):
-            faces = [face, _clockwise(corners)]
+            proposed = _clockwise(corners)
+            # Proposed from the first sampling's line segments only: not known to be stable.
+            proposed.seen = face.seen & 0b01
+            faces = [face, proposed]
             allc = np.concatenate([f.corners for f in faces]).astype(np.float32)
             hull = cv2.convexHull(allc).reshape(-1, 2).astype(np.float64)
             out.append(_Box(faces, float(cv2.contourArea(hull.astype(np.float32))), hull.mean(axis=0),

@@ -46,15 +46,19 @@ def two_boxes():
     return two_box_scene(0)
 
 
+WRONG_PX = 10.0  # farther than this from the true corners, an accepted box is another box
+
+
 @dataclass(frozen=True)
 class Outcomes:
     right: list[int]  # found, every point within the tolerance of a true corner, six corners
-    wrong: list[int]  # found and accepted, but not the box (or not within the tolerance)
+    wrong: list[int]  # found and accepted, but another box (not six corners, or > WRONG_PX off)
+    imprecise: list[int]  # the box, found less precisely than the tolerance (counted as not right)
     refused: dict[int, str]
 
 
 def _outcomes(seeds: Iterable[int], tol_px: float) -> Outcomes:
-    right, wrong, refused = [], [], {}
+    right, wrong, imprecise, refused = [], [], [], {}
     for seed in seeds:
         scene = clutter_scene(seed)
         found = find_points(scene.image)
@@ -64,8 +68,11 @@ def _outcomes(seeds: Iterable[int], tol_px: float) -> Outcomes:
             continue
         assert found.confidence >= CONFIDENCE_MIN and found.side_face in ("right", "left", "top")
         worst, corners = _worst(found, scene.vertices_px)
-        (right if worst <= tol_px and corners == 6 else wrong).append(seed)
-    return Outcomes(right, wrong, refused)
+        if corners != 6 or worst > WRONG_PX:
+            wrong.append(seed)
+        else:
+            (right if worst <= tol_px else imprecise).append(seed)
+    return Outcomes(right, wrong, imprecise, refused)
 
 
 @pytest.fixture(scope="module")
@@ -186,7 +193,7 @@ NEIGHBOUR_PROPOSED = (5, 13, 42, 71, 128, 135)
 
 @pytest.mark.parametrize(("seeds", "tol_px", "at_least"), [
     pytest.param(tuple(ONCE_REFUSED), 1.0, 7, id="once-refused-within-1px"),  # 9 of 9 measured
-    pytest.param(NEIGHBOUR_PROPOSED, 3.0, 4, id="neighbour-proposed-within-3px"),  # 6 of 6 here
+    pytest.param(NEIGHBOUR_PROPOSED, 3.0, 4, id="neighbour-proposed-within-3px"),  # 5 of 6 here
 ])
 def test_scenes_once_refused_stay_found(seeds, tol_px, at_least):
     outcomes = _outcomes(seeds, tol_px)
