@@ -16,7 +16,7 @@ The zero-click search (`prismcore.locate`) decides on regions that close or leak
 level. It pools its faces over two samplings of the photo and says when a box rests on a face
 only one of them found (`Found.stable`, and a warning); a decision that flips under these changes
 must have said so on one side or the other. Over seeds 0-143 (432 scene-perturbations) the
-decision flipped 15 times (28 before the pooling), 3 of them unflagged: held as rates below.
+decision flipped 15 times (28 before the pooling), none unflagged: held as rates below.
 """
 
 from __future__ import annotations
@@ -155,6 +155,6 @@ def test_the_search_decision_holds_under_a_slight_change_or_says_it_may_not() ->
             if not (_flagged(first) or _flagged(again)):
                 unflagged.append((seed, how, first.reason, again.reason))
     cases = len(SEARCH_SEEDS) * len(PERTURBATIONS)
-    # Measured over seeds 0-143: 15 flips (3.5 %), 3 unflagged (0.7 %).
+    # Measured over seeds 0-143: 15 flips (3.5 %), none unflagged.
     assert len(flips) <= 0.07 * cases, flips
     assert len(unflagged) <= 0.02 * cases, unflagged
