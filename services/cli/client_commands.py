@@ -3,7 +3,6 @@ from scripts."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -17,7 +16,7 @@ from prismcore import InputError
 
 from .client import ApiClient, format_eta, remaining_s
 from .results_command import render_results
-from .scan_command import one_line, spec_from_flags
+from .scan_command import one_line, read_spec_json, spec_from_flags
 
 __all__ = ["cancel", "download", "jobs", "results", "status", "submit", "wait"]
 
@@ -89,14 +88,7 @@ def _job_document(spec_file: Path) -> dict[str, Any]:
     ({"items": [...], "client_reference", "webhook_url"}) is sent whole, so every field of it
     reaches the API (which refuses what it does not know, rather than the CLI dropping it)."""
     name = str(spec_file)
-    try:
-        data = json.loads(spec_file.read_text())
-    except OSError as exc:
-        raise InputError(f"cannot read spec {name!r}: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"spec {name!r} is not JSON: {exc.msg} at line {exc.lineno}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"spec {name!r} is not JSON: not UTF-8 text") from None
+    data = read_spec_json(spec_file)
     if not isinstance(data, dict):
         raise InputError(f"spec {name!r}: expected a JSON object, a scan spec or {{\"items\": [...]}}")
     document = data if "items" in data else {"items": [data]}

@@ -190,16 +190,20 @@ def _camera_file(path: Path) -> CameraModel:
                          f"one): {one_line(exc)}") from None
 
 
-def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
+def read_spec_json(path: Path) -> Any:
+    """A spec file's JSON, or an InputError saying in one line why it cannot be read."""
     try:
-        data = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except OSError as exc:
         raise InputError(f"cannot read spec {str(path)!r}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"spec {str(path)!r} is not JSON: {exc.msg} at line {exc.lineno}") from None
     except UnicodeDecodeError:
         raise InputError(f"spec {str(path)!r} is not JSON: not UTF-8 text") from None
-    return ScanSpec.model_validate(data), path.parent
+
+
+def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
+    return ScanSpec.model_validate(read_spec_json(path)), path.parent
 
 
 def scan(

@@ -1398,6 +1398,35 @@ def _face_angles(box: Box, camera_centre: np.ndarray) -> tuple[float, float]:
     return out[0], out[1]
 
 
+def photo_like_setup(rng: np.random.Generator, seed: int, image_size: tuple[int, int],
+                     edge_radius_mm: float | None) -> tuple[Box, float, Realism, Style, np.ndarray]:
+    """The box, focal length (px), lens, look and camera matrix a photo-like seed draws from
+    `rng`, in this order (the order of the draws is what makes a seed's scene)."""
+    w, _ = image_size
+    box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
+    focal = float(rng.uniform(0.7, 1.2) * w)
+    k1, k2 = float(rng.uniform(-0.15, 0.10)), float(rng.uniform(-0.03, 0.03))
+    radius = float(min(rng.uniform(0.5, 2.5), 0.2 * min(box.width_mm, box.height_mm, box.depth_mm)))
+    if edge_radius_mm is not None:
+        radius = float(edge_radius_mm)
+    realism = Realism(k1=k1, k2=k2, edge_radius_mm=radius,
+                      vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
+                      exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
+    style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
+                  noise_sigma=float(rng.uniform(1.0, 3.0)), blur_sigma=float(rng.uniform(0.5, 1.2)),
+                  jpeg_quality=int(rng.integers(70, 96)), background_close=bool(rng.random() < 0.3))
+    return box, focal, realism, style, _camera_matrix(focal, _principal(image_size))
+
+
+def photo_like_clicks(rng: np.random.Generator, scene: Scene) -> dict[str, tuple[float, float]]:
+    """A person's clicks on `scene`'s seven points: each up to `_CLICK_RADIUS_PX` off, uniform
+    over the disc."""
+    offset = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
+    angle = rng.uniform(0.0, 2 * math.pi, 7)
+    return {n: (scene.points[n][0] + float(r * math.cos(a)), scene.points[n][1] + float(r * math.sin(a)))
+            for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
+
+
 def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
                      edge_radius_mm: float | None = None) -> PhotoLikeScene:
     """A random oblique photo of a random box, as a phone would take it and a user would click it.
@@ -1428,19 +1457,7 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
     if min(w, h) < 64:
         raise InputError(f"image_size must be at least 64x64 px, got {image_size!r}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
-    box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
-    focal = float(rng.uniform(0.7, 1.2) * w)
-    k1, k2 = float(rng.uniform(-0.15, 0.10)), float(rng.uniform(-0.03, 0.03))
-    radius = float(min(rng.uniform(0.5, 2.5), 0.2 * min(box.width_mm, box.height_mm, box.depth_mm)))
-    if edge_radius_mm is not None:
-        radius = float(edge_radius_mm)
-    realism = Realism(k1=k1, k2=k2, edge_radius_mm=radius,
-                      vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
-                      exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
-    style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
-                  noise_sigma=float(rng.uniform(1.0, 3.0)), blur_sigma=float(rng.uniform(0.5, 1.2)),
-                  jpeg_quality=int(rng.integers(70, 96)), background_close=bool(rng.random() < 0.3))
-    K = _camera_matrix(focal, _principal((w, h)))
+    box, focal, realism, style, K = photo_like_setup(rng, seed, (w, h), edge_radius_mm)
     verts = _box_vertices(box)
     lo, hi = _FACE_ANGLES_DEG
     for _ in range(1000):
@@ -1468,9 +1485,6 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
     front_centre = R @ np.array([box.width_mm / 2, box.height_mm / 2, 0.0]) + t
     scene = _scene(box, "oblique", (w, h), focal, float(front_centre[2]), R, t, style,
                    int(rng.integers(1 << 31)), _POINT_ORDER, "front", None, realism=realism)
-    offset = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
-    angle = rng.uniform(0.0, 2 * math.pi, 7)
-    clicks = {n: (scene.points[n][0] + float(r * math.cos(a)), scene.points[n][1] + float(r * math.sin(a)))
-              for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
+    clicks = photo_like_clicks(rng, scene)
     known = str(rng.choice(["width", "height", "depth"]))
     return PhotoLikeScene(scene, clicks, known, realism.exif is not None, style, realism, angles)

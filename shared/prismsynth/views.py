@@ -18,27 +18,23 @@ import numpy as np
 from prismcore.errors import InputError
 
 from .render import (
-    _CLICK_RADIUS_PX,
     _FACE_ANGLES_DEG,
     _FILL_WIDTH,
     _FRAME_MARGIN,
-    _PHONES,
     _POINT_ORDER,
     Box,
-    CameraExif,
     PhotoLikeScene,
     Realism,
-    Style,
     _auto_distance,
     _box_vertices,
-    _camera_matrix,
     _face_angles,
     _oblique_pose,
-    _principal,
     _project,
     _rotation,
     _scene,
     distort_points,
+    photo_like_clicks,
+    photo_like_setup,
 )
 
 __all__ = ["MIN_VIEW_SEPARATION_DEG", "photo_like_views"]
@@ -123,19 +119,7 @@ def photo_like_views(seed: int, views: int = 3, *, image_size: tuple[int, int] =
     if views < 1:
         raise InputError(f"views must be at least 1, got {views!r}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 20]))
-    box = Box(*(float(v) for v in rng.uniform([40.0, 30.0, 25.0], [300.0, 220.0, 180.0])))
-    focal = float(rng.uniform(0.7, 1.2) * w)
-    k1, k2 = float(rng.uniform(-0.15, 0.10)), float(rng.uniform(-0.03, 0.03))
-    radius = float(min(rng.uniform(0.5, 2.5), 0.2 * min(box.width_mm, box.height_mm, box.depth_mm)))
-    if edge_radius_mm is not None:
-        radius = float(edge_radius_mm)
-    realism = Realism(k1=k1, k2=k2, edge_radius_mm=radius,
-                      vignetting=float(rng.uniform(0.1, 0.4)), shot_noise=float(rng.uniform(2.0, 6.0)),
-                      exif=CameraExif(*_PHONES[int(rng.integers(len(_PHONES)))]) if seed % 2 == 0 else None)
-    style = Style(texture=float(rng.uniform(3.0, 8.0)), lighting=float(rng.uniform(0.1, 0.5)),
-                  noise_sigma=float(rng.uniform(1.0, 3.0)), blur_sigma=float(rng.uniform(0.5, 1.2)),
-                  jpeg_quality=int(rng.integers(70, 96)), background_close=bool(rng.random() < 0.3))
-    K = _camera_matrix(focal, _principal((w, h)))
+    box, focal, realism, style, K = photo_like_setup(rng, seed, (w, h), edge_radius_mm)
     surface = int(rng.integers(1 << 31))  # the render's seed: the same colours and label in every view
     known = str(rng.choice(["width", "height", "depth"]))
     taken: list[np.ndarray] = []
@@ -145,10 +129,6 @@ def photo_like_views(seed: int, views: int = 3, *, image_size: tuple[int, int] =
         front_centre = R @ np.array([box.width_mm / 2, box.height_mm / 2, 0.0]) + t
         scene = _scene(box, "oblique", (w, h), focal, float(front_centre[2]), R, t, style, surface,
                        _POINT_ORDER, "front", None, realism=realism)
-        offset = _CLICK_RADIUS_PX * np.sqrt(rng.uniform(0.0, 1.0, 7))
-        angle = rng.uniform(0.0, 2 * math.pi, 7)
-        clicks = {n: (scene.points[n][0] + float(r * math.cos(a)),
-                      scene.points[n][1] + float(r * math.sin(a)))
-                  for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
+        clicks = photo_like_clicks(rng, scene)
         out.append(PhotoLikeScene(scene, clicks, known, realism.exif is not None, style, realism, angles))
     return out
