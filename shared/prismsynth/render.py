@@ -1427,6 +1427,39 @@ def photo_like_clicks(rng: np.random.Generator, scene: Scene) -> dict[str, tuple
             for n, r, a in zip(_POINT_ORDER, offset, angle, strict=True)}
 
 
+def photo_like_pose(rng: np.random.Generator, box: Box, K: np.ndarray, realism: Realism,
+                    image_size: tuple[int, int],
+                    accept: Callable[[np.ndarray], bool] = lambda camera: True,
+                    ) -> tuple[np.ndarray, np.ndarray, tuple[float, float]] | None:
+    """One try at a photo-like pose: R, t and the face angles, or None when this draw shows the
+    faces at angles out of range, is not `accept`ed (given the camera's centre, mm), or puts the
+    box outside the frame. Each try draws the same numbers from `rng`, accepted or not."""
+    w, h = image_size
+    focal = float(K[0, 0])
+    lo, hi = _FACE_ANGLES_DEG
+    yaw, pitch = float(rng.uniform(10.0, 80.0)), float(rng.uniform(5.0, 45.0))
+    fill = float(rng.uniform(0.35, 0.6))
+    roll = math.radians(rng.uniform(-8.0, 8.0))
+    shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
+    d = _auto_distance(box, (w, h), focal, partial(_oblique_pose, box, yaw_deg=yaw, pitch_deg=pitch))
+    R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
+    angles = _face_angles(box, -R.T @ t)
+    if not all(lo <= a <= hi for a in angles) or not accept(-R.T @ t):
+        return None
+    # Turn the camera about its own centre: the box lands off-centre and the horizon tilts.
+    turn = (_rotation(2, roll) @ _rotation(1, -math.atan2(shift[0], focal))
+            @ _rotation(0, math.atan2(shift[1], focal)))
+    R, t = turn @ R, turn @ t
+    verts = _box_vertices(box)
+    if np.min((verts @ R.T + t)[:, 2]) <= 0:
+        return None
+    seen = distort_points(_project(K, R, t, verts), K, realism.distortion())
+    margin = _FRAME_MARGIN * w
+    if np.all((seen >= margin) & (seen <= np.array([w - 1, h - 1]) - margin)):
+        return R, t, angles
+    return None
+
+
 def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
                      edge_radius_mm: float | None = None) -> PhotoLikeScene:
     """A random oblique photo of a random box, as a phone would take it and a user would click it.
@@ -1458,27 +1491,9 @@ def photo_like_scene(seed: int, *, image_size: tuple[int, int] = (1280, 960),
         raise InputError(f"image_size must be at least 64x64 px, got {image_size!r}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
     box, focal, realism, style, K = photo_like_setup(rng, seed, (w, h), edge_radius_mm)
-    verts = _box_vertices(box)
-    lo, hi = _FACE_ANGLES_DEG
     for _ in range(1000):
-        yaw, pitch = float(rng.uniform(10.0, 80.0)), float(rng.uniform(5.0, 45.0))
-        fill = float(rng.uniform(0.35, 0.6))
-        roll = math.radians(rng.uniform(-8.0, 8.0))
-        shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
-        d = _auto_distance(box, (w, h), focal, partial(_oblique_pose, box, yaw_deg=yaw, pitch_deg=pitch))
-        R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
-        angles = _face_angles(box, -R.T @ t)
-        if not all(lo <= a <= hi for a in angles):
-            continue
-        # Turn the camera about its own centre: the box lands off-centre and the horizon tilts.
-        turn = (_rotation(2, roll) @ _rotation(1, -math.atan2(shift[0], focal))
-                @ _rotation(0, math.atan2(shift[1], focal)))
-        R, t = turn @ R, turn @ t
-        if np.min((verts @ R.T + t)[:, 2]) <= 0:
-            continue
-        seen = distort_points(_project(K, R, t, verts), K, realism.distortion())
-        margin = _FRAME_MARGIN * w
-        if np.all((seen >= margin) & (seen <= np.array([w - 1, h - 1]) - margin)):
+        if (pose := photo_like_pose(rng, box, K, realism, (w, h))) is not None:
+            R, t, angles = pose
             break
     else:  # pragma: no cover - the ranges above leave plenty of poses
         raise RuntimeError(f"no photo-like pose found for seed {seed}")

@@ -11,29 +11,19 @@ its one photo (distortion, rounded edges, vignetting, noise, blur, JPEG), with i
 from __future__ import annotations
 
 import math
-from functools import partial
 
 import numpy as np
 
 from prismcore.errors import InputError
 
 from .render import (
-    _FACE_ANGLES_DEG,
-    _FILL_WIDTH,
-    _FRAME_MARGIN,
     _POINT_ORDER,
     Box,
     PhotoLikeScene,
     Realism,
-    _auto_distance,
-    _box_vertices,
-    _face_angles,
-    _oblique_pose,
-    _project,
-    _rotation,
     _scene,
-    distort_points,
     photo_like_clicks,
+    photo_like_pose,
     photo_like_setup,
 )
 
@@ -49,36 +39,20 @@ def _pose(rng: np.random.Generator, box: Box, K: np.ndarray, realism: Realism, w
     """R, t and the face angles of a photo-like pose at least MIN_VIEW_SEPARATION_DEG from `taken`
     (unit directions from the front's centre to earlier cameras, less for a box that leaves too
     little room), which it extends."""
-    verts = _box_vertices(box)
-    lo, hi = _FACE_ANGLES_DEG
-    focal = float(K[0, 0])
     centre = np.array([box.width_mm / 2, box.height_mm / 2, 0.0])
     for attempt in range(6000):
         # Past 2000 tries the box and the views drawn so far leave little room: ask for less.
         separation = MIN_VIEW_SEPARATION_DEG / (1 << (attempt // 2000))
-        yaw, pitch = float(rng.uniform(10.0, 80.0)), float(rng.uniform(5.0, 45.0))
-        fill = float(rng.uniform(0.35, 0.6))
-        roll = math.radians(rng.uniform(-8.0, 8.0))
-        shift = rng.uniform(-0.12, 0.12, 2) * (w, h)
-        d = _auto_distance(box, (w, h), focal, partial(_oblique_pose, box, yaw_deg=yaw, pitch_deg=pitch))
-        R, t = _oblique_pose(box, d * _FILL_WIDTH / fill, yaw, pitch)
-        camera = -R.T @ t
-        angles = _face_angles(box, camera)
-        if not all(lo <= a <= hi for a in angles):
-            continue
-        direction = (camera - centre) / np.linalg.norm(camera - centre)
-        if any(math.degrees(math.acos(min(1.0, float(direction @ o)))) < separation
-               for o in taken):
-            continue
-        turn = (_rotation(2, roll) @ _rotation(1, -math.atan2(shift[0], focal))
-                @ _rotation(0, math.atan2(shift[1], focal)))
-        R, t = turn @ R, turn @ t
-        if np.min((verts @ R.T + t)[:, 2]) <= 0:
-            continue
-        seen = distort_points(_project(K, R, t, verts), K, realism.distortion())
-        margin = _FRAME_MARGIN * w
-        if np.all((seen >= margin) & (seen <= np.array([w - 1, h - 1]) - margin)):
-            taken.append(direction)
+
+        def apart(camera: np.ndarray, separation: float = separation) -> bool:
+            direction = (camera - centre) / np.linalg.norm(camera - centre)
+            return all(math.degrees(math.acos(min(1.0, float(direction @ o)))) >= separation
+                       for o in taken)
+
+        if (pose := photo_like_pose(rng, box, K, realism, (w, h), apart)) is not None:
+            R, t, angles = pose
+            camera = -R.T @ t  # the turn about the camera's centre leaves it where it was
+            taken.append((camera - centre) / np.linalg.norm(camera - centre))
             return R, t, angles
     raise RuntimeError("no photo-like pose found that differs enough from the others")  # pragma: no cover
 
