@@ -4,6 +4,7 @@ Redis and SeaweedFS, fed jobs through the job store and the broker as the API fe
 
 from __future__ import annotations
 
+import base64
 import io
 import json
 import time
@@ -17,7 +18,7 @@ from prism_common.metrics import read_task_durations
 from prism_common.queue import QUEUE_SCANS, TASK_PLAN_ITEM, TASK_RUN_JOB, TASK_SCAN_TILE, queue_lists
 from prism_common.records import State
 
-from prism_worker.artifacts import dumps_plan, loads_plan, pack_tile, plan_tiles, unpack_tile
+from prism_worker.artifacts import dumps_plan, loads_plan, pack_tile, plan_tiles, tile_id, unpack_tile
 from prism_worker.broker import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.images import load_image
@@ -236,14 +237,25 @@ def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
     assert job.items[0].error == "internal error: ValueError"
 
 
+def _undone_tile(client, job_id: str, message: dict) -> bool:
+    """Is this a scan_tile message whose tile is not finished yet? (A task acknowledges only
+    after its work: one killed between the two is held unacknowledged with its tile done, and
+    losing it loses nothing, so the watchdog never needs to step in.)"""
+    if message["headers"]["task"] != TASK_SCAN_TILE:
+        return False
+    args = json.loads(base64.b64decode(message["body"]))[0]
+    return not client.sismember(f"prism:job:{job_id}:tiles:{args[1]}", tile_id(*args[2:5]))
+
+
 def _drop_one_message(client, job_id: str) -> str | None:
-    """Delete one of the job's messages, held by a worker or else queued; its task name.
+    """Delete one of the job's messages whose work is not done: a tile a worker held or else one
+    queued; its task name.
 
     kombu's Redis transport can lose a message this way by itself: a worker killed between
     popping it from the queue and recording it as unacknowledged takes it along.
     """
     for tag, raw in client.hgetall(UNACKED_HASH).items():
-        if job_id in raw:
+        if job_id in raw and _undone_tile(client, job_id, json.loads(raw)[0]):
             client.hdel(UNACKED_HASH, tag)
             client.zrem(f"{UNACKED_HASH}_index", tag)
             return json.loads(raw)[0]["headers"]["task"]
