@@ -53,15 +53,70 @@ def port_is_free(port: int) -> bool:
 
 
 def wait_for_port(port: int, timeout: float = 30.0, proc: subprocess.Popen | None = None) -> None:
+    """Wait until `port` listens; with `proc`, until `proc` (or a process it started) holds the
+    listener. A free port picked earlier can be taken by another process before `proc` binds it:
+    then something answers there that is not ours, and `proc` exits on its bind error."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if proc is not None and proc.poll() is not None:
-            raise RuntimeError(f"process exited with {proc.returncode} before port {port} opened")
+            raise PortTakenError(f"process exited with {proc.returncode} before port {port} opened")
         with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
+            if s.connect_ex(("127.0.0.1", port)) == 0 and (proc is None or _holds(proc.pid, port)):
                 return
         time.sleep(0.1)
-    raise TimeoutError(f"nothing listening on 127.0.0.1:{port} after {timeout} s")
+    raise TimeoutError(f"nothing of ours listening on 127.0.0.1:{port} after {timeout} s")
+
+
+class PortTakenError(RuntimeError):
+    """A server exited before its port opened (most often: another process took the port)."""
+
+
+def _holds(pid: int, port: int) -> bool:
+    """Does `pid` or a descendant hold the socket listening on `port`? Read from /proc (Linux);
+    True where /proc does not tell."""
+    listeners = set()
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            rows = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            return True
+        for row in rows:
+            f = row.split()
+            if len(f) > 9 and f[3] == "0A" and int(f[1].rsplit(":", 1)[1], 16) == port:
+                listeners.add(f"socket:[{f[9]}]")
+    family = _descendants(pid)
+    for member in family:
+        try:
+            fds = os.listdir(f"/proc/{member}/fd")
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                if os.readlink(f"/proc/{member}/fd/{fd}") in listeners:
+                    return True
+            except OSError:
+                continue
+    return False
+
+
+def _descendants(pid: int) -> set[int]:
+    """`pid` and every process below it, from /proc/*/stat."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            ppid = int(stat.rsplit(")", 1)[1].split()[1])
+            children.setdefault(ppid, []).append(int(entry))
+    family, todo = {pid}, [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in family:
+                family.add(child)
+                todo.append(child)
+    return family
 
 
 @dataclass
@@ -165,12 +220,19 @@ def start_worker(workdir: Path, env: dict[str, str], concurrency: int = 2,
 
 
 def start_api(workdir: Path, env: dict[str, str], port: int | None = None) -> ManagedProcess:
-    port = port or free_port()
-    argv = [sys.executable, "-m", "uvicorn", "prism_api.main:app", "--host", "127.0.0.1",
-            "--port", str(port), "--no-access-log"]
-    proc = ManagedProcess(argv, port, workdir, env=env).start()
-    _wait_http(f"http://127.0.0.1:{port}/healthz", (200,), proc)
-    return proc
+    for attempt in range(3):
+        chosen = port or free_port()
+        argv = [sys.executable, "-m", "uvicorn", "prism_api.main:app", "--host", "127.0.0.1",
+                "--port", str(chosen), "--no-access-log"]
+        try:
+            proc = ManagedProcess(argv, chosen, workdir, env=env).start()
+        except PortTakenError:
+            if port is not None or attempt == 2:
+                raise
+            continue  # the free port picked was taken meanwhile: another
+        _wait_http(f"http://127.0.0.1:{chosen}/healthz", (200,), proc)
+        return proc
+    raise AssertionError("unreachable")
 
 
 def _wait_http(url: str, codes: tuple[int, ...], proc: ManagedProcess, timeout: float = 60) -> None:
