@@ -87,6 +87,8 @@ return 1
 _TILE_DONE = """
 if redis.call('SADD', KEYS[2], ARGV[1]) == 1 then
   redis.call('HINCRBY', KEYS[1], 'units_done', 1)
+  if tonumber(ARGV[2]) ~= 0 then redis.call('HINCRBY', KEYS[1], 'units_total', ARGV[2]) end
+  if tonumber(ARGV[3]) ~= 0 then redis.call('HINCRBY', KEYS[1], 'items_planned', ARGV[3]) end
   return 1
 end
 return 0
@@ -311,10 +313,13 @@ class JobStore(UploadRecords):
                 pipe.hincrby(f"{_P}job:{job_id}", "items_planned", planned)
             pipe.execute()
 
-    def tile_done(self, job_id: str, item: int, tile: str) -> bool:
-        """Count a finished tile once, however often its task ran."""
+    def tile_done(self, job_id: str, item: int, tile: str, *, total: int = 0, planned: int = 0) -> bool:
+        """Count a finished tile once, however often its task ran; with it, in the same write,
+        add `total` to the job's units and `planned` to its planned items (an item's plan:
+        counted apart, a connection lost between the two writes left the job's total at its
+        estimate for good, seen as units done 4 of 12 on a job that had succeeded)."""
         return bool(self._tile_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:tiles:{item}"],
-                                    args=[tile]))
+                                    args=[tile, total, planned]))
 
     def item_done(self, job_id: str, item: int, verdict: str | None = None) -> int:
         """Mark an item finished (once), counting its `verdict` (pass, fail, uncertain) if it

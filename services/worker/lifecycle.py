@@ -127,8 +127,7 @@ def mark_running(ctx: WorkerContext, view: ItemView, *, repeat: bool) -> None:
 
 def count_plan(ctx: WorkerContext, job_id: str, item: int, tiles: int) -> None:
     """Count the plan's unit and replace the item's estimate by its real size, once."""
-    if ctx.store.tile_done(job_id, item, "plan"):
-        ctx.store.add_units(job_id, total=tiles + 2 - UNITS_PER_ITEM_ESTIMATE, planned=1)
+    ctx.store.tile_done(job_id, item, "plan", total=tiles + 2 - UNITS_PER_ITEM_ESTIMATE, planned=1)
 
 
 def succeed_item(ctx: WorkerContext, job_id: str, record: ItemRecord, result: ItemResult,

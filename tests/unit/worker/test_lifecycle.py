@@ -293,3 +293,15 @@ def test_a_time_limit_reason_names_the_limit() -> None:
     reason = lifecycle.failure_reason(SoftTimeLimitExceeded(), 0, 300.0)
     assert reason.startswith("took longer than the worker's time limit of 300 s")
     assert "PRISM_TASK_TIME_LIMIT_S" in reason
+
+
+@pytest.mark.parametrize("tiles", [0, 4])
+def test_a_plan_counts_its_unit_and_the_item_size_in_one_write_once(fakes: Fakes, tiles: int) -> None:
+    # Two writes once: a connection lost between them left the total at the estimate for good
+    # (a cluster job that succeeded read units 4 of 12). Run twice, as a redelivered task does.
+    job_id = fakes.job(items=2)
+    for _ in range(2):
+        lifecycle.count_plan(fakes.ctx, job_id, 0, tiles)
+    units = fakes.redis.hmget(f"prism:job:{job_id}", "units_total", "units_done", "items_planned")
+    # Item 1 is still counted at its estimate.
+    assert [int(v) for v in units] == [UNITS_PER_ITEM_ESTIMATE + tiles + 2, 1, 1]
