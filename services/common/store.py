@@ -301,16 +301,13 @@ class JobStore(UploadRecords):
         """Claim the next item to start (0, 1, 2, ...); each index is handed out once."""
         return int(self._r.incr(f"{_P}job:{job_id}:next")) - 1
 
-    def add_units(self, job_id: str, *, total: int = 0, done: int = 0, planned: int = 0) -> None:
-        """Add to the job's units (`total`, `done`) and to its items whose size is known
-        (`planned`: an item's plan replaced its estimate in `total`)."""
+    def add_units(self, job_id: str, *, total: int = 0, done: int = 0) -> None:
+        """Add to the job's units (`total`, `done`); an item's plan counts through `tile_done`."""
         with self._r.pipeline() as pipe:
             if total:
                 pipe.hincrby(f"{_P}job:{job_id}", "units_total", total)
             if done:
                 pipe.hincrby(f"{_P}job:{job_id}", "units_done", done)
-            if planned:
-                pipe.hincrby(f"{_P}job:{job_id}", "items_planned", planned)
             pipe.execute()
 
     def tile_done(self, job_id: str, item: int, tile: str, *, total: int = 0, planned: int = 0) -> bool:
