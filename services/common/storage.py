@@ -56,13 +56,18 @@ class ObjectStore:
             endpoint = settings.s3_public_endpoint_url
         secret = settings.s3_secret_access_key
         key_id = settings.s3_access_key_id
+        # No SHA-256 of every body for the signature (payload_signing_enabled False): over
+        # https botocore leaves it out of uploads that carry a checksum anyway, but over plain
+        # http (SeaweedFS or MinIO inside a cluster) it hashed every byte, half of an upload's
+        # CPU (benchmarks/worker_cost.py). Uploads keep botocore's CRC32 checksum header.
         client = boto3.client(
             "s3",
             endpoint_url=endpoint,
             region_name=settings.s3_region,
             aws_access_key_id=key_id.get_secret_value() if key_id else None,
             aws_secret_access_key=secret.get_secret_value() if secret else None,
-            config=Config(signature_version="s3v4", s3={"addressing_style": "path"},
+            config=Config(signature_version="s3v4",
+                          s3={"addressing_style": "path", "payload_signing_enabled": False},
                           retries={"max_attempts": 5, "mode": "standard"},
                           connect_timeout=5, read_timeout=60),
         )
