@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Callable
 from typing import Any
 
 from fastapi.exceptions import RequestValidationError
@@ -19,7 +20,7 @@ from prism_common.settings import Settings
 from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
-from prismcore.spec import ReferencePoints, ScanSpec, search_area_problem
+from prismcore.spec import ReferencePoints, ScanSpec, search_area_problem, view_spec
 
 from .schemas import JobCreate
 
@@ -81,8 +82,11 @@ def _size(probe: dict[str, Any] | None) -> tuple[int, int] | None:
 def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> tuple[tuple, str] | None:
     """Where and why the upload named by `field` is the wrong kind for the item: a video as a
     photo, a photo as a video, frame indices past the video's end; None when it fits (or its
-    probe is unknown)."""
+    probe is unknown). `field` "view": a photo of an item's views."""
     kind = (probe or {}).get("kind")
+    if field == "view":
+        return ((), "the upload is a video: a view is a photo (a video's frames are measured as one "
+                    "box with frame_points and fit \"joint\")") if kind == "video" else None
     if kind == "video" and (field == "side_image" or not item.is_video):
         return (field,), (f"{field}: the upload is a video: measure it with `frames` (e.g. {{}} for "
                           "every frame, or {\"every\": 10}) in single-photo mode")
@@ -97,6 +101,32 @@ def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> t
             return where, (f"frames: indices {past} are past the video's end: it has {count} "
                            f"frames (0-{count - 1})")
     return None
+
+
+def _check_views(item: ScanSpec, i: int, shapes: dict[str, tuple[int, int] | None],
+                 fail: Callable[[tuple, str], None]) -> None:
+    """The views of a joint item whose photos' sizes are known: one image size for all (one
+    camera), and each view's points as the engine checks them on its photo."""
+    assert item.views is not None
+    first: tuple[int, tuple[int, int]] | None = None
+    for k in range(len(item.views)):
+        size = shapes.get(f"views/{k}/image")
+        if size is None:
+            continue  # a URL, or an upload whose size is not known: the worker checks
+        if first is None:
+            first = (k, size)
+        elif size != first[1]:
+            (h0, w0), (h, w) = first[1], size
+            fail(("items", i, "views", k, "image"),
+                 f"item {i} views.{k}.image: the photo is {w}x{h} px, view {first[0]}'s {w0}x{h0} px: the "
+                 "views of a joint fit must come from one camera at one image size")
+            continue
+        photo = view_spec(item, k)
+        assert photo.points is not None
+        if (found := point_problem(photo, photo.points, size, size)) is not None:
+            name, message = found
+            fail(("items", i, "views", k, "points", *([name] if name else [])),
+                 f"item {i} views.{k}: {message}")
 
 
 def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
@@ -128,10 +158,14 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
         if len(errors) >= _MAX_REPORTED:
             break
         shapes: dict[str, tuple[int, int] | None] = {}
-        for field in ("image", "side_image"):
-            text = getattr(item, field)
+        # Each input as (its place in the item, the field its kind is judged as, its reference).
+        inputs: list[tuple[tuple[str | int, ...], str, str | None]] = (
+            [(("views", k, "image"), "view", v.image) for k, v in enumerate(item.views)]
+            if item.views is not None else [((f,), f, getattr(item, f)) for f in ("image", "side_image")])
+        for where, field, text in inputs:
             if text is None:
                 continue
+            key = "/".join(map(str, where))
             try:
                 ref = parse_reference(text)
                 if ref.kind == "upload" and ref.upload_id not in owners:
@@ -140,13 +174,19 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                     probes[ref.upload_id] = upload_probe(upload)
                     sizes[ref.upload_id] = _size(probes[ref.upload_id])
                 check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
-                shapes[field] = sizes.get(ref.upload_id) if ref.kind == "upload" else None
+                shapes[key] = sizes.get(ref.upload_id) if ref.kind == "upload" else None
                 if ref.kind == "upload" and (problem := _kind_problem(item, field, probes[ref.upload_id])):
-                    fail(("items", i, *problem[0]), f"item {i} {problem[1]}")
-                    shapes[field] = None
+                    if field == "view":
+                        fail(("items", i, *where), f"item {i} {'.'.join(map(str, where))}: {problem[1]}")
+                    else:
+                        fail(("items", i, *problem[0]), f"item {i} {problem[1]}")
+                    shapes[key] = None
             except ReferenceError as exc:
-                fail(("items", i, field), f"item {i} {field}: {exc}")
-                shapes[field] = None
+                fail(("items", i, *where), f"item {i} {'.'.join(map(str, where))}: {exc}")
+                shapes[key] = None
+        if item.views is not None:
+            _check_views(item, i, shapes, fail)
+            continue
         front = shapes.get("image")
         side = shapes.get("side_image") if item.two_photo else front
         if front is None or side is None:

@@ -19,6 +19,7 @@ from rich.markup import escape
 from prismcore import InputError
 from prismcore.images import load_image
 from prismcore.joint import JointResult, View, fit_views
+from prismcore.joint_report import joint_report
 from prismcore.spec import KnownEdge
 
 __all__ = ["read_points_file", "scan_views"]
@@ -72,25 +73,7 @@ def read_points_file(path: Path, images: list[Path]) -> list[tuple[list[list[flo
 
 def result_json(result: JointResult) -> dict[str, Any]:
     """joint.json: the dimensions with their sigma, the camera, each view, the views left out."""
-    d = result.dimensions
-    assert d.uncertainty is not None
-    return {
-        "dimensions": {"width": round(d.width, 4), "height": round(d.height, 4), "depth": round(d.depth, 4),
-                       "unit": d.unit},
-        "uncertainty": dict(zip(("width", "height", "depth"), (round(s, 4) for s in d.uncertainty),
-                                strict=True)),
-        "camera": {"focal_px": round(result.focal_px, 3),
-                   "focal_std_px": None if result.focal_std_px is None else round(result.focal_std_px, 3),
-                   "distortion_kappa": result.distortion.kappa},
-        "views": [{"name": v.name, "click_rms_px": round(v.click_rms_px, 3),
-                   "line_rms_px": round(v.line_rms_px, 3),
-                   "alone": {"width": round(v.single.width, 4), "height": round(v.single.height, 4),
-                             "depth": round(v.single.depth, 4)},
-                   "disagreement": None if v.disagreement is None else round(v.disagreement, 3)}
-                  for v in result.views],
-        "left_out": [{"name": o.name, "reason": o.reason} for o in result.left_out],
-        "warnings": list(result.warnings) + list(d.notes),
-    }
+    return joint_report(result)
 
 
 def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str, Any] | None,

@@ -18,7 +18,8 @@ from prismcore.spec import FILE_NAMES, frame_folder
 from .records import ItemResult, JobRecord, State
 
 __all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic",
-           "ResultPublic", "ResultsTable", "download_name", "to_public"]
+           "JointLeftOutPublic", "JointPublic", "JointViewPublic", "ResultPublic", "ResultsTable",
+           "download_name", "to_public"]
 
 
 VERDICTS = ("pass", "fail", "uncertain")
@@ -32,10 +33,56 @@ class DimensionsPublic(BaseModel):
     unit: str
 
 
+class JointDimensions(BaseModel):
+    width: float
+    height: float
+    depth: float
+
+
+class JointViewPublic(BaseModel):
+    """One view the joint fit used."""
+
+    index: int = Field(description="The view's position in the item's `views` (0 = the first); for "
+                       "a video, the frame's index.")
+    name: str = Field(description="The view's `name`, or \"view K\" (K = index + 1); \"frame N\" "
+                      "for a video.")
+    click_rms_px: float = Field(description="RMS distance, px, of the shared box's corners from this "
+                                "view's points.")
+    line_rms_px: float = Field(description="RMS distance, px, of the box's edges from this view's "
+                               "refined edge lines (0 when none was refined).")
+    alone: JointDimensions = Field(description="What this view measures by itself, in the "
+                                   "dimensions' unit.")
+    disagreement: float | None = Field(description="Its chi-square against the other views (3 "
+                                       "views or more; null with 2).")
+
+
+class JointLeftOutPublic(BaseModel):
+    """A view the joint fit left out."""
+
+    index: int = Field(description="As JointViewPublic.index.")
+    name: str
+    reason: str = Field(description="Why, in words with its figures: measured alone it is refused "
+                        "(its points), or it disagrees with the other views beyond its noise (what "
+                        "it measures alone against what the others measure).")
+
+
+class JointPublic(BaseModel):
+    """Several views of one part measured as ONE box (prismcore.joint.fit_views)."""
+
+    views: list[JointViewPublic] = Field(description="The views used, in input order.")
+    left_out: list[JointLeftOutPublic] = Field(description="The views not used, with the reason.")
+    focal_std_px: float | None = Field(description="1 sigma of the fitted focal length; null when "
+                                       "it was given.")
+    distortion_kappa: float = Field(description="The radial lens distortion read from every view's "
+                                    "edges together (the division model's kappa).")
+
+
 class ResultPublic(BaseModel):
-    points: int
+    points: int = Field(description="Points in the cloud (a video: summed over its frames; a joint "
+                        "fit: 0, it makes no cloud).")
     dimensions: DimensionsPublic
-    point_loss: float
+    point_loss: float = Field(description="Share of the faces' pixels not in the cloud (0 for a "
+                              "joint fit).")
     warnings: list[str]
     summary: dict[str, Any] | None = Field(
         default=None, description="Videos: median, min, max, spread and std of each dimension "
@@ -67,6 +114,11 @@ class ResultPublic(BaseModel):
                                   "Null for clicked points.")
     reference_points: dict[str, list[float] | None] | None = Field(
         default=None, description="The reference points p1..p7 the scan used, (x, y) px.")
+    joint: JointPublic | None = Field(
+        default=None, description="Items with views, and videos with fit \"joint\": the views (frames) "
+        "measured as ONE box: those used and those left out with the reason. The item's "
+        "dimensions, uncertainty, focal_px (focal_source fitted or given), warnings and quality are "
+        "the joint fit's; downloads hold its report (joint), no cloud. Null otherwise.")
 
 
 class FramePublic(BaseModel):
@@ -86,7 +138,8 @@ class ItemPublic(BaseModel):
         default_factory=dict,
         description="Presigned GET URLs of the outputs: csv, ply, report, and preview (the cloud "
                     "decimated to at most 100,000 points, binary PLY, for display); for a "
-                    "video, summary (summary.json) here and each frame's files under frames.")
+                    "video, summary (summary.json) here and each frame's files under frames; "
+                    "for a joint fit, joint (joint.json: the fit's report) only.")
     frames: list[FramePublic] = Field(default_factory=list, description="A video's frames.")
 
 

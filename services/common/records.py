@@ -29,6 +29,9 @@ class ItemResult(BaseModel):
 
     For a video: `dimensions` and `point_loss` are the medians over the measured frames,
     `points` their sum, and `summary` the spread of each dimension (summary.json's content).
+    For a joint fit (views, or a video's frames with fit "joint"): one box's dimensions with
+    their `uncertainty`, no cloud (`points` and `point_loss` 0), and `joint` (the views used and
+    those left out with the reason; `ResultPublic.joint` gives its shape).
     """
 
     points: int
@@ -46,6 +49,7 @@ class ItemResult(BaseModel):
     points_source: str | None = None  # clicked, or auto (found by the zero-click search)
     points_confidence: float | None = None  # auto: the search's confidence, 0-1
     reference_points: dict[str, list[float] | None] | None = None  # p1..p7 (x, y) the scan used, px
+    joint: dict[str, Any] | None = None  # a joint fit: views used, left out, camera (JointPublic)
 
 
 class FrameRecord(BaseModel):

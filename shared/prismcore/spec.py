@@ -19,8 +19,11 @@ from pydantic import (
     Field,
     FiniteFloat,
     NonNegativeInt,
+    ValidationError,
+    field_validator,
     model_validator,
 )
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from .bounds import FocalPx, MmPerPxValue, NonNegativeMm, PositiveMm
 from .camera import CameraModel
@@ -28,6 +31,8 @@ from .camera import CameraModel
 __all__ = [
     "FILE_NAMES",
     "FORMATS",
+    "JOINT_MAX_VIEWS",
+    "JOINT_NAME",
     "SUMMARY_NAME",
     "AutoPoints",
     "FrameSelection",
@@ -38,9 +43,11 @@ __all__ = [
     "ReferencePoints",
     "Scale",
     "ScanSpec",
+    "ViewSpec",
     "frame_folder",
     "parse_points",
     "search_area_problem",
+    "view_spec",
 ]
 
 Point = tuple[FiniteFloat, FiniteFloat]
@@ -49,12 +56,19 @@ pixel centre."""
 
 FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
               "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
-              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb"}
+              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
 
 SUMMARY_NAME = "summary.json"
 """The file name of a video job's summary across its frames (beside the frames' folders)."""
+
+JOINT_NAME = FILE_NAMES["joint"]
+"""The file name of a joint fit's report (several views of one part measured as ONE box)."""
+
+JOINT_MAX_VIEWS = 24
+"""The most views (photos, or a video's frames) one joint fit measures together: they are held
+decoded at once, and the fit's outlier test refits once per view."""
 
 
 def frame_folder(index: int) -> str:
@@ -193,6 +207,14 @@ class FrameSelection(_Strict):
 
 
 
+def _spec_schema(schema: dict[str, Any]) -> None:
+    schema["required"] = [n for n in schema.get("required", []) if n != "image"]
+    if not schema["required"]:
+        del schema["required"]
+    schema["anyOf"] = [{"required": ["image", "points"]}, {"required": ["image", "frame_points"]},
+                       {"required": ["views"]}]
+
+
 def _auto_schema(schema: dict[str, Any]) -> None:
     options = schema.get("anyOf")
     if isinstance(options, list):
@@ -230,12 +252,58 @@ def search_area_problem(hint: tuple[float, float] | None, roi: tuple[float, floa
     return None
 
 
+SideFace = Literal["auto", "right", "left", "top"]
+
+
+def _field_error(loc: tuple[str | int, ...], message: str, value: object) -> ValidationError:
+    """A validation error at `loc` inside the model being validated (pydantic prefixes the
+    model's own place), so a cross-field rule points at the field at fault."""
+    return ValidationError.from_exception_data("ScanSpec", [InitErrorDetails(
+        type=PydanticCustomError("value_error", "{message}", {"message": message}), loc=loc,
+        input=value)])
+
+
+class ViewSpec(_Strict):
+    """One photo of the part in a joint fit (`ScanSpec.views`): its reference and its points."""
+
+    image: str = Field(min_length=1, description="The photo: a file path (CLI) or a reference "
+                       "(service: upload:ID, s3://bucket/key or an https URL).")
+    points: ReferencePoints = Field(description="The seven reference points p1..p7 on this photo, "
+                                    "in the documented order; every view marks the same front face "
+                                    "(p1 the same corner). All seven are needed: each view is fitted "
+                                    "in perspective.")
+    side_face: SideFace = Field(default="auto", description="The face p4, p5 and p7 mark besides "
+                                "the front in this photo (right, left or top; auto reads it from the "
+                                "points): each view may show another one.")
+    name: str | None = Field(default=None, min_length=1, max_length=200, description="How the view "
+                             "is named in the result (e.g. a file name); default: view K, K its "
+                             "position in views counted from 1.")
+
+    @field_validator("points", mode="before")
+    @classmethod
+    def _no_auto(cls, value: object) -> object:
+        if value == "auto":
+            raise ValueError("points \"auto\" is not supported in a view: a joint fit needs each "
+                             "view's seven points (GET /v1/uploads/{id}/points finds them for a "
+                             "person to check; send them here)")
+        return value
+
+    @field_validator("points")
+    @classmethod
+    def _seven(cls, points: ReferencePoints) -> ReferencePoints:
+        missing = [n for n in ("p6", "p7") if getattr(points, n) is None]
+        if missing:
+            raise _field_error((missing[0],), f"{missing[0]} is missing: a view needs all seven points "
+                               "p1..p7 (each view is fitted in perspective)", None)
+        return points
+
+
 class ScanSpec(_Strict):
     """Everything needed to turn one photo (or a front and a side photo) into a point cloud."""
 
-    # `points` or `frame_points` is required: the schema says so too, not only the validator.
-    model_config = ConfigDict(json_schema_extra={"anyOf": [{"required": ["points"]},
-                                                           {"required": ["frame_points"]}]})
+    # `image` and `points` (or `frame_points`), or `views`: the schema says so too, not only the
+    # validators (`image` is filled in from the first view).
+    model_config = ConfigDict(json_schema_extra=_spec_schema)
 
     image: str = Field(min_length=1, description="Front photo (single-photo mode: the only one), "
                        "or a video when `frames` is set.")
@@ -256,6 +324,20 @@ class ScanSpec(_Strict):
         default=None, min_length=1, description="Video with a moving camera: reference points "
         "per frame index; exactly these frames are measured."
     )
+    views: list[ViewSpec] | None = Field(
+        default=None, description=f"Several photos of ONE part by one camera (one image size), each "
+        f"with its seven points on the same front face, measured as one box in one least-squares fit "
+        f"(prismcore.joint.fit_views): one focal length and lens distortion, a pose per photo, one "
+        f"width, height and depth with their 1-sigma. 2 to {JOINT_MAX_VIEWS} views; needs a known "
+        f"edge as the scale. A view that disagrees with the others beyond its noise is named and left "
+        f"out (3 views or more; two that disagree get a warning). Instead of image and points (image, "
+        f"when given, must be the first view's). The item's outputs are the fit's report (joint.json), "
+        f"no cloud.")
+    fit: Literal["frames", "joint"] | None = Field(
+        default=None, description="How several views are combined. A video's frames: \"frames\" "
+        "(the default) measures each frame as a photo and summarises the medians; \"joint\" "
+        f"measures the frames of frame_points (2 to {JOINT_MAX_VIEWS}, seven points each, a known "
+        "edge as the scale) as ONE box, as views are. Items with views are always joint.")
     tolerance: float = Field(default=12.0, ge=0.0, le=128.0, description="RGB tolerance per channel.")
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None
@@ -269,12 +351,17 @@ class ScanSpec(_Strict):
         default=None, description="Calibrated camera; trusted after focal_px, before EXIF and "
         "before the focal length fitted from the box."
     )
-    side_face: Literal["auto", "right", "left", "top"] = Field(
+    side_face: SideFace = Field(
         default="auto", description="One photo: the face p4, p5 and p7 mark besides the front: the "
         "right side (p4 = p2), the left side (p4 = p1, p5 left of it) or the top (p4 = p1, p5 "
         "above it); auto reads it from the points. Two photos: the side photo's face (right).")
     cloud: Literal["surface", "volume"] = "surface"
-    formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
+    formats: list[OutputFormat] = Field(
+        default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1, description="The outputs: the "
+        "cloud as csv, ply, las or laz (compressed LAS), and glb (the fitted box, a textured glTF "
+        "model); las, laz and glb are in mm and need a scale. Not given: the service's default "
+        "(PRISM_DEFAULT_FORMATS: laz and glb, or csv and ply for an item without a scale); "
+        "prism scan and the engine write csv and ply.")
     spacing_mm: PositiveMm | None = Field(
         default=None, description="Thin the cloud so neighbouring points are about this far apart, "
         "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")
@@ -301,6 +388,18 @@ class ScanSpec(_Strict):
 
     @model_validator(mode="before")
     @classmethod
+    def _image_from_views(cls, data: object) -> object:
+        # The first view's photo is the item's `image`, so code that names an item's input (and
+        # the stored record) has one field to read.
+        if isinstance(data, dict) and "image" not in data:
+            views = data.get("views")
+            if isinstance(views, list) and views and isinstance(views[0], dict) \
+                    and isinstance(views[0].get("image"), str):
+                return {**data, "image": views[0]["image"]}
+        return data
+
+    @model_validator(mode="before")
+    @classmethod
     def _frames_from_frame_points(cls, data: object) -> object:
         # Per-frame points decide which frames are measured; `frames` then says so explicitly,
         # so code that asks "is this a video?" needs to look at one field only.
@@ -318,6 +417,8 @@ class ScanSpec(_Strict):
 
     @model_validator(mode="after")
     def _consistent(self) -> ScanSpec:
+        if self.views is not None or self.fit is not None:
+            self._joint_consistent()
         if isinstance(self.scale, Pinhole) and self.focal_px is None and self.camera is None \
                 and not self._focal_fittable():
             raise ValueError("a shooting distance needs focal_px (the focal length in pixels), "
@@ -341,7 +442,7 @@ class ScanSpec(_Strict):
             if self.side_face != "auto":
                 raise ValueError(f"side_face {self.side_face!r} goes with clicked points: with points "
                                  "\"auto\" the search tells the face itself; drop side_face")
-        elif self.points is None:
+        elif self.points is None and self.views is None:
             raise ValueError("points: the reference points are missing (give points, \"auto\" "
                              "to have them found in the photo, or frame_points for a video)")
         if self.side_image is not None and self.side_face in ("left", "top"):
@@ -363,6 +464,76 @@ class ScanSpec(_Strict):
                              f"{self.side_image!r} cannot be used with frames")
         return self
 
+    def _joint_consistent(self) -> None:
+        """The rules of `views` and `fit`, each error at the field at fault."""
+        def fail(loc: tuple[str | int, ...], message: str, value: object) -> None:
+            raise _field_error(loc, message, value)
+
+        if self.views is not None:
+            n = len(self.views)
+            if n < 2:
+                fail(("views",), f"views: a joint fit needs at least 2 views of the part, got {n} (one "
+                     "photo is an item with image and points)", n)
+            if n > JOINT_MAX_VIEWS:
+                fail(("views",), f"views: at most {JOINT_MAX_VIEWS} views are measured together, got {n}", n)
+            if self.image != self.views[0].image:
+                fail(("image",), f"image {self.image!r} is not the first view's {self.views[0].image!r}: "
+                     "with views, drop image (the first view's photo is the item's image)", self.image)
+            if self.fit == "frames":
+                fail(("fit",), "fit \"frames\" is for a video's frames: views are measured as one box "
+                     "(drop fit, or give \"joint\")", self.fit)
+            # Each view carries its own points; one camera without a lens model; no cloud.
+            for name, default in (("points", None), ("auto_points", None), ("frame_points", None),
+                                  ("frames", None), ("side_image", None), ("camera", None),
+                                  ("principal_point", None), ("spacing_mm", None), ("side_face", "auto"),
+                                  ("method", "default"), ("cloud", "surface")):
+                if getattr(self, name) != default:
+                    fail((name,), f"{name} does not go with views: " + _JOINT_ASIDE.get(
+                        name, "each view carries its own points and side_face"), getattr(self, name))
+            if self._formats_asked():
+                fail(("formats",), "formats does not go with views: " + _JOINT_ASIDE["formats"], self.formats)
+        elif self.fit == "joint":
+            if self.frame_points is None:
+                where = "points" if self.points is not None or self.auto_points is not None else "fit"
+                fail((where,), "fit \"joint\" measures a video's frames with points per frame as one "
+                     "box: give frame_points (2 or more frames, seven clicked points each; several photos "
+                     "go in views)", self.fit)
+            assert self.frame_points is not None
+            n = len(self.frame_points)
+            if n < 2:
+                fail(("frame_points",), f"frame_points: fit \"joint\" needs at least 2 frames, got {n}", n)
+            if n > JOINT_MAX_VIEWS:
+                fail(("frame_points",), f"frame_points: fit \"joint\" measures at most {JOINT_MAX_VIEWS} "
+                     f"frames together, got {n}", n)
+            for index, points in sorted(self.frame_points.items()):
+                missing = [p for p in ("p6", "p7") if getattr(points, p) is None]
+                if missing:
+                    fail(("frame_points", index, missing[0]), f"frame_points {index}: {missing[0]} is "
+                         "missing: fit \"joint\" needs all seven points p1..p7 of every frame", None)
+            for name in ("camera", "principal_point", "spacing_mm"):
+                if getattr(self, name) is not None:
+                    fail((name,), f"{name} does not go with fit \"joint\": " + _JOINT_ASIDE[name],
+                         getattr(self, name))
+            changed = [name for name, off in (("method", self.method != "default"),
+                                              ("cloud", self.cloud != "surface"),
+                                              ("formats", self._formats_asked()))
+                       if off]
+            if changed:
+                name = changed[0]
+                fail((name,), f"{name} does not go with fit \"joint\": " + _JOINT_ASIDE[name],
+                     getattr(self, name))
+        elif self.fit == "frames" and self.frames is None:
+            fail(("fit",), "fit is for a video's frames (\"frames\" or \"joint\"); a photo is measured "
+                 "alone, several photos go in views", self.fit)
+        if (self.fit == "joint" or self.views is not None) and not isinstance(self.scale, KnownEdge):
+            fail(("scale",), "a joint fit needs one known edge of the part as its scale "
+                 "({\"kind\": \"edge\", \"edge\": \"width\", \"length_mm\": ...}): it sets the "
+                 "millimetres of every view", None if self.scale is None else self.scale.kind)
+
+    def _formats_asked(self) -> bool:
+        """Does the spec ask for cloud formats other than the default?"""
+        return bool(self.formats) and list(self.formats) != list(_DEFAULT_FORMATS)
+
     def _focal_fittable(self) -> bool:
         """One photo with all seven points: the box fit finds the focal length itself."""
         if self.two_photo:
@@ -383,6 +554,29 @@ class ScanSpec(_Strict):
     def is_video(self) -> bool:
         """True when `image` names a video (the spec has a frame selection)."""
         return self.frames is not None
+
+
+_JOINT_ASIDE = {
+    "camera": "the joint fit finds one focal length and lens distortion from the views themselves "
+              "(give focal_px if it is known)",
+    "principal_point": "the joint fit takes the image centre as the optical centre",
+    "spacing_mm": "a joint fit writes its report (joint.json), no cloud",
+    "formats": "a joint fit writes its report (joint.json), no cloud",
+    "cloud": "a joint fit writes its report (joint.json), no cloud",
+    "method": "the joint fit is the default method's perspective fit",
+}
+
+
+def view_spec(spec: ScanSpec, k: int) -> ScanSpec:
+    """The photo spec of view `k` of a spec with views: its photo, points and side face, with the
+    item's scale and focal length (what the engine's single-photo checks take)."""
+    if spec.views is None:
+        raise ValueError("view_spec needs a spec with views")
+    view = spec.views[k]
+    return ScanSpec.model_validate({
+        "image": view.image, "points": view.points.model_dump(), "side_face": view.side_face,
+        "scale": None if spec.scale is None else spec.scale.model_dump(), "focal_px": spec.focal_px,
+        "max_pixels": spec.max_pixels})
 
 
 _PAIR = re.compile(r"^\s*(-?\d+(?:\.\d+)?)\s*,\s*(-?\d+(?:\.\d+)?)\s*$")

@@ -60,6 +60,8 @@ def test_pinhole_needs_focal():
 
 def test_schema_is_json_schema():
     schema = ScanSpec.model_json_schema()
-    assert schema["type"] == "object" and "image" in schema["required"]
-    # the reference points: the same for every photo or frame, or per frame of a video
-    assert schema["anyOf"] == [{"required": ["points"]}, {"required": ["frame_points"]}]
+    assert schema["type"] == "object" and "image" in schema["properties"]
+    # the photo (or video) and its reference points: the same for every photo or frame, or per
+    # frame of a video; or several views of one part, each with its photo and points
+    assert schema["anyOf"] == [{"required": ["image", "points"]}, {"required": ["image", "frame_points"]},
+                               {"required": ["views"]}]
