@@ -194,6 +194,22 @@ class _Focal:
     extra: dict[str, Any] = field(default_factory=dict)  # report fields of the source (a pooled std, ...)
 
 
+PRINCIPAL_MARGIN = 0.5
+"""How far outside the photo a principal point may lie, as a fraction of the photo's size: a
+shift lens moves it a quarter of the frame at most; far outside, the perspective fit's start is
+so far off that it wanders (1e6 px ran for minutes, 1e9 asked for 48 GiB)."""
+
+
+def _check_principal(centre: tuple[float, float], width: int, height: int, what: str) -> None:
+    """Refuse a principal point (x, y) px far outside a `width` x `height` photo."""
+    x, y = centre
+    mx, my = PRINCIPAL_MARGIN * width, PRINCIPAL_MARGIN * height
+    if not (-mx <= x <= width - 1 + mx and -my <= y <= height - 1 + my):
+        raise InputError(f"{what} ({x:g}, {y:g}) px lies far outside the {width}x{height} px photo: "
+                         "it is where the lens axis meets the image, near its centre "
+                         f"(here about ({(width - 1) / 2:g}, {(height - 1) / 2:g}))")
+
+
 def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list[CameraModel] | None,
                    exif_focal_px: float | None, pooled: PooledFocal | None = None) -> _Focal:
     """Order of trust: given > camera profile > EXIF > pooled over the camera's photos >
@@ -203,6 +219,9 @@ def _resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list[Camer
         centres = [(c.cx, c.cy) for c in cameras]
     if spec.principal_point is not None:
         centres = [tuple(spec.principal_point)] * len(images)  # type: ignore[list-item]
+    for img, centre in zip(images, centres, strict=True):
+        _check_principal(centre, img.shape[1], img.shape[0], "principal_point" if spec.principal_point
+                         is not None else "the camera model's cx, cy")
     if spec.focal_px is not None:
         return _Focal(float(spec.focal_px), "given", centres)
     if cameras is not None:

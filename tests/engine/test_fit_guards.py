@@ -99,3 +99,27 @@ def test_errors_about_a_five_point_face_name_the_clicked_points():
     with pytest.raises(InputError, match="outside"):
         validate_quad(np.array([[-5.0, 10.0], [50, 10], [50, 60], [-5, 60]]), "front face", (100, 100, 3),
                       labels=("p1", "p2", "p3", None))
+
+
+@pytest.mark.parametrize("extra", [
+    {"principal_point": [1e9, -1e9]},  # asked for 48 GiB
+    {"principal_point": [1e6, -1e6]},  # ran for minutes
+    {"principal_point": [5000.0, 3000.0]},
+    {"camera": {"fx": 1000.0, "fy": 1000.0, "cx": 1e9, "cy": -1e9,
+                "image_width": 1280, "image_height": 1024}},
+])
+def test_a_principal_point_far_outside_the_photo_is_refused_naming_it(scene, extra):
+    assert scene.image.shape[:2] == (1024, 1280)
+    spec = ScanSpec(image="x", points=_points(scene), scale=EDGE, **extra)
+    what = "principal_point" if "principal_point" in extra else "cx, cy"
+    with pytest.raises(InputError, match=f"{what} .* lies far outside the 1280x1024 px photo"):
+        plan_scan(spec, scene.image)
+
+
+def test_a_principal_point_off_centre_inside_the_photo_still_measures(scene):
+    centre = ((scene.image.shape[1] - 1) / 2, (scene.image.shape[0] - 1) / 2)
+    shifted = ScanSpec(image="x", points=_points(scene), scale=EDGE,
+                       principal_point=(centre[0] + 60.0, centre[1] + 48.0))
+    plan = plan_scan(shifted, scene.image)
+    assert (plan.dimensions.unit, plan.dimensions.width) == ("mm", pytest.approx(150.0, rel=1e-6))
+    assert plan.dimensions.height == pytest.approx(90.0, rel=0.05)
