@@ -41,7 +41,7 @@ from .artifacts import item_key
 from .context import WorkerContext
 
 __all__ = ["MAX_REDIRECTS", "FetchError", "Target", "check_target", "copy_input", "fetch_url", "pinned",
-           "read_input", "save_input", "send_pinned"]
+           "read_input", "read_reference", "save_input", "send_pinned"]
 
 
 # -- egress: calling a host a user named ---------------------------------------------------------
@@ -216,6 +216,12 @@ def read_input(ctx: WorkerContext, view: ItemView, which: str) -> tuple[bytes, s
     text = spec.image if which == "front" else spec.side_image
     assert text is not None
     return _read_reference(ctx, text, view.tenant)
+
+
+def read_reference(ctx: WorkerContext, text: str, tenant: str) -> tuple[bytes, str]:
+    """The bytes of one of the item's inputs named by its reference `text` (a view of a joint
+    item), read where it points, and the name to quote. Raises as `read_input` does."""
+    return _read_reference(ctx, text, tenant)
 
 
 def save_input(ctx: WorkerContext, view: ItemView, which: str, dest: BinaryIO) -> str:

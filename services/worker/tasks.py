@@ -5,6 +5,8 @@ the logic, which lives in one place each:
 * `lifecycle`: every job and item transition (start, succeed, fail, complete, end; the
   watchdog's restart and fail), and the reason a task gave up, as a client reads it;
 * `steps`: an item of a photo job: plan, scan a tile, finish; or scanned whole;
+* `joint_item`: several views of one part (an item's views, a video's frames with fit
+  "joint") measured as ONE box, whole in one task;
 * `video`: a video item split into frames, a frame measured, the item summarised; an uploaded
   video's frame extracted for the web page;
 * `upload_points`: the box and its points found in an upload, for the web page;
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import random
+from collections.abc import Callable
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
@@ -50,12 +53,12 @@ from prism_common.queue import (
     TASK_SCAN_TILE,
     TASK_SPLIT_VIDEO,
 )
-from prism_common.records import ItemView, State
+from prism_common.records import ItemResult, ItemView, State
 from prism_common.references import ReferenceError
 
 from prismcore import InputError
 
-from . import lifecycle, steps, upload_points, video, webhooks
+from . import joint_item, lifecycle, steps, upload_points, video, webhooks
 from .app import app, worker_context
 from .artifacts import tile_id
 from .context import WorkerContext
@@ -178,7 +181,9 @@ def plan_item(self: AnyTask, job_id: str, item: int) -> None:
     if view is None:
         return
     lifecycle.mark_running(ctx, view, repeat=repeat)
-    if view.item.spec.is_video:
+    if joint_item.is_joint(view.item.spec):
+        _scan_whole(ctx, view, repeat, joint_item.measure_joint)
+    elif view.item.spec.is_video:
         _split_video(ctx, view, repeat)
     elif steps.tiles_per_face(ctx, view.n_items) == 1:
         _scan_whole(ctx, view, repeat)
@@ -217,11 +222,16 @@ def split_video(self: AnyTask, job_id: str, item: int, part: int) -> None:
         _split_video(ctx, view, repeat, part)
 
 
-def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
-    """A batch item: plan, scan and finish here (no tiles, nothing stored on the way)."""
+Measure = Callable[[WorkerContext, ItemView], tuple[ItemResult, dict[str, str]]]
+
+
+def _scan_whole(ctx: WorkerContext, view: ItemView, repeat: bool,
+                measure: Measure = steps.scan_whole_item) -> None:
+    """A batch item (or a joint fit's views): plan, scan and finish here (no tiles, nothing
+    stored on the way)."""
     job_id, item = view.job_id, view.item.index
     try:
-        result, outputs = steps.scan_whole_item(ctx, view)
+        result, outputs = measure(ctx, view)
     except INPUT_ERRORS as exc:
         lifecycle.fail_and_complete(ctx, job_id, item, str(exc), maybe_repeat=repeat)
         return

@@ -85,10 +85,12 @@ class Env:
 @contextmanager
 def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir: Path, *, db: int,
                bucket: str, tiles_per_face: int, items_in_flight: int,
-               max_frames: int = 1000, stall_timeout_s: int = 600,
+               max_frames: int = 1000, stall_timeout_s: int = 600, visibility_timeout_s: int = 10,
                extra_env: dict[str, str] | None = None) -> Iterator[Env]:
     """Start a worker with these settings on Redis database `db` and `bucket`; stop it after.
-    `extra_env`: more PRISM_<NAME> settings for the worker process only, e.g. FETCH_CA_BUNDLE."""
+    `extra_env`: more PRISM_<NAME> settings for the worker process only, e.g. FETCH_CA_BUNDLE.
+    `visibility_timeout_s`: short, so a lost task comes back quickly; a task that runs longer is
+    handed out a second time meanwhile (idempotent, but twice the work)."""
     settings = Settings(
         api_keys=API_KEYS, webhook_secret=WEBHOOK_SECRET,
         redis_url=f"redis://127.0.0.1:{redis_server.port}/{db}",
@@ -96,13 +98,14 @@ def worker_env(redis_server: ManagedProcess, s3_server: ManagedProcess, workdir:
         s3_access_key_id=S3_KEY_ID, s3_secret_access_key=S3_SECRET,
         readable_buckets=[INPUTS_BUCKET], webhook_allowed_hosts=["127.0.0.1"],
         webhook_allow_private=True, tiles_per_face=tiles_per_face,
-        items_in_flight_per_job=items_in_flight, visibility_timeout_s=10,
+        items_in_flight_per_job=items_in_flight, visibility_timeout_s=visibility_timeout_s,
         max_frames_per_job=max_frames, job_stall_timeout_s=stall_timeout_s,
         watchdog_interval_s=min(30, max(1, stall_timeout_s // 4)))
     variables = service_env(
         redis_server.port, s3_server.port, db=db, bucket=bucket,
         READABLE_BUCKETS=json.dumps([INPUTS_BUCKET]), WEBHOOK_ALLOWED_HOSTS='["127.0.0.1"]',
-        WEBHOOK_ALLOW_PRIVATE="true", TILES_PER_FACE=str(tiles_per_face), VISIBILITY_TIMEOUT_S="10",
+        WEBHOOK_ALLOW_PRIVATE="true", TILES_PER_FACE=str(tiles_per_face),
+        VISIBILITY_TIMEOUT_S=str(visibility_timeout_s),
         ITEMS_IN_FLIGHT_PER_JOB=str(items_in_flight), MAX_FRAMES_PER_JOB=str(max_frames),
         JOB_STALL_TIMEOUT_S=str(settings.job_stall_timeout_s),
         WATCHDOG_INTERVAL_S=str(settings.watchdog_interval_s), **(extra_env or {}))

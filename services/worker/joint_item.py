@@ -1,0 +1,126 @@
+"""An item measured as ONE box from several views (`prismcore.joint.fit_views`), whole in one task.
+
+Two kinds of item: one with `views` (photos of one part, each with its seven points; each read
+where its reference points, not copied), and a video with `fit` "joint" (the frames of
+`frame_points`, decoded from the video streamed to a local file). The views are decoded and held
+together (at most `JOINT_MAX_VIEWS`), fitted as one box, and the fit's report is stored as
+``joint.json``; the item's result carries the dimensions with their 1-sigma, the focal length, the
+views used and those left out with the reason. No cloud is made: a cloud is one photo's.
+
+Views of different image sizes (one camera is assumed), views none of which can be measured,
+a video that does not decode: InputError, which fails the item with its reason.
+
+Idempotent: the engine is deterministic and the report's key is fixed, so a re-run writes the same
+object and result.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from prism_common.records import ItemResult, ItemView
+
+from prismcore import InputError
+from prismcore.images import load_image
+from prismcore.joint import View, fit_views
+from prismcore.joint_report import joint_report
+from prismcore.spec import JOINT_NAME, KnownEdge, ScanSpec
+from prismcore.verdicts import quality_from_report
+from prismcore.video import iter_frames, probe_video, select_frames
+
+from .artifacts import item_key
+from .context import WorkerContext
+from .inputs import read_reference, save_input
+from .steps import max_pixels
+from .video import client_message
+
+__all__ = ["is_joint", "measure_joint"]
+
+
+def is_joint(spec: ScanSpec) -> bool:
+    """Is the item measured as one box from several views (views, or a video's fit "joint")?"""
+    return spec.views is not None or spec.fit == "joint"
+
+
+def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[str, str]]:
+    """Measure the item's views as one box, store joint.json; the result and {"joint": key}.
+
+    Raises
+    ------
+    InputError
+        A photo or video that is not readable, views of different sizes, no view measurable.
+    ReferenceError, FetchError
+        An input that may not or could not be read.
+    """
+    spec = view.item.spec
+    inputs: dict[str, Any]
+    labels: list[int] | None
+    if spec.views is not None:
+        views, labels, inputs = _photos(ctx, view), None, {
+            "inputs": [{"index": k, "image": v.image} for k, v in enumerate(spec.views)]}
+    else:
+        views, frames, info = _frames(ctx, view)
+        labels, inputs = frames, {"video": {"reference": spec.image, **info}}
+    _same_size(views, labels)
+    assert isinstance(spec.scale, KnownEdge)  # the spec's rules
+    result = fit_views(views, spec.scale, focal_px=spec.focal_px)
+    report = {**joint_report(result, labels), **inputs}
+    key = item_key(view.job_id, view.item.index, JOINT_NAME)
+    ctx.objects.put_json(key, report)
+    quality = quality_from_report(report, spec.nominal, spec.tolerance_mm)
+    left = [f"{o['name']} left out: {o['reason']}" for o in report["left_out"]]
+    camera = report["camera"]
+    return ItemResult(
+        points=0, point_loss=0.0, dimensions=report["dimensions"], uncertainty=report["uncertainty"],
+        warnings=left + report["warnings"], focal_px=camera["focal_px"],
+        focal_source="given" if spec.focal_px is not None else "fitted",
+        quality=dict(quality) if quality is not None else None,
+        joint={"views": report["views"], "left_out": report["left_out"],
+               "focal_std_px": camera["focal_std_px"], "distortion_kappa": camera["distortion_kappa"]},
+    ), {"joint": key}
+
+
+def _photos(ctx: WorkerContext, view: ItemView) -> list[View]:
+    """The item's views, each photo read where its reference points and decoded."""
+    spec = view.item.spec
+    assert spec.views is not None
+    limit = max_pixels(ctx, spec.max_pixels)
+    out = []
+    for k, v in enumerate(spec.views):
+        data, label = read_reference(ctx, v.image, view.tenant)
+        out.append(View(load_image(data, max_pixels=limit, name=label), v.points, v.side_face,
+                        v.name or f"view {k + 1}"))
+        del data
+    return out
+
+
+def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], dict[str, Any]]:
+    """The video's frames of frame_points as views, their indices, and the video's probe."""
+    spec = view.item.spec
+    assert spec.frames is not None and spec.frame_points is not None
+    with tempfile.TemporaryDirectory(prefix="prism-joint-") as tmp:
+        path = Path(tmp) / "video"
+        with path.open("wb") as dest:
+            label = save_input(ctx, view, "front", dest)
+        try:
+            info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
+            frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
+            views = [View(rgb, spec.frame_points[index], spec.side_face, f"frame {index}")
+                     for index, rgb in iter_frames(path, frames)]
+        except InputError as exc:  # quote the client's name for the video, not our temp file
+            raise InputError(client_message(exc, path, label)) from None
+    return views, frames, asdict(info)
+
+
+def _same_size(views: list[View], labels: list[int] | None) -> None:
+    """InputError naming the first view whose image size is not the first view's."""
+    h0, w0 = views[0].image.shape[:2]
+    for k, v in enumerate(views[1:], start=1):
+        h, w = v.image.shape[:2]
+        if (h, w) != (h0, w0):
+            where = f" (views[{k}])" if labels is None else ""
+            raise InputError(f"{v.name}{where} is {w}x{h} px, {views[0].name} {w0}x{h0} px: the "
+                             "views of a joint fit must come from one camera at one image size")
