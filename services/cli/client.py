@@ -51,6 +51,12 @@ class ApiError(Exception):
         self.status = status
         self.problem = problem or {}
 
+    @property
+    def unavailable(self) -> bool:
+        """The service, not the request, is at fault: unreachable, a 5xx, or a 429 that outlasted
+        the retries. The same request may succeed later."""
+        return self.status is None or self.status >= 500 or self.status == 429
+
 
 class WaitTimeoutError(ApiError):
     """`ApiClient.wait` gave up: the job was not final after the time allowed (it may still be)."""

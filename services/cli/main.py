@@ -2,8 +2,9 @@
 
 Exit codes: 0 the command succeeded; 1 it ran but what it waited for did not succeed (a job
 that failed or was cancelled, a wait that timed out, `prism serve` losing a server, Ctrl-C);
-2 bad input or usage, or an API that refused the request: one line on stderr, never a
-traceback.
+2 bad input or usage, or an API that refused the request (4xx); 3 the API could not be reached
+or could not answer (5xx, or still busy after the retries): the request may be right, try again
+later. One line on stderr, never a traceback.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ cli.command()(serve)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit code (0 ok, 1 failed or cancelled, 2 bad input or usage)."""
+    """Run the CLI; return the exit code (0 ok, 1 failed or cancelled, 2 bad input or usage,
+    3 the API unreachable or failing)."""
     try:
         # Not standalone: click then *returns* the code of a `typer.Exit` (a failed job's 1,
         # --help's 0) instead of exiting, and raises its usage errors for the one-line policy.
@@ -50,7 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     except WaitTimeoutError as exc:  # the job may still succeed; this wait did not see it
         print(f"prism: error: {exc}", file=sys.stderr)
         return 1
-    except (InputError, ApiError) as exc:
+    except ApiError as exc:
+        print(f"prism: error: {exc}", file=sys.stderr)
+        return 3 if exc.unavailable else 2
+    except InputError as exc:
         print(f"prism: error: {exc}", file=sys.stderr)
         return 2
     except TyperException as exc:  # typer's own (vendored click) usage errors

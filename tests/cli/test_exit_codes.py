@@ -1,12 +1,14 @@
 """The `prism` service commands' exit codes and what they print, on a scripted API
 (httpx.MockTransport behind the CLI's own client): 0 the command succeeded, 1 the job it waited
-for failed or was cancelled (or the wait ran out), 2 bad input or a refused request, with one
-line on stderr and never a traceback. The real stack runs them in tests/service/test_cli_stack.py.
+for failed or was cancelled (or the wait ran out), 2 bad input or a refused request (4xx), 3 the
+API unreachable or failing (5xx, or busy past the retries), with one line on stderr and never a
+traceback. The real stack runs them in tests/service/test_cli_stack.py.
 """
 
 from __future__ import annotations
 
 import json
+import socket
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -228,3 +230,26 @@ def test_a_value_out_of_range_names_the_spec_field_not_pydantics_validators(caps
                        "--nominal", "120,80,60", "--tolerance-mm", "2e6", "--out", str(tmp_path))
     assert code == 2 and one_line_error(err), err
     assert err.startswith("prism: error: tolerance_mm: Value error, 2e+06 mm is out of range"), err
+
+
+def _closed_port() -> int:
+    with socket.socket() as s:  # bound and closed: nothing listens there now
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_api_that_cannot_be_reached_exits_3_in_one_line(capsys):
+    url = f"http://127.0.0.1:{_closed_port()}"
+    for argv in (["status", "j1"], ["submit", "samples/box.jpg", "--points", POINTS, "--width-mm", "120"]):
+        code, _, err = run(capsys, *argv, "--api", url, *KEY)
+        assert code == 3 and one_line_error(err) and "cannot reach the API" in err, (argv, err)
+
+
+@pytest.mark.parametrize(("status", "code"), [(500, 3), (502, 3), (503, 3), (429, 3), (404, 2), (409, 2),
+                                              (422, 2)])
+def test_a_failing_api_exits_3_and_a_refusing_one_2(api, capsys, status: int, code: int):
+    fake = api(["succeeded"])
+    problem = {"type": "about:blank", "title": "x", "status": status, "detail": f"answered {status}"}
+    fake.answers[("GET", "/v1/jobs/j1")] = lambda r: httpx.Response(status, json=problem)
+    got, _, err = run(capsys, "status", "j1", *KEY)
+    assert got == code and one_line_error(err) and f"HTTP {status}" in err, err
