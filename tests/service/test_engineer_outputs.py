@@ -1,8 +1,8 @@
 """Issue 13 through the whole service (API under uvicorn, a Celery worker, redis-server and
 SeaweedFS): LAZ and glb outputs downloaded and read back with laspy and pygltflib, the items'
-verdicts against a nominal size and the job's counts of them, the operator's default formats
-(PRISM_DEFAULT_FORMATS), the job's results table as CSV and JSON, and `prism results` /
-`prism download` on it.
+verdicts against a nominal size and the job's counts of them, the service's default formats
+(PRISM_DEFAULT_FORMATS unset: laz + glb with a scale, csv + ply without), the job's results
+table as CSV and JSON, and `prism results` / `prism download` on it.
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ class Stack:
 @pytest.fixture(scope="module")
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("engineer")
-    env = service_env(redis_server.port, s3_server.port, db=9, bucket="engineer-e2e",
-                      DEFAULT_FORMATS='["laz", "glb"]')
+    # No PRISM_DEFAULT_FORMATS: the service's own default (laz + glb where there is a scale).
+    env = service_env(redis_server.port, s3_server.port, db=9, bucket="engineer-e2e")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
     made = Stack(api.port)

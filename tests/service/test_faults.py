@@ -55,7 +55,8 @@ def _expected_files(spec: ScanSpec, photo: bytes, items: int) -> set[str]:
 def test_worker_sigkilled_mid_tiles_gives_exactly_the_outputs(stack, figures):
     scene = render_oblique_view(Box(120.0, 80.0, 60.0), seed=1)  # 1280x1024: tiles take a while
     photo = png(scene.image)
-    spec_dict = item(stack.upload(photo), scene)
+    # CSV and PLY (not the default LAZ, which rounds to 0.1 mm): the engine's exact cloud.
+    spec_dict = item(stack.upload(photo), scene, formats=["csv", "ply"])
     job_id = stack.submit([spec_dict] * 3)
     client = stack.redis_client()
     deadline = time.monotonic() + 60
@@ -100,7 +101,7 @@ def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
     print(f"\nredis restart: {queued} jobs were queued; final states {states}")
     assert states == ["succeeded"] * len(ids), [j for j in jobs.values() if j["state"] != "succeeded"]
     for job_id in ids:
-        assert {f"items/{i}/cloud.ply" for i in range(3)} <= stack.keys(job_id)
+        assert {f"items/{i}/cloud.laz" for i in range(3)} <= stack.keys(job_id)  # the default cloud
     figures.update({"faults survived": 1, "jobs submitted": len(ids), "jobs succeeded": len(ids)})
 
 

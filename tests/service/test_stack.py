@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 import cv2
 import httpx
+import laspy
 import numpy as np
 import pytest
 from plyfile import PlyData
@@ -97,7 +98,10 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     photo = _jpeg(scene.image)
     second = _jpeg(render_oblique_view(Box(90, 140, 45), seed=4).image)
     scene2 = render_oblique_view(Box(90, 140, 45), seed=4)
-    r = stack.submit([_item(stack.upload(photo), scene), _item(stack.upload(second), scene2)],
+    # The first item gets the service's default outputs (LAZ and glb: it has a scale), the
+    # second asks for CSV and PLY.
+    r = stack.submit([_item(stack.upload(photo), scene),
+                      _item(stack.upload(second), scene2, formats=["csv", "ply"])],
                      client_reference="batch-1")
     assert r.status_code == 202, r.text
     assert r.headers["Location"].endswith(f"/v1/jobs/{r.json()['id']}")
@@ -108,14 +112,26 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
         dims = item["result"]["dimensions"]
         assert abs(dims["width"] / box.width_mm - 1) < 0.02, dims
         assert abs(dims["depth"] / box.depth_mm - 1) < 0.02, dims
-    # The service's tiled result is exactly the engine's own on the same input.
-    first = job["items"][0]
-    csv = np.loadtxt(io.BytesIO(httpx.get(first["downloads"]["csv"]).content), delimiter=",")
-    ply = PlyData.read(io.BytesIO(httpx.get(first["downloads"]["ply"]).content))["vertex"]
+    # The service's result is exactly the engine's own on the same input.
+    first, other = job["items"]
+    assert set(first["downloads"]) == {"laz", "glb", "preview", "overlay", "report"}
+    assert set(other["downloads"]) == {"csv", "ply", "preview", "overlay", "report"}
+    las = laspy.read(io.BytesIO(httpx.get(first["downloads"]["laz"]).content))
     report = httpx.get(first["downloads"]["report"]).json()
     local = run_scan(ScanSpec.model_validate(_item("x", scene)), load_image(photo))
-    assert report["points"] == local.report["points"] == csv.shape[0] == ply.count
+    assert report["points"] == local.report["points"] == las.header.point_count
     assert report["dimensions"] == local.report["dimensions"]
+    # LAS's axes written out here (metres, Z up: x, z, -y), to its 0.1 mm grid.
+    p = local.cloud.points.astype(np.float64)
+    np.testing.assert_allclose(np.column_stack([las.x, las.y, las.z]),
+                               np.column_stack([p[:, 0], p[:, 2], -p[:, 1]]) / 1000,
+                               rtol=0, atol=0.5e-4 + 1e-9)
+    rgb = np.column_stack([las.red, las.green, las.blue]) // 257
+    np.testing.assert_array_equal(rgb, local.cloud.colors)
+    csv = np.loadtxt(io.BytesIO(httpx.get(other["downloads"]["csv"]).content), delimiter=",")
+    ply = PlyData.read(io.BytesIO(httpx.get(other["downloads"]["ply"]).content))["vertex"]
+    local = run_scan(ScanSpec.model_validate(_item("x", scene2)), load_image(second))
+    assert other["result"]["points"] == local.report["points"] == csv.shape[0] == ply.count
     np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]),
                                   local.cloud.points)
 
@@ -200,8 +216,8 @@ def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
         client.close()
     names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
     assert names == {"item-0/summary.json"} | {f"item-0/{frame_folder(n)}/{f}" for n in (0, 2) for f in
-                                               ("cloud.csv", "cloud.ply", "preview.ply", "overlay.png",
-                                                                "report.json")}
+                                               ("cloud.laz", "box.glb", "preview.ply", "overlay.png",
+                                                                "report.json")}  # the defaults with a scale
     report = json.loads((tmp_path / "out/item-0/frame_000002/report.json").read_text())
     assert report["dimensions"] == item["frames"][1]["result"]["dimensions"]
 

@@ -5,7 +5,10 @@ import type { Dimension, Frame, Item, Summary } from "./types";
 import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
-const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["report", "Report"]];
+// A frame has the formats its item asked for (the service's default: LAZ and glb with a scale,
+// CSV and PLY without one) and its report.
+const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"],
+  ["glb", "Box model"], ["report", "Report"]];
 
 const el = <K extends keyof HTMLElementTagNameMap>(tag: K, text = "", attrs: Record<string, string> = {}) => {
   const node = document.createElement(tag);
