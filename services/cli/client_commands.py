@@ -33,15 +33,24 @@ def _client(api: str, key: str) -> ApiClient:
 
 
 def _upload_local(client: ApiClient, item: dict, base: Path) -> dict:
-    """Replace local file paths in an item by upload references (uploading them)."""
-    for field in ("image", "side_image"):
-        value = item.get(field)
+    """Replace local file paths in an item (and its views) by upload references (uploading them)."""
+    views = item.get("views")
+    if isinstance(views, list):  # copies: the caller's document stays as it was read
+        views = item["views"] = [dict(v) if isinstance(v, dict) else v for v in views]
+    places = [(item, field, field) for field in ("image", "side_image")] + (
+        [(v, "image", f"views[{k}].image") for k, v in enumerate(views) if isinstance(v, dict)]
+        if isinstance(views, list) else [])
+    uploaded: dict[str, str] = {}  # a view's photo that is also the item's image is sent once
+    for holder, field, name in places:
+        value = holder.get(field)
         # Anything but a local path (a reference, a wrong type) goes as it is: the API judges it.
         if isinstance(value, str) and value and not value.startswith(_REFERENCE_PREFIXES):
             path = base / value
             if not path.is_file():
-                raise InputError(f"{field} {value!r}: no such file")
-            item[field] = client.upload(path)
+                raise InputError(f"{name} {value!r}: no such file")
+            if value not in uploaded:
+                uploaded[value] = client.upload(path)
+            holder[field] = uploaded[value]
     return item
 
 

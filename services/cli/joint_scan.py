@@ -3,7 +3,8 @@
 The points file holds one entry per photo: a JSON list in the photos' order, or an object keyed by
 the photos' file names (as given, or their base names). An entry is the seven points
 ``[[x1, y1], ..., [x7, y7]]``, or ``{"points": [...], "side_face": "right|left|top"}``.
-The result (`prismcore.joint.fit_views`) is printed (each dimension ± its sigma, the focal length,
+`prism scan --spec job.json` with `views` (each photo's path relative to the spec file) does the
+same. The result (`prismcore.joint.fit_views`) is printed (each dimension ± its sigma, the focal length,
 the views left out and why) and written to ``joint.json`` in the output folder.
 """
 
@@ -20,9 +21,9 @@ from prismcore import InputError
 from prismcore.images import load_image
 from prismcore.joint import JointResult, View, fit_views
 from prismcore.joint_report import joint_report
-from prismcore.spec import KnownEdge
+from prismcore.spec import KnownEdge, ScanSpec
 
-__all__ = ["read_points_file", "scan_views"]
+__all__ = ["read_points_file", "scan_spec_views", "scan_views"]
 
 console = Console()
 
@@ -85,7 +86,19 @@ def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str
     entries = read_points_file(points_file, images)
     views = [View(load_image(path, max_pixels=max_pixels), points, side, path.name)
              for path, (points, side) in zip(images, entries, strict=True)]
-    result = fit_views(views, KnownEdge.model_validate(scale), focal_px=focal_px)
+    _measure(views, KnownEdge.model_validate(scale), focal_px, out)
+
+
+def scan_spec_views(spec: ScanSpec, base: Path, out: Path) -> None:
+    """`prism scan --spec` of a spec with views (paths relative to `base`): as `scan_views`."""
+    assert spec.views is not None and isinstance(spec.scale, KnownEdge)  # the spec's rules
+    views = [View(load_image(base / v.image, max_pixels=spec.max_pixels), v.points, v.side_face,
+                  v.name or Path(v.image).name) for v in spec.views]
+    _measure(views, spec.scale, spec.focal_px, out)
+
+
+def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: Path) -> None:
+    result = fit_views(views, scale, focal_px=focal_px)
     out.mkdir(parents=True, exist_ok=True)
     (out / "joint.json").write_text(json.dumps(result_json(result), indent=2) + "\n")
     d = result.dimensions
@@ -94,7 +107,7 @@ def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str
                                                           strict=True))
     focal = (f"focal {result.focal_px:.0f} ± {result.focal_std_px:.0f} px (fitted)"
              if result.focal_std_px is not None else f"focal {result.focal_px:.0f} px (given)")
-    console.print(f"[bold]{len(result.views)} of {len(images)} views as one box[/]  {sizes} mm  {focal}",
+    console.print(f"[bold]{len(result.views)} of {len(views)} views as one box[/]  {sizes} mm  {focal}",
                   soft_wrap=True)
     for left in result.left_out:
         console.print(f"[yellow]left out[/] {escape(left.name)}: {escape(left.reason)}", soft_wrap=True)

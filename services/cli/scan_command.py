@@ -21,7 +21,7 @@ from prismcore.images import load_image
 from prismcore.locate import resolve_points
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
-from .joint_scan import scan_views
+from .joint_scan import scan_spec_views, scan_views
 from .outputs import report_path, write_outputs, write_overlays
 from .video_scan import scan_video, selection_from_flags
 
@@ -305,6 +305,16 @@ def scan(
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
                 side_face=side_face or "auto", spacing_mm=spacing_mm, nominal=nominal,
                 tolerance_mm=tolerance_mm, hint=hint, roi=roi), Path(".")
+        if spec.views is not None or spec.fit == "joint":
+            if camera is not None:
+                raise InputError("--camera does not go with a joint fit: it finds one focal length and "
+                                 "lens distortion from the views (set focal_px in the spec if known)")
+            if spec.views is None:
+                raise InputError("fit \"joint\" (a video's frames as one box) is measured by the "
+                                 "service (prism submit); here, give the frames as photos: prism scan "
+                                 "A.png B.png --points-file points.json")
+            scan_spec_views(spec, base, out)
+            return
         if camera is not None:
             spec = spec.model_copy(update={"camera": _camera_file(camera)})
         if spec.is_video or is_video(base / spec.image):

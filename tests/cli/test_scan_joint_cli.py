@@ -107,3 +107,27 @@ def test_bad_input_is_one_line_and_exit_2(shots, tmp_path, args, points, message
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1, run.stderr
     assert message in lines[0]
+
+
+def test_a_spec_with_views_is_measured_as_one_box(shots, tmp_path) -> None:
+    # The service's item shape, read by `prism scan --spec` (photos relative to the spec file).
+    folder, scenes, box = shots
+    points = _points(scenes)
+    spec = {"views": [{"image": str(folder / f"view{k + 1}.png"), "points": p} for k, p in enumerate(points)],
+            "scale": {"kind": "edge", "edge": scenes[0].known_edge, "length_mm": scenes[0].known_length_mm}}
+    spec["views"][2]["name"] = "third"
+    (tmp_path / "job.json").write_text(json.dumps(spec))
+    out = tmp_path / "out"
+    run = prism("scan", "--spec", str(tmp_path / "job.json"), "--out", str(out))
+    assert run.returncode == 0, run.stderr
+    assert "3 of 3 views as one box" in run.stdout
+    result = json.loads((out / "joint.json").read_text())
+    assert [(v["index"], v["name"]) for v in result["views"]] == [(0, "view1.png"), (1, "view2.png"),
+                                                                  (2, "third")]
+    for name in ("width", "height", "depth"):
+        assert result["dimensions"][name] == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
+    video = {"image": "clip.avi", "fit": "joint", "frame_points": {"0": points[0], "5": points[1]},
+             "scale": spec["scale"]}
+    (tmp_path / "video.json").write_text(json.dumps(video))
+    run = prism("scan", "--spec", str(tmp_path / "video.json"), "--out", str(out))
+    assert run.returncode == 2 and "measured by the service (prism submit)" in run.stderr, run.stderr

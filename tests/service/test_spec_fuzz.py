@@ -82,7 +82,7 @@ anything = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12),
                      st.text(max_size=30), st.lists(st.integers(-5, 5000), max_size=8))
 FIELDS = ("image", "side_image", "points", "tolerance", "method", "scale", "focal_px",
           "principal_point", "formats", "cloud", "max_pixels", "max_points", "csv", "ply_ascii",
-          "frames", "frame_points")
+          "frames", "frame_points", "views", "fit")
 # A video's frame selection and per-frame points: in range, out of it, and of the wrong shape.
 selections = st.fixed_dictionaries({}, optional={
     "every": st.integers(-2, 50), "start_s": st.floats(-5, 100), "end_s": st.floats(-5, 100),
@@ -90,6 +90,14 @@ selections = st.fixed_dictionaries({}, optional={
     "bogus": anything})
 frame_points = st.dictionaries(st.one_of(st.integers(-3, 3000).map(str), st.text(max_size=4)),
                                points.map(lambda p: [list(x) for x in p]), max_size=3)
+# Several views of one part (a joint fit): of the right shape or not, with a sound scale or not.
+# "REF" becomes the test's upload, so the views get past the reference check to their points.
+views = st.lists(st.fixed_dictionaries({"image": st.one_of(st.just("REF"), anything),
+                                        "points": st.one_of(points.map(lambda p: [list(x) for x in p]),
+                                                            st.just("auto"), anything)},
+                                       optional={"side_face": st.sampled_from(["right", "top", "back"]),
+                                                 "name": anything}), max_size=4)
+fits = st.sampled_from(["frames", "joint", "both"])
 
 
 @pytest.fixture
@@ -115,8 +123,12 @@ def test_any_job_body_is_202_or_a_readable_422(client, reference, data, figures)
     body_item = item(reference, SCENE)
     for name in data.draw(st.lists(st.sampled_from(FIELDS), max_size=3, unique=True)):
         choice = data.draw(st.one_of(anything, points.map(lambda p: [list(x) for x in p]), scales,
-                                     selections, frame_points))
+                                     selections, frame_points, views, fits))
         body_item[name] = choice
+    drawn = body_item.get("views")
+    for view in drawn if isinstance(drawn, list) else []:
+        if isinstance(view, dict) and view.get("image") == "REF":
+            view["image"] = reference
     if data.draw(st.booleans()):
         body_item.pop(data.draw(st.sampled_from(sorted(body_item))))
     body = {"items": [body_item] * data.draw(st.integers(0, 3)),
