@@ -7,7 +7,8 @@ SeaweedFS, a Celery worker with 2 processes and the API, all on loopback), then 
 * workers: W processes / worker CPU seconds per image (the tasks' CPU, from the processes'
   own CPU time: scan, encode, upload);
 * the store: bandwidth / bytes stored per image (every object of the jobs), for a few link
-  speeds and both output modes (default CSV + PLY; compact LAZ + glb);
+  speeds and both output modes (the default with a scale, compact LAZ + glb, as measured; CSV
+  + PLY from the bytes ratio of the two in benchmarks/service.py);
 * Redis: one core (redis-server runs commands on one thread) / Redis CPU seconds per image,
   and its commands per image;
 * the API: its processes / API CPU seconds per image (submit and one poll a second).
@@ -49,9 +50,10 @@ API_PROCESSES = 4
 POLLS_PER_IMAGE = 1.0  # status requests per image (a client polling its 10-image job once a second)
 PROCESSES_PER_NODE = 2  # worker processes per worker pod/host (each node's main process polls Redis)
 IDLE_S = 10.0
-# Compact outputs (LAZ + glb) against the default (CSV + PLY) per 1280x1024 photo: README,
-# benchmarks/service.py's output modes (3.5 MB against 27 MB).
-COMPACT_BYTES_RATIO = 3.5 / 27.0
+# Compact outputs (LAZ + glb, the default with a scale) against CSV + PLY per 1280x1024 photo:
+# README, benchmarks/service.py's output modes (3.45 MB against 25.31 MB).
+COMPACT_BYTES_RATIO = 3.45 / 25.31
+MODES = (("compact", 1.0), ("csv+ply", 1.0 / COMPACT_BYTES_RATIO))  # bytes against those measured
 
 
 def _cpu_s(proc: ManagedProcess) -> float:
@@ -167,7 +169,7 @@ def model(costs: dict[str, float]) -> list[dict[str, object]]:
         redis_limit = max(0.0, 1.0 - nodes * costs["redis_idle_cpu_s_per_s"]) / costs["redis_cpu_s"]
         row: dict[str, object] = {"workers": w, "cpu": w / costs["worker_cpu_s"], "redis": redis_limit}
         for link, mb_s in LINKS_MB_S.items():
-            for mode, ratio in (("default", 1.0), ("compact", COMPACT_BYTES_RATIO)):
+            for mode, ratio in MODES:
                 store = mb_s * 1e6 / (costs["bytes_stored"] * ratio)
                 limits = {"workers": row["cpu"], "store": store, "redis": redis_limit, "api": api_limit}
                 bound = min(limits, key=lambda k: float(limits[k]))  # type: ignore[arg-type]
@@ -177,10 +179,10 @@ def model(costs: dict[str, float]) -> list[dict[str, object]]:
 
 
 def print_report(costs: dict[str, float]) -> None:
-    print(f"Measured per image (1280x1024 photo, default outputs; {costs['images']:.0f} images, "
+    print(f"Measured per image (1280x1024 photo, default outputs: LAZ + glb; {costs['images']:.0f} images, "
           f"{PROCESSES} worker processes, {costs['measured_images_per_s']:.2f} images/s end to end here):")
     print(f"  worker CPU {costs['worker_cpu_s'] * 1000:.0f} ms; stored {costs['bytes_stored'] / 1e6:.1f} MB "
-          f"(compact ~{costs['bytes_stored'] * COMPACT_BYTES_RATIO / 1e6:.1f} MB); "
+          f"(csv + ply ~{costs['bytes_stored'] / COMPACT_BYTES_RATIO / 1e6:.1f} MB); "
           f"store server CPU {costs['store_cpu_s'] * 1000:.0f} ms")
     print(f"  Redis {costs['redis_commands']:.0f} commands, {costs['redis_cpu_s'] * 1000:.2f} ms CPU "
           f"(one core: {1 / costs['redis_cpu_s']:.0f} images/s), and idle "
@@ -189,7 +191,7 @@ def print_report(costs: dict[str, float]) -> None:
     print(f"  API CPU {costs['api_submit_cpu_s'] * 1000:.1f} ms to submit an image (in jobs of 10), "
           f"{costs['api_poll_cpu_s'] * 1000:.1f} ms a status poll ({POLLS_PER_IMAGE:g} per image: "
           f"{API_PROCESSES} processes allow {API_PROCESSES / _api_cpu_s(costs):.0f} images/s)")
-    modes = [f"{link} {mode}" for link in LINKS_MB_S for mode in ("default", "compact")]
+    modes = [f"{link} {mode}" for link in LINKS_MB_S for mode, _ in MODES]
     heads = ["workers", "CPU-bound", *modes]
     print("  ".join(f"{h:>18}" if i else f"{h:>7}" for i, h in enumerate(heads)))
     for row in model(costs):
