@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 __all__ = ["RadiusEstimate", "estimate_edge_radius", "fold_profile_radius"]
 
@@ -100,6 +101,42 @@ def _gauss(sigma_px: float) -> np.ndarray:
     return out
 
 
+_COND_LIMIT = 1e6
+"""A design matrix this ill-conditioned (none of a fold's is past 300) is solved by lstsq itself:
+its normal equations would lose the digits that rank the candidates."""
+
+
+def _window_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least-squares residual sums of squares of y by windows of columns.
+
+    columns : (B, M, K) float64, K column signals of length M per batch entry;
+    starts : (S,) int, window starts (each window M' = len(y) rows);
+    y : (M', C). Returns (B, S): for each entry and start, the RSS of fitting y by
+    columns[b, start:start + M']. The normal equations' sums come from prefix sums (every
+    window at once) and one batched solve replaces a lstsq call per window: equal to
+    `np.linalg.lstsq` to ~1e-14 on these well-conditioned designs, and lstsq itself is used
+    for any ill-conditioned one.
+    """
+    y = np.asarray(y, dtype=np.float64)  # a profile comes as float32: its sums need the digits
+    n = y.shape[0]
+    outer = np.einsum("bmk,bml->bmkl", columns, columns)
+    prefix = np.concatenate([np.zeros_like(outer[:, :1]), np.cumsum(outer, axis=1)], axis=1)
+    gram = prefix[:, starts + n] - prefix[:, starts]  # (B, S, K, K)
+    window = starts[:, None] + np.arange(n)
+    eig = np.linalg.eigvalsh(gram)
+    ill = eig[..., 0] <= eig[..., -1] / _COND_LIMIT ** 2
+    gram[ill] = np.eye(gram.shape[-1])  # solved below by lstsq; a singular one would stop solve
+    designs = columns[:, window]  # (B, S, M', K)
+    coef = np.linalg.solve(gram, np.einsum("bsnk,nc->bskc", designs, y))  # (B, S, K, C)
+    # The residual itself, not y'y - b'coef: that difference keeps only ~1e-11 of the RSS.
+    out: np.ndarray = ((np.einsum("bsnk,bskc->bsnc", designs, coef) - y) ** 2).sum(axis=(2, 3))
+    for b, s in zip(*np.nonzero(ill), strict=True):
+        design = columns[b, starts[s]:starts[s] + n]
+        got, *_ = np.linalg.lstsq(design, y, rcond=None)
+        out[b, s] = float(((design @ got - y) ** 2).sum())
+    return out
+
+
 def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[float, float],
                         tan_phi: tuple[float, float]) -> tuple[float, float, np.ndarray]:
     """The radius that best explains one fold's shading profile.
@@ -130,28 +167,29 @@ def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[
     on_a = fine < 0
     # Each face's level may drift across the profile (uneven light, vignetting): a slope each.
     slopes = np.stack([np.where(on_a, fine, 0.0), np.where(on_a, 0.0, fine)], axis=1) / x_px.size
-    rss = np.full(_RADII_MM.size, np.inf)
-    best_shift = np.zeros(_RADII_MM.size)
-    for i, r in enumerate(_RADII_MM):
-        a = _arc_of(np.clip(-fine, 0, None) / px_per_mm[0], float(r), tan_phi[0])
-        b = _arc_of(np.clip(fine, 0, None) / px_per_mm[1], float(r), tan_phi[1])
-        ca, sa = np.where(on_a, np.cos(a), np.sin(b)), np.where(on_a, np.sin(a), np.cos(b))
-        turn = np.where(on_a, a, b)
-        basis = np.column_stack([ca, sa, 1 - np.cos(turn) - np.sin(turn)])
-        if r == 0:
-            basis = basis[:, :2]
-        for sigma in _BLURS_PX:
-            k = _gauss(sigma)
-            blurred = np.stack([np.convolve(np.pad(col, k.size // 2, mode="edge"), k, mode="valid")
-                                for col in basis.T], axis=1)
-            blurred = np.column_stack([blurred, slopes])
-            for shift in _SHIFTS_PX:
-                lo = pad + round(shift / _STEP_PX)
-                A = blurred[lo:lo + x_px.size]
-                coef, *_ = np.linalg.lstsq(A, profile, rcond=None)
-                got = float(((A @ coef - profile) ** 2).sum())
-                if got < rss[i]:
-                    rss[i], best_shift[i] = got, shift
+    starts = pad + np.round(np.asarray(_SHIFTS_PX) / _STEP_PX).astype(int)
+    # Every radius's three shading columns at once; the blurs as one filter each over all of
+    # them (edge values repeated past the ends).
+    arcs = [(_arc_of(np.clip(-fine, 0, None) / px_per_mm[0], float(r), tan_phi[0]),
+             _arc_of(np.clip(fine, 0, None) / px_per_mm[1], float(r), tan_phi[1])) for r in _RADII_MM]
+    a, b = np.array([x for x, _ in arcs]), np.array([x for _, x in arcs])  # (radii, fine)
+    turn = np.where(on_a, a, b)
+    basis = np.stack([np.where(on_a, np.cos(a), np.sin(b)), np.where(on_a, np.sin(a), np.cos(b)),
+                      1 - np.cos(turn) - np.sin(turn)], axis=-1)  # (radii, fine, 3)
+    # Every (blur, offset) pair of every radius solved at once: (radii x blurs, fine, 5) columns.
+    columns = np.concatenate([
+        np.concatenate([ndimage.convolve1d(basis, _gauss(sigma), axis=1, mode="nearest"),
+                        np.broadcast_to(slopes, (*basis.shape[:2], 2))], axis=-1)[:, None]
+        for sigma in _BLURS_PX], axis=1).reshape(-1, fine.size, 5)
+    n_pairs = len(_BLURS_PX) * len(_SHIFTS_PX)
+    rss_all = np.empty((_RADII_MM.size, n_pairs))
+    sharp = np.repeat(_RADII_MM == 0, len(_BLURS_PX))  # no turn: its third column is zero, left out
+    rss_all[_RADII_MM == 0] = _window_rss(columns[sharp][..., [0, 1, 3, 4]], starts,
+                                          profile).reshape(-1, n_pairs)
+    rss_all[_RADII_MM != 0] = _window_rss(columns[~sharp], starts, profile).reshape(-1, n_pairs)
+    pick = np.argmin(rss_all, axis=1)  # the first of equals, as the (blur, offset) order runs
+    rss = rss_all[np.arange(_RADII_MM.size), pick]
+    best_shift = np.asarray(_SHIFTS_PX)[pick % len(_SHIFTS_PX)]
     best = int(np.argmin(rss))
     return float(_RADII_MM[best]), float(best_shift[best]), rss
 
