@@ -32,6 +32,9 @@ function where(pointer: string): string {
   // "/items/0/points/p1" -> "scan 1, points, p1" (RFC 6901: "~1" is "/", "~0" is "~")
   const parts = pointer.split("/").slice(1).map((p) => p.replace(/~1/g, "/").replace(/~0/g, "~"));
   if (parts[0] === "items" && parts.length > 1) parts.splice(0, 2, `scan ${Number(parts[1]) + 1}`);
+  // "views/1" (several photos of one part) -> "photo 2", as the page numbers them
+  const view = parts.indexOf("views");
+  if (view >= 0 && /^\d+$/.test(parts[view + 1] ?? "")) parts.splice(view, 2, `photo ${Number(parts[view + 1]) + 1}`);
   return parts.join(", ");
 }
 

@@ -6,6 +6,7 @@
 // dragged is sent as points "auto" (see foundAsIs), so its results say the points were found.
 
 import { message, whenReady } from "./api";
+import { inPart } from "./part";
 import { faceChoice, setFaceChoice, type Marks } from "./points";
 import * as S from "./state";
 import type { FoundPoints, Point, PointName } from "./types";
@@ -116,7 +117,8 @@ export class FindPoints {
     const marks = found.points;
     const face = found.side_face;
     this.apply(() => {
-      S.state.extra = Boolean(marks.p6 && marks.p7);
+      // A part's photo keeps all seven points asked for (part.ts).
+      S.state.extra = inPart() || Boolean(marks.p6 && marks.p7);
       $<HTMLInputElement>("extra-corners").checked = S.state.extra;
       setFaceChoice(face);
       $<HTMLSelectElement>("second-face").value = face;

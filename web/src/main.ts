@@ -9,6 +9,8 @@ import { FramePicker } from "./frame-picker";
 import { FrameSelectionForm } from "./frame-selection";
 import { History } from "./history";
 import { Marking } from "./marking";
+import { inPart } from "./part";
+import { PartViews } from "./part-views";
 import { Photos } from "./photos";
 import { ResultPanel } from "./result";
 import { Runner } from "./run";
@@ -18,9 +20,14 @@ import type { JobList } from "./types";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
-const settings = new SettingsForm(() => state.twoPhoto);
+const settings = new SettingsForm(() => state.twoPhoto, inPart);
 const marking = new Marking(() => settings.paper());
 const finder = new FindPoints((change) => marking.changed(change));
+const part = new PartViews((change) => marking.changed(change), (change) => {
+  marking.changed(change);
+  photos.render(); // another front photo: chosen in the list
+  marking.show("front"); // and fitted to the canvas
+});
 const photos = new Photos();
 const picker = new FramePicker();
 const frames = new FrameSelectionForm(() => photoShown("front")?.video?.info ?? null);
@@ -28,17 +35,22 @@ const runner = new Runner(() => settings.read(), (info, marked) => frames.read(i
 const result = new ResultPanel();
 const history = new History();
 
-// A video's frame picker and frame selection follow the points and the frame shown.
-const videoParts = () => {
+// A video's frame picker and frame selection, and the list of a part's photos, follow the points
+// and the photo or frame shown.
+const pointsChanged = () => {
   picker.render();
   frames.render();
+  part.render();
 };
-marking.onChange = videoParts;
+part.onStart = () => settings.askEdge();
+marking.onChange = pointsChanged;
 picker.onShown = () => marking.changed(() => {});
 frames.onModeChange = () => marking.changed(() => {});
 
 photos.onChange = (what) => {
-  if (what === "front") marking.changed(() => (state.twoPhoto ? clear(["p1", "p2", "p3", "p6"]) : clearAll()));
+  if (what === "front" && inPart()) {
+    if (!part.follow()) photos.render(); // not one of the part's photos: the choice is undone
+  } else if (what === "front") marking.changed(() => (state.twoPhoto ? clear(["p1", "p2", "p3", "p6"]) : clearAll()));
   if (what === "side") marking.changed(() => clear(["p4", "p5", "p7"]));
   if (what === "mode") {
     settings.render();
@@ -47,7 +59,7 @@ photos.onChange = (what) => {
   }
   if (what !== "photos") marking.show(state.shown === "side" && state.twoPhoto ? "side" : "front");
   else marking.refresh();
-  videoParts();
+  pointsChanged();
 };
 $("method").addEventListener("change", () => marking.refresh());
 runner.onAdded = () => marking.changed(clearAll);

@@ -3,6 +3,7 @@
 
 import { foundFaces } from "./find-points";
 import { Marker } from "./marker";
+import { partPrompt } from "./part";
 import { renderPointTable } from "./point-table";
 import { describe, photoOf, regions, setFaceChoice, type FaceChoice, type Photo } from "./points";
 import * as S from "./state";
@@ -95,7 +96,7 @@ export class Marking {
     else if (next && two && !S.photoShown("side") && photoOf(next, true) === "side") {
       prompt = `Choose the side photo, then click ${next.toUpperCase()}: ${describe(next, two)}.`;
     } else if (next) prompt = `Click ${next.toUpperCase()}: ${describe(next, two)}.`;
-    $("next-point").textContent = prompt;
+    $("next-point").textContent = partPrompt() + prompt;
     renderPointTable((name, p) => this.changed(() => S.place(name, p)));
     this.marker.draw();
   }

@@ -2,9 +2,11 @@
 // from, point count and point loss, download links, the overlay picture of the fit, and the cloud
 // in the 3D view (preview and overlay fetched through the API on this origin, never from S3). A
 // video shows its summary and frames (video-result.ts), and the cloud of the frame chosen.
+// Several photos of one part measured as one box (joint-result.ts) make no cloud: no 3D view.
 
 import { call, message } from "./api";
 import type { ColourMode } from "./colours";
+import { jointFocal, jointLine, jointOf, jointTable } from "./joint-result";
 import { ResultsTableView } from "./results-table";
 import type { Frame, Item, Job, Result } from "./types";
 import { badge, deviationText } from "./verdicts";
@@ -14,7 +16,8 @@ import { DIMENSIONS as DIMS, flag, warningList } from "./warnings";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
-  ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["overlay", "Fit overlay (PNG)"]];
+  ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"],
+  ["overlay", "Fit overlay (PNG)"]];
 const SOURCES: Record<string, string> = {
   given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
   fitted: "fitted to the box", none: "not used (square-on model)",
@@ -94,6 +97,7 @@ export class ResultPanel {
     $<HTMLSelectElement>("result-frame").replaceChildren(...measured.map((f) =>
       new Option(`Frame ${f.index}`, String(f.index), false, f === chosen)));
     this.table.mark(item.index, video ? (chosen?.index ?? null) : null);
+    $("viewer-box").hidden = jointOf(item) !== null; // no cloud to show
     const glb = !video && Boolean(item.downloads.glb);
     $("show-model").hidden = !glb;
     if (!glb && this.model) this.showModel(false);
@@ -108,6 +112,11 @@ export class ResultPanel {
     const status = $("viewer-status");
     const load = ++this.loading;
     this.viewer?.clear();
+    if (jointOf(item)) {
+      $("overlay-figure").hidden = true; // nor a fit drawn on one photo
+      status.textContent = "";
+      return;
+    }
     if (frame === undefined || (frame === null && item.state !== "succeeded")) {
       status.textContent = "No cloud for this scan.";
       return;
@@ -196,6 +205,7 @@ function summary(item: Item): Summary {
   const quality = r.quality ?? null;
   const out: HTMLElement[] = [];
   const warned = warningList(r.warnings, true);
+  const joint = r.joint ?? null;
   if (quality) {
     const p = document.createElement("p");
     p.className = "part-verdict";
@@ -205,6 +215,7 @@ function summary(item: Item): Summary {
       ` (${quality.counts.pass} of ${n} dimensions within tolerance at ±${quality.k} σ)`);
     out.push(p);
   }
+  if (joint) out.push(jointLine(joint));
   const dl = document.createElement("dl");
   dl.id = "dimensions";
   const details = document.createElement("dl");
@@ -238,9 +249,14 @@ function summary(item: Item): Summary {
     if (judged) verdict.append(badge(judged.verdict), " ", deviationText(judged));
     dl.append(verdict);
   }
-  add("Points", r.points.toLocaleString("en"));
-  add("Point loss", `${(r.point_loss * 100).toFixed(2)} %`);
-  if (r.focal_source) {
+  if (joint) {
+    const focal = jointFocal(r, joint);
+    if (focal) add("Focal length", focal);
+  } else {
+    add("Points", r.points.toLocaleString("en"));
+    add("Point loss", `${(r.point_loss * 100).toFixed(2)} %`);
+  }
+  if (r.focal_source && !joint) {
     const f = r.focal_px ? `${Math.round(r.focal_px)} px, ` : "";
     add("Focal length", `${f}${SOURCES[r.focal_source] ?? r.focal_source}`);
   }
@@ -261,7 +277,8 @@ function summary(item: Item): Summary {
     a.rel = "noopener";
     links.append(a);
   }
-  return { top: out, warnings: warned.list ? [warned.list] : [], details: [details, links] };
+  const more = joint ? [jointTable(joint, unit)] : [];
+  return { top: out, warnings: warned.list ? [warned.list] : [], details: [details, ...more, links] };
 }
 
 /** The fitted box and its dimension labels for the 3D view, from a scan's result. */

@@ -1,12 +1,14 @@
 // The scan the user has set up, as one item of a job (the ScanSpec model with upload references),
 // or a sentence saying what is still missing. A video's item has `frames` and `points`, or
-// `frame_points` (per-frame points: exactly the frames marked are measured).
+// `frame_points` (per-frame points: exactly the frames marked are measured); several photos of
+// one part are one item with `views`, measured as one box.
 
 import { foundAsIs, pointsOrigin } from "./find-points";
+import { inPart, partPhotos } from "./part";
 import { describe, sequence, type Marks } from "./points";
 import type { Settings } from "./settings";
-import { allFrameMarks, photoShown, state } from "./state";
-import type { FrameSelection, PointSet, ScanSpec, VideoInfo } from "./types";
+import { allFrameMarks, photoShown, state, type PhotoEntry } from "./state";
+import type { FrameSelection, PointSet, ScanSpec, VideoInfo, ViewSpec } from "./types";
 
 export interface Scan {
   spec: ScanSpec;
@@ -17,12 +19,16 @@ export interface Scan {
 export type SelectFrames = (info: VideoInfo, marked: number | null) => FrameSelection;
 
 export function hasMarks(): boolean {
-  return Object.keys(state.marks).length > 0 || Object.keys(state.frameMarks).length > 0;
+  return Object.keys(state.marks).length > 0 || Object.keys(state.frameMarks).length > 0 || inPart();
 }
 
 function reference(which: "front" | "side"): { ref: string; name: string } {
   const photo = photoShown(which);
   if (!photo) throw new Error(`Choose the ${which} photo first.`);
+  return uploaded(photo);
+}
+
+function uploaded(photo: PhotoEntry): { ref: string; name: string } {
   if (!photo.upload) {
     throw new Error(photo.status === "uploading…"
       ? `Wait for ${photo.name} to finish uploading.`
@@ -31,19 +37,22 @@ function reference(which: "front" | "side"): { ref: string; name: string } {
   return { ref: photo.upload.reference, name: photo.name };
 }
 
-/** Every point asked for, in order; throws an Error naming the first one missing. */
-function complete(marks: Marks, where = ""): PointSet {
-  const missing = sequence(state.extra, state.twoPhoto).filter((n) => !marks[n]);
+/** Every point asked for (`seven`: all seven, as a part's photo needs), in order; throws an Error
+ *  naming the first one missing. */
+function complete(marks: Marks, where = "", seven = false): PointSet {
+  const names = sequence(seven || state.extra, state.twoPhoto);
+  const missing = names.filter((n) => !marks[n]);
   if (missing.length) {
     const n = missing[0];
     throw new Error(`${where}${n.toUpperCase()} (${describe(n, state.twoPhoto)}) is not placed yet` +
-      (n === "p6" || n === "p7" ? "; place it, or untick P6 and P7." : "."));
+      (seven ? "." : n === "p6" || n === "p7" ? "; place it, or untick P6 and P7." : "."));
   }
-  return Object.fromEntries(sequence(state.extra, state.twoPhoto).map((n) => [n, marks[n]!]));
+  return Object.fromEntries(names.map((n) => [n, marks[n]!]));
 }
 
 /** The current scan as a job item; throws an Error saying what to do when it is not ready. */
 export function currentScan(settings: Settings, selectFrames: SelectFrames): Scan {
+  if (inPart()) return partScan(settings);
   const front = reference("front");
   const video = photoShown("front")?.video;
   if (video) return videoScan(front, video.info, settings, selectFrames);
@@ -78,4 +87,23 @@ function videoScan(front: { ref: string; name: string }, info: VideoInfo | null,
     spec: { image: front.ref, frame_points: framePoints, ...settings },
     label: `${front.name} (video, frames ${marked.map(([f]) => f).join(", ")})`,
   };
+}
+
+/** The part's photos as one item with `views` (each its seven points, second face and file name),
+ *  measured as one box; the settings' known edge, focal length and nominal size go with it. */
+function partScan(settings: Settings): Scan {
+  if (settings.method === "paper") {
+    throw new Error("The paper's colour scan measures one photo: choose “Fitted edges” under Method to " +
+      "measure several photos of one part as one box.");
+  }
+  const views: ViewSpec[] = partPhotos().map(({ photo, view }, k) => {
+    if (!photo) throw new Error(`Photo ${k + 1} of this part is no longer listed: remove it from the part.`);
+    const { ref, name } = uploaded(photo);
+    const points = complete(view.marks, `Photo ${k + 1} of this part (${name}): `, true);
+    return { image: ref, points, side_face: view.face, name: name.slice(0, 200) };
+  });
+  // No cloud is made: the cloud's settings (colour tolerance, method, cloud kind) do not apply,
+  // and each view carries its own second face.
+  const { tolerance: _t, method: _m, cloud: _c, side_face: _f, ...rest } = settings;
+  return { spec: { views, ...rest }, label: `${views.length} photos of one part (${views.map((v) => v.name).join(", ")})` };
 }

@@ -10,7 +10,8 @@ export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale"
   | "nominal" | "tolerance_mm">;
 
 export class SettingsForm {
-  constructor(private twoPhoto: () => boolean) {
+  /** `joint`: several photos of one part are marked, to be measured as one box (a known edge). */
+  constructor(private twoPhoto: () => boolean, private joint: () => boolean) {
     $("scale-kind").addEventListener("change", () => this.render());
     $("settings").addEventListener("change", () => this.describe());
     $("quality-settings").addEventListener("change", () => this.describe());
@@ -30,6 +31,29 @@ export class SettingsForm {
     $("settings-summary").textContent = `(${parts.join("; ")})`;
   }
 
+  /** Several photos of one part are marked: open the settings at a known edge, the scale the
+   *  joint fit needs (left as chosen when it is one already). */
+  askEdge(): void {
+    const kind = $<HTMLSelectElement>("scale-kind");
+    if (kind.value !== "edge") {
+      kind.value = "edge";
+      this.render();
+      this.describe();
+    }
+    $<HTMLDetailsElement>("settings-panel").open = true;
+  }
+
+  /** A joint fit's scale: one known edge with its length; else an Error saying so, at the field. */
+  private requireEdge(): void {
+    const kind = value("scale-kind");
+    const length = value("edge-mm").trim();
+    if (kind === "edge" && length !== "") return;
+    $<HTMLDetailsElement>("settings-panel").open = true;
+    $(kind === "edge" ? "edge-mm" : "scale-kind").focus();
+    throw new Error("Several photos of one part are measured as one box, which needs one known edge as the " +
+      "scale: choose “One known edge” under Scale, which edge it is and its length in mm.");
+  }
+
   paper(): boolean {
     return value("method") === "paper";
   }
@@ -46,6 +70,7 @@ export class SettingsForm {
   read(): Settings {
     const tolerance = number("tolerance", "The colour tolerance", { min: 0, max: 128 })!;
     const focal = number("focal", "The focal length", { positive: true, optional: true });
+    if (this.joint()) this.requireEdge();
     const kind = value("scale-kind");
     let scale: Scale | undefined;
     if (kind === "mm_per_px") {

@@ -1,7 +1,7 @@
 // What the user has set up so far: the photos, the mode, the points; one object, read by the
 // modules that draw it, changed only through the functions here so undo sees every change.
 
-import { photoOf, sequence, type Marks, type Photo } from "./points";
+import { photoOf, sequence, type FaceChoice, type Marks, type Photo } from "./points";
 import type { Point, PointName, Upload, VideoInfo } from "./types";
 
 export interface PhotoEntry {
@@ -11,6 +11,12 @@ export interface PhotoEntry {
   upload: Upload | null;
   status: string;
   video: { info: VideoInfo | null; frame: number } | null; // null for a photo
+}
+
+/** A photo of a part measured as one box, while another is shown: its points and second face. */
+export interface PartView {
+  marks: Marks;
+  face: FaceChoice;
 }
 
 export const state = {
@@ -27,6 +33,11 @@ export const state = {
   perFrame: false,
   frameMarks: {} as Record<number, Marks>,
   markedFrame: null as number | null,
+  // Several photos of one part, measured as one box (part.ts): their ids in order, the one whose
+  // points are in `marks` (the front photo), and the others' points. Empty: one photo alone.
+  part: [] as number[],
+  partShown: null as number | null,
+  partViews: {} as Record<number, PartView>,
 };
 
 /** The frame shown when the front "photo" is a video, else null. */
@@ -94,11 +105,15 @@ export function clear(names?: PointName[]): void {
   else state.marks = Object.fromEntries(Object.entries(state.marks).filter(([n]) => !names.includes(n as PointName)));
 }
 
-/** Forget every point, every frame's included (another video, or a scan added to the batch). */
+/** Forget every point, every frame's and every photo of a part's included (another video, or a
+ *  scan added to the batch). */
 export function clearAll(): void {
   clear();
   state.frameMarks = {};
   state.markedFrame = null;
+  state.part = [];
+  state.partShown = null;
+  state.partViews = {};
 }
 
 /** The points marked on one photo, in click order. */

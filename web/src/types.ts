@@ -62,7 +62,23 @@ export interface Quality {
   dimensions: Partial<Record<Dimension, DimensionVerdict>>;
 }
 
+/** An item's views (a video's frames) measured as ONE box (prism_common.public.JointPublic). */
+export interface Joint {
+  views: {
+    index: number;
+    name: string;
+    click_rms_px: number;
+    line_rms_px: number;
+    alone: Record<Dimension, number>;
+    disagreement: number | null;
+  }[];
+  left_out: { index: number; name: string; reason: string }[];
+  focal_std_px: number | null;
+  distortion_kappa: number;
+}
+
 export interface Result {
+  /** Points in the cloud; 0 for a joint fit, which makes none. */
   points: number;
   dimensions: Record<Dimension, number> & { unit: string };
   point_loss: number;
@@ -78,6 +94,8 @@ export interface Result {
   /** "clicked" (given in the spec) or "auto" (found by the service's search). */
   points_source?: string | null;
   points_confidence?: number | null;
+  /** Several views measured as one box: those used and those left out (null otherwise). */
+  joint?: Joint | null;
 }
 
 export interface Frame {
@@ -168,19 +186,30 @@ export interface FrameSelection {
 
 export type PointSet = Partial<Record<PointName, Point>>;
 
-export interface ScanSpec {
+/** One photo of a part measured as one box (prismcore.spec.ViewSpec): all seven points. */
+export interface ViewSpec {
   image: string;
+  points: PointSet;
+  side_face?: "auto" | "right" | "left" | "top";
+  name?: string;
+}
+
+export interface ScanSpec {
+  /** With `views`, left out: the first view's photo is the item's image. */
+  image?: string;
   side_image?: string;
   /** "auto": the worker finds them (prismcore.locate), around `auto_points.hint` if given. */
   points?: PointSet | "auto";
   auto_points?: { hint?: Point };
   frames?: FrameSelection;
   frame_points?: Record<string, PointSet>;
-  tolerance: number;
-  method: "default" | "paper";
+  /** 2 or more photos of one part, measured as ONE box (a known edge as the scale; no cloud). */
+  views?: ViewSpec[];
+  tolerance?: number;
+  method?: "default" | "paper";
   /** One photo: the face P4, P5 and P7 mark besides the front; "auto" reads it from them. */
   side_face?: "auto" | "right" | "left" | "top";
-  cloud: "surface" | "volume";
+  cloud?: "surface" | "volume";
   scale?: Scale;
   focal_px?: number;
   /** The part's nominal width, height and depth (mm), and the tolerance on them. */
