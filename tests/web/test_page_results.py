@@ -205,6 +205,20 @@ def test_verdicts_and_the_3d_view_with_dimension_lines(page, batch):
     assert colour  # (the part verdict's colour was read: text and colour both present)
 
 
+def _no_glb_relay_is_404(stack, photo: Path) -> None:
+    with httpx.Client(base_url=stack.url, headers={"X-API-Key": KEY}, timeout=30) as http:
+        ref = http.post("/v1/uploads", files={"file": ("part.png", photo.read_bytes())}).json()["reference"]
+        scene = render_oblique_view(BOX, image_size=(640, 512), focal_px=700.0, seed=31)
+        job = http.post("/v1/jobs", json={"items": [{**_spec(ref, scene, None), "formats": ["ply"]}]}).json()
+        deadline = time.monotonic() + 120
+        while (job := http.get(f"/v1/jobs/{job['id']}").json())["state"] not in ("succeeded", "failed"):
+            assert time.monotonic() < deadline, job["state"]
+            time.sleep(0.5)
+        assert job["state"] == "succeeded", job
+        missing = http.get(f"/v1/jobs/{job['id']}/items/0/box.glb")
+        assert missing.status_code == 404 and "has no glb" in missing.json()["detail"], missing.text
+
+
 def _dir() -> Path:
     ARTEFACTS.mkdir(parents=True, exist_ok=True)
     return ARTEFACTS
@@ -257,13 +271,17 @@ def test_layout_at_laptop_size_nominal_from_the_page(page, stack, tmp_path):
     assert result["y"] < photo["y"] + photo["height"] and photo["y"] < result["y"] + result["height"]
     dims = page.locator("#dimensions").bounding_box()
     assert dims["y"] + dims["height"] <= LAPTOP["height"], dims
-    # No glb asked for: no model button, and the relay says there is none.
-    expect(page.get_by_role("button", name="Box model (glb)")).to_be_hidden()
+    # The page names no formats, so an item with a scale gets the service's default (LAZ + glb):
+    # the model button is there and the relay serves the model.
+    assert spec.formats == ["csv", "ply"] and "formats" not in json.loads(sent.value.post_data)["items"][0]
+    expect(page.get_by_role("button", name="Box model (glb)")).to_be_visible()
     job_id = page.locator("#job-state").text_content().split()[1].rstrip(":")
     job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]
     assert job["id"].startswith(job_id)
-    missing = httpx.get(f"{stack.url}/v1/jobs/{job['id']}/items/0/box.glb", headers={"X-API-Key": KEY})
-    assert missing.status_code == 404 and "has no glb" in missing.json()["detail"], missing.text
+    model = httpx.get(f"{stack.url}/v1/jobs/{job['id']}/items/0/box.glb", headers={"X-API-Key": KEY})
+    assert model.status_code == 200 and model.content[:4] == b"glTF", model.status_code
+    # An item that asked for no glb: the relay says there is none.
+    _no_glb_relay_is_404(stack, tmp_path / "part.png")
     # The settings open again from their summary, by keyboard.
     page.locator("#settings-panel summary").focus()
     page.keyboard.press("Enter")
