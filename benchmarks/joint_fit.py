@@ -33,7 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from prismcore import InputError, ScanSpec
-from prismcore.joint import JointResult, View, fit_views
+from prismcore.joint import LINE_REJECT_PX, JointResult, View, fit_views
 from prismcore.pipeline import plan_scan
 from prismcore.spec import KnownEdge
 from prismsynth.views import photo_like_views
@@ -79,7 +79,7 @@ def render_case(seed: int, views: int, edge_agree_px: float | None = None) -> di
             "singles": singles, "single_refused": refused,
             "joint": _errors((j.width, j.height, j.depth), j.uncertainty, truth, p.known_edge),
             "focal": joint.focal_px, "left_out": [o.name for o in joint.left_out], "seconds": seconds,
-            "nfev": joint.nfev}
+            "nfev": joint.nfev, "lines_left_out": joint.lines_left_out}
 
 
 def summary(pairs: list[tuple[float, float]]) -> dict:
@@ -128,9 +128,10 @@ def video_figures(edge_agree_px: float | None = None) -> dict:
                   "depth_pct": 100 * (j.depth / truth["depth"] - 1),
                   "focal_px": joint.focal_px, "focal_std_px": joint.focal_std_px,
                   "left_out": [(o.name, o.reason) for o in joint.left_out], "warnings": list(joint.warnings),
+                  "lines_left_out": joint.lines_left_out,
                   "notes": list(j.notes), "seconds": seconds, "nfev": joint.nfev,
                   "views": [(v.name, round(v.click_rms_px, 2), round(v.line_rms_px, 2),
-                             None if v.disagreement is None else round(v.disagreement, 1))
+                             None if v.disagreement is None else round(v.disagreement, 1), v.lines_left_out)
                             for v in joint.views]},
     }
 
@@ -151,6 +152,8 @@ def print_renders(args: argparse.Namespace, cases: list[dict]) -> dict:
     print(f"{'worst |error| %':28}{single['worst_pct']:>14.2f}{joint['worst_pct']:>10.2f}{'1.5':>10}")
     print(f"{'2-sigma covers the truth':28}{single['coverage_2sigma']:>14.0%}"
           f"{joint['coverage_2sigma']:>10.0%}{'>= 90 %':>10}")
+    lines = sum(c.get("lines_left_out", 0) for c in cases)
+    print(f"edge lines left out by the joint fit (> {LINE_REJECT_PX:g} px from the joint box): {lines}")
     print(f"views left out by the joint fit: {left}; single views refused: "
           f"{sum(c['single_refused'] for c in cases)}; joint fit time median "
           f"{statistics.median(c['seconds'] for c in cases):.1f} s")
@@ -178,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"seed {seed}: box {case['box']} known {case['known']} k1 {case['k1']:+.3f} "
                   f"r {case['radius_mm']:.1f} mm | single {single} | joint {joint} | focal "
                   f"{case['focal']:.0f}/{case['focal_true']:.0f} | left out {case['left_out'] or '-'} | "
+                  f"lines left out {case['lines_left_out']} | "
                   f"{case['seconds']:.1f} s", flush=True)
     figures: dict = {}
     if cases:
@@ -194,7 +198,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{a + ' |error| %':28}{video['single_median_pct'][a]:>16.2f}"
                   f"{abs(j[a + '_pct']):>9.2f} ({j[a]:.1f} ± {j['sigma'][a]:.1f} mm){'2':>10}")
         print(f"joint focal {j['focal_px']:.0f} ± {j['focal_std_px'] or 0:.0f} px; left out: "
-              f"{[n for n, _ in j['left_out']] or '-'}; {j['seconds']:.1f} s")
+              f"{[n for n, _ in j['left_out']] or '-'}; edge lines left out {j['lines_left_out']}; "
+              f"{j['seconds']:.1f} s")
+        print("  per frame (click RMS px, line RMS px, disagreement, lines left out): "
+              + "; ".join(f"{n.removeprefix('frame ')} {c} {ln} {t} {k}" for n, c, ln, t, k in j["views"]))
         for name, reason in j["left_out"]:
             print(f"  {name}: {reason}")
         for w in j["warnings"]:

@@ -11,6 +11,8 @@ named and left out, and the result is what the other views measure.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -66,26 +68,28 @@ def test_the_known_edge_is_kept_and_the_camera_is_found(cases) -> None:
         assert len(result.views) + len(result.left_out) == 3
 
 
-# Issue 20's target: 0.5 %. Seeds 0-7 measured 0.33 % (each view alone: 0.57 %); over seeds 0-19
-# (benchmarks/joint_fit.py) 0.50 %.
+# Issue 20's target: 0.5 %. Seeds 0-7 measured 0.34 % (each view alone: 0.57 %); over seeds 0-19
+# (benchmarks/joint_fit.py) 0.37 % (0.50 % before each view was weighed by its own noise and lines
+# off the joint box were left out), over the held-out seeds 20-59 0.50 %.
 def test_median_error(errors) -> None:
     err, _ = errors
     assert np.median(np.abs(err)) <= 0.005, np.round(err * 100, 2)
 
 
-# Issue 20's target: 1.5 %. NOT MET: seeds 0-7 measured 1.69 % (seed 0: a 47 mm known depth whose
-# rounded edges, 0.9 mm, the shading does not resolve; the three views share that bias; each view
-# alone reaches 2.01 %; over seeds 0-19 2.48 %, against 5.48 % alone). The bound holds what is
-# reached with a margin, so a loss of accuracy fails here.
+# Issue 20's target: 1.5 %. NOT MET: seeds 0-7 measured 1.72 % (seed 0: a 47 mm known depth whose
+# rounded edges, 0.9 mm, the shading does not resolve, so no silhouette is corrected; the three
+# views share that bias; each view alone reaches 2.01 %); over seeds 0-19 2.00 % (was 2.48 %; 5.48 %
+# alone), over seeds 20-59 3.24 % (a 55 x 50 mm box with 2.3 mm edges every view alone gets 3-11 %
+# wrong). The bound holds what is reached with a margin, so a loss of accuracy fails here.
 def test_worst_error(errors) -> None:
     err, _ = errors
     assert np.abs(err).max() <= 0.02, np.round(err * 100, 2)
 
 
 # Issue 20's target: the stated 2-sigma covers the truth in at least 90 % of cases. Seeds 0-7: 16 of
-# 16; seeds 0-19: 39 of 40. The sigma includes what the shared views cannot average away (the
-# rounded folds' place on their shading ramps, the lens and the radius), so it is wider than the
-# scatter alone: its median is 0.99 % here (1.25 % over seeds 0-19).
+# 16; seeds 0-19: 40 of 40; seeds 20-59: 77 of 80. The sigma includes what the shared views cannot
+# average away (the rounded folds' place on their shading ramps, the lens and the radius), so it is
+# wider than the scatter alone: its median is 0.91 % here (1.12 % over seeds 0-19).
 def test_two_sigma_covers_the_truth(errors) -> None:
     err, sigma = errors
     covered = np.abs(err) <= 2 * sigma
@@ -146,3 +150,63 @@ def test_edge_lines_the_clicks_disagree_with_can_be_left_out(clean) -> None:
     box = clean[0].box
     for name in DIMENSIONS:
         assert getattr(strict.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.03)
+
+
+def test_an_edge_line_on_another_feature_is_left_out(clean, monkeypatch) -> None:
+    """A view's refined edge moved 6 px off the box (as onto a printed border parallel to it) lies
+    off the box the other views share: it is left out and the box is what the clean views give."""
+    import prismcore.joint as joint
+
+    prepare = joint._prepare
+
+    def moved(k, view, *args, **kwargs):  # type: ignore[no-untyped-def]
+        got = prepare(k, view, *args, **kwargs)
+        if k != 1:
+            return got
+        lines = list(got.front.lines)
+        assert lines[0] is not None
+        lines[0] = lines[0] + np.array([0.0, 0.0, 6.0])  # the front's top edge, 6 px off
+        return replace(got, front=replace(got.front, lines=tuple(lines)))
+
+    monkeypatch.setattr(joint, "_prepare", moved)
+    result = fit_views(_views(clean), _scale(clean[0]))
+    assert result.views[1].lines_left_out >= 1
+    assert result.lines_left_out == sum(v.lines_left_out for v in result.views)
+    box = clean[0].box
+    for name in DIMENSIONS:
+        assert getattr(result.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
+
+
+def _video_module():  # type: ignore[no-untyped-def]
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "real_video_data.py"
+    spec = importlib.util.spec_from_file_location("real_video_data", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+# Issue 20's target on the real cookie-box video (12 hand-marked frames, width known, no focal): the
+# joint fit within 2 % on height and depth. Measured +1.7 % / +1.4 % (it was +4.1 % / +5.0 % while
+# every frame's lines weighed 0.3 px and its clicks 5 px whatever they showed: frames whose edges
+# include a printed border kept them with their clicks 4-8 px off); the bound keeps a margin.
+def test_the_real_video_as_one_box() -> None:
+    rvd = _video_module()
+    frames = rvd.load_marks()["frames"]
+    try:
+        path = rvd.video_path()
+    except FileNotFoundError as exc:  # fail, not skip: the acceptance figure must not vanish silently
+        pytest.fail(f"the real box video is missing: {exc}")
+    images = rvd.read_frames(path, [f["index"] for f in frames])
+    truth = rvd.truth_mm(frames[0])
+    views = [View(images[f["index"]], rvd.points_of(f), f["side"], f"frame {f['index']}") for f in frames]
+    result = fit_views(views, KnownEdge(edge="width", length_mm=truth["width"]))
+    d = result.dimensions
+    assert d.uncertainty is not None
+    for k, name in ((1, "height"), (2, "depth")):
+        error = getattr(d, name) - truth[name]
+        assert abs(error) <= 0.025 * truth[name], (name, getattr(d, name))
+        assert abs(error) <= 2 * d.uncertainty[k], (name, getattr(d, name), d.uncertainty[k])
