@@ -106,6 +106,11 @@ _COND_LIMIT = 1e6
 its normal equations would lose the digits that rank the candidates."""
 
 
+_CHUNK_VALUES = 1 << 21
+"""The most float64 values one batch's largest array holds (16 MB): a sharp photo of a small part
+has profiles of thousands of samples, and 123 candidates' designs at once took 740 MB."""
+
+
 def _window_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Least-squares residual sums of squares of y by windows of columns.
 
@@ -115,18 +120,26 @@ def _window_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.nd
     columns[b, start:start + M']. The normal equations' sums come from prefix sums (every
     window at once) and one batched solve replaces a lstsq call per window: equal to
     `np.linalg.lstsq` to ~1e-14 on these well-conditioned designs, and lstsq itself is used
-    for any ill-conditioned one.
+    for any ill-conditioned one. Entries are taken in chunks of bounded memory.
     """
     y = np.asarray(y, dtype=np.float64)  # a profile comes as float32: its sums need the digits
+    b, m, k = columns.shape
+    per_entry = max(m * k * k, starts.size * y.shape[0] * max(k, y.shape[1]))
+    step = max(1, _CHUNK_VALUES // per_entry)
+    return np.concatenate([_chunk_rss(columns[i:i + step], starts, y) for i in range(0, b, step)])
+
+
+def _chunk_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
     n = y.shape[0]
     outer = np.einsum("bmk,bml->bmkl", columns, columns)
     prefix = np.concatenate([np.zeros_like(outer[:, :1]), np.cumsum(outer, axis=1)], axis=1)
+    del outer
     gram = prefix[:, starts + n] - prefix[:, starts]  # (B, S, K, K)
-    window = starts[:, None] + np.arange(n)
+    del prefix
     eig = np.linalg.eigvalsh(gram)
     ill = eig[..., 0] <= eig[..., -1] / _COND_LIMIT ** 2
     gram[ill] = np.eye(gram.shape[-1])  # solved below by lstsq; a singular one would stop solve
-    designs = columns[:, window]  # (B, S, M', K)
+    designs = columns[:, starts[:, None] + np.arange(n)]  # (B, S, M', K)
     coef = np.linalg.solve(gram, np.einsum("bsnk,nc->bskc", designs, y))  # (B, S, K, C)
     # The residual itself, not y'y - b'coef: that difference keeps only ~1e-11 of the RSS.
     out: np.ndarray = ((np.einsum("bsnk,bskc->bsnc", designs, coef) - y) ** 2).sum(axis=(2, 3))
