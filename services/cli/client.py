@@ -251,6 +251,9 @@ class ApiClient:
             with httpx.stream("GET", url, timeout=120) as response:
                 response.raise_for_status()
                 _write_body(response, target)
+        except httpx.HTTPStatusError as exc:  # the store refused the link: its status decides
+            raise ApiError(f"download of {target.name} failed: HTTP {exc.response.status_code}",
+                           status=exc.response.status_code) from None
         except httpx.HTTPError as exc:
             raise ApiError(f"download of {target.name} failed: {exc}") from None
         return target

@@ -59,7 +59,9 @@ class ObjectStore:
         # No SHA-256 of every body for the signature (payload_signing_enabled False): over
         # https botocore leaves it out of uploads that carry a checksum anyway, but over plain
         # http (SeaweedFS or MinIO inside a cluster) it hashed every byte, half of an upload's
-        # CPU (benchmarks/worker_cost.py). Uploads keep botocore's CRC32 checksum header.
+        # CPU (benchmarks/worker_cost.py). Uploads keep botocore's CRC32 checksum, pinned on
+        # ("when_supported") so that AWS_REQUEST_CHECKSUM_CALCULATION=when_required, often set
+        # for older S3-compatible servers, cannot leave an upload with no integrity check at all.
         client = boto3.client(
             "s3",
             endpoint_url=endpoint,
@@ -68,6 +70,7 @@ class ObjectStore:
             aws_secret_access_key=secret.get_secret_value() if secret else None,
             config=Config(signature_version="s3v4",
                           s3={"addressing_style": "path", "payload_signing_enabled": False},
+                          request_checksum_calculation="when_supported",
                           retries={"max_attempts": 5, "mode": "standard"},
                           connect_timeout=5, read_timeout=60),
         )

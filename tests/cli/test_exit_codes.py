@@ -7,8 +7,10 @@ traceback. The real stack runs them in tests/service/test_cli_stack.py.
 
 from __future__ import annotations
 
+import http.server
 import json
 import socket
+import threading
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -252,4 +254,28 @@ def test_a_failing_api_exits_3_and_a_refusing_one_2(api, capsys, status: int, co
     problem = {"type": "about:blank", "title": "x", "status": status, "detail": f"answered {status}"}
     fake.answers[("GET", "/v1/jobs/j1")] = lambda r: httpx.Response(status, json=problem)
     got, _, err = run(capsys, "status", "j1", *KEY)
+    assert got == code and one_line_error(err) and f"HTTP {status}" in err, err
+
+
+@pytest.mark.parametrize(("status", "code"), [(403, 2), (404, 2), (500, 3), (503, 3)])
+def test_a_download_link_the_store_refuses_exits_by_its_status(api, capsys, tmp_path, status: int,
+                                                               code: int):
+    class Refusing(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_response(status)
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Refusing)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        link = f"http://127.0.0.1:{server.server_address[1]}/cloud.laz?X-Amz-Signature=x"
+        api(["succeeded"], items=[{**item_doc(), "downloads": {"laz": link}}])
+        got, _, err = run(capsys, "download", "j1", "--out", str(tmp_path / "out"), *KEY)
+    finally:
+        server.shutdown()
+        server.server_close()
     assert got == code and one_line_error(err) and f"HTTP {status}" in err, err
