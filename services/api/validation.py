@@ -20,7 +20,7 @@ from prism_common.settings import Settings
 from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
-from prismcore.spec import ReferencePoints, ScanSpec, search_area_problem, view_spec
+from prismcore.spec import JOINT_MAX_PIXELS, ReferencePoints, ScanSpec, search_area_problem, view_spec
 
 from .schemas import JobCreate
 
@@ -109,6 +109,10 @@ def _check_views(item: ScanSpec, i: int, shapes: dict[str, tuple[int, int] | Non
     camera), and each view's points as the engine checks them on its photo."""
     assert item.views is not None
     first: tuple[int, tuple[int, int]] | None = None
+    known = [size for k in range(len(item.views)) if (size := shapes.get(f"views/{k}/image")) is not None]
+    if (total := sum(h * w for h, w in known)) > JOINT_MAX_PIXELS:
+        fail(("items", i, "views"), f"item {i} views: the photos hold {total / 1e6:.0f} megapixels "
+             f"together, over a joint fit's {JOINT_MAX_PIXELS / 1e6:.0f}: give fewer or smaller photos")
     for k in range(len(item.views)):
         size = shapes.get(f"views/{k}/image")
         if size is None:

@@ -3,9 +3,10 @@
 Two kinds of item: one with `views` (photos of one part, each with its seven points; each read
 where its reference points, not copied), and a video with `fit` "joint" (the frames of
 `frame_points`, decoded from the video streamed to a local file). The views are decoded and held
-together (at most `JOINT_MAX_VIEWS`), fitted as one box, and the fit's report is stored as
-``joint.json``; the item's result carries the dimensions with their 1-sigma, the focal length, the
-views used and those left out with the reason. No cloud is made: a cloud is one photo's.
+together (at most `JOINT_MAX_VIEWS`, `JOINT_MAX_PIXELS` together), fitted as one box, and the
+fit's report is stored as ``joint.json``; the item's result carries the dimensions with their
+1-sigma, the focal length, the views used and those left out with the reason. No cloud is made:
+a cloud is one photo's.
 
 Views of different image sizes (one camera is assumed), views none of which can be measured,
 a video that does not decode: InputError, which fails the item with its reason.
@@ -27,7 +28,7 @@ from prismcore import InputError
 from prismcore.images import load_image
 from prismcore.joint import View, fit_views
 from prismcore.joint_report import joint_report
-from prismcore.spec import JOINT_NAME, KnownEdge, ScanSpec
+from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, KnownEdge, ScanSpec
 from prismcore.verdicts import quality_from_report
 from prismcore.video import iter_frames, probe_video, select_frames
 
@@ -88,13 +89,24 @@ def _photos(ctx: WorkerContext, view: ItemView) -> list[View]:
     spec = view.item.spec
     assert spec.views is not None
     limit = max_pixels(ctx, spec.max_pixels)
-    out = []
+    out, total = [], 0
     for k, v in enumerate(spec.views):
         data, label = read_reference(ctx, v.image, view.tenant)
-        out.append(View(load_image(data, max_pixels=limit, name=label), v.points, v.side_face,
-                        v.name or f"view {k + 1}"))
+        image = load_image(data, max_pixels=limit, name=label)
         del data
+        total = _within_budget(total, image.shape[0] * image.shape[1], f"views.{k} ({label})")
+        out.append(View(image, v.points, v.side_face, v.name or f"view {k + 1}"))
     return out
+
+
+def _within_budget(total: int, pixels: int, what: str) -> int:
+    """The pixels held so far plus one more view's; InputError past `JOINT_MAX_PIXELS` (the API
+    checks what it knows of the uploads' sizes, URLs are known only here)."""
+    total += pixels
+    if total > JOINT_MAX_PIXELS:
+        raise InputError(f"{what} brings the views to {total / 1e6:.0f} megapixels together, over a "
+                         f"joint fit's {JOINT_MAX_PIXELS / 1e6:.0f}: give fewer or smaller photos")
+    return total
 
 
 def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], dict[str, Any]]:
@@ -108,6 +120,8 @@ def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], 
         try:
             info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
             frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
+            _within_budget(0, info.width * info.height * len(frames), f"{len(frames)} frames of "
+                           f"{info.width}x{info.height} px")
             views = [View(rgb, spec.frame_points[index], spec.side_face, f"frame {index}")
                      for index, rgb in iter_frames(path, frames)]
         except InputError as exc:  # quote the client's name for the video, not our temp file

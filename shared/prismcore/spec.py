@@ -31,6 +31,7 @@ from .camera import CameraModel
 __all__ = [
     "FILE_NAMES",
     "FORMATS",
+    "JOINT_MAX_PIXELS",
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
     "SUMMARY_NAME",
@@ -69,6 +70,11 @@ JOINT_NAME = FILE_NAMES["joint"]
 JOINT_MAX_VIEWS = 24
 """The most views (photos, or a video's frames) one joint fit measures together: they are held
 decoded at once, and the fit's outlier test refits once per view."""
+
+JOINT_MAX_PIXELS = 150_000_000
+"""The most pixels a joint fit's views hold together (12 photos of 12 megapixels): all are held
+decoded at once (24 views of 12 MP held 1.3 GB), and a worker process has a share of a pod's
+memory."""
 
 
 def frame_folder(index: int) -> str:
@@ -476,6 +482,11 @@ class ScanSpec(_Strict):
                      "photo is an item with image and points)", n)
             if n > JOINT_MAX_VIEWS:
                 fail(("views",), f"views: at most {JOINT_MAX_VIEWS} views are measured together, got {n}", n)
+            seen: dict[str, int] = {}
+            for k, v in enumerate(self.views):
+                if (first := seen.setdefault(v.image, k)) != k:
+                    fail(("views", k, "image"), f"views.{k}.image {v.image!r} is views.{first}'s photo "
+                         "again: a photo counted twice would claim twice the evidence it holds", v.image)
             if self.image != self.views[0].image:
                 fail(("image",), f"image {self.image!r} is not the first view's {self.views[0].image!r}: "
                      "with views, drop image (the first view's photo is the item's image)", self.image)
@@ -531,8 +542,10 @@ class ScanSpec(_Strict):
                  "millimetres of every view", None if self.scale is None else self.scale.kind)
 
     def _formats_asked(self) -> bool:
-        """Does the spec ask for cloud formats other than the default?"""
-        return bool(self.formats) and list(self.formats) != list(_DEFAULT_FORMATS)
+        """Does the spec ask for cloud formats other than the default? (In any order: a stored
+        record reads back with the default written out, so the value, not whether it was given,
+        is what can be judged.)"""
+        return bool(self.formats) and set(self.formats) != set(_DEFAULT_FORMATS)
 
     def _focal_fittable(self) -> bool:
         """One photo with all seven points: the box fit finds the focal length itself."""

@@ -14,7 +14,7 @@ import pytest
 from prism_common.settings import get_settings
 
 from prism_api.main import create_app
-from prismcore.spec import JOINT_MAX_VIEWS, ScanSpec
+from prismcore.spec import JOINT_MAX_PIXELS, JOINT_MAX_VIEWS, ScanSpec
 
 from .conftest import API_KEYS
 from .test_api import photo
@@ -99,6 +99,8 @@ BAD = {
     "fit frames": (lambda i, r: {**i, "fit": "frames"}, "/items/0/fit", "one box"),
     "unknown upload": (lambda i, r: _view(i, 1, image="upload:" + "0" * 32), "/items/0/views/1/image",
                        "no upload"),
+    "same photo twice": (lambda i, r: _view(i, 2, image=r[0]), "/items/0/views/2/image",
+                         "views.0's photo again"),
     "point outside": (lambda i, r: _view(i, 2, points=[*SEVEN[:2], [400, 110], *SEVEN[3:]]),
                       "/items/0/views/2/points/2", "p3"),
 }
@@ -165,3 +167,20 @@ def test_a_joint_video_and_fit_on_a_photo(client, refs):
     assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/items/0/points", r.text
     r = _submit(client, {"image": refs[0], "points": SEVEN, "fit": "frames"})
     assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/items/0/fit", r.text
+
+
+def test_the_default_formats_in_any_order_go_with_views(client, refs):
+    r = _submit(client, _views(refs, formats=["ply", "csv"]))
+    assert r.status_code == 202, r.text
+
+
+def test_views_holding_more_pixels_than_a_joint_fit_takes_are_refused(client):
+    # 7 photos of 8000x3000 px (168 MP; each within the per-photo limit): the fit holds them all.
+    big = photo(width=8000, height=3000)
+    refs = [_upload(client, photo(size=len(big) + k + 1, width=8000, height=3000)) for k in range(7)]
+    assert 6 * 8000 * 3000 <= JOINT_MAX_PIXELS < 7 * 8000 * 3000
+    r = _submit(client, _views(refs))
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/views" and "168 megapixels" in error["detail"], error
+    assert _submit(client, _views(refs[:6])).status_code == 202
