@@ -70,7 +70,9 @@ def test_the_known_edge_is_kept_and_the_camera_is_found(cases) -> None:
 
 # Issue 20's target: 0.5 %. Seeds 0-7 measured 0.34 % (each view alone: 0.57 %); over seeds 0-19
 # (benchmarks/joint_fit.py) 0.37 % (0.50 % before each view was weighed by its own noise and lines
-# off the joint box were left out), over the held-out seeds 20-59 0.50 %.
+# off the joint box were left out), over the held-out seeds 20-59 0.50 % (was 0.58 %) and 100-129
+# 0.62 % (was 0.54 %: on renders the change is within their seed-to-seed spread; it is the real
+# video it fixes, test_the_real_video_as_one_box).
 def test_median_error(errors) -> None:
     err, _ = errors
     assert np.median(np.abs(err)) <= 0.005, np.round(err * 100, 2)
@@ -79,8 +81,9 @@ def test_median_error(errors) -> None:
 # Issue 20's target: 1.5 %. NOT MET: seeds 0-7 measured 1.72 % (seed 0: a 47 mm known depth whose
 # rounded edges, 0.9 mm, the shading does not resolve, so no silhouette is corrected; the three
 # views share that bias; each view alone reaches 2.01 %); over seeds 0-19 2.00 % (was 2.48 %; 5.48 %
-# alone), over seeds 20-59 3.24 % (a 55 x 50 mm box with 2.3 mm edges every view alone gets 3-11 %
-# wrong). The bound holds what is reached with a margin, so a loss of accuracy fails here.
+# alone), over seeds 20-59 3.24 % (was 4.07 %; a 55 x 50 mm box with 2.3 mm edges every view alone
+# gets 3-11 % wrong), over seeds 100-129 2.35 % (was 1.93 %). The bound holds what is reached with
+# a margin, so a loss of accuracy fails here.
 def test_worst_error(errors) -> None:
     err, _ = errors
     assert np.abs(err).max() <= 0.02, np.round(err * 100, 2)
