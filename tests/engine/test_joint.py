@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from prismcore import InputError
-from prismcore.joint import JointResult, View, fit_views
+from prismcore.joint import CLICK_WARN_PX, JointResult, View, fit_views
 from prismcore.spec import KnownEdge, MmPerPx
 from prismsynth import PhotoLikeScene, photo_like_views
 
@@ -178,6 +178,34 @@ def test_an_edge_line_on_another_feature_is_left_out(clean, monkeypatch) -> None
     box = clean[0].box
     for name in DIMENSIONS:
         assert getattr(result.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
+
+
+def test_a_view_whose_edges_all_moved_is_warned_about_by_its_clicks(clean, monkeypatch) -> None:
+    """Every edge of view 2 moved 6 px outward: its pose follows them (a nearer box), so its
+    clicks end up far from the shared box; it is named in a warning, the clean views are not."""
+    import prismcore.joint as joint
+
+    prepare = joint._prepare
+
+    def moved(k, view, *args, **kwargs):  # type: ignore[no-untyped-def]
+        got = prepare(k, view, *args, **kwargs)
+        if k != 1:
+            return got
+        faces = {name: replace(face, lines=tuple(None if line is None else line + np.array([0.0, 0.0, 6.0])
+                                                 for line in face.lines))
+                 for name, face in (("front", got.front), ("side", got.side))}
+        return replace(got, **faces)
+
+    monkeypatch.setattr(joint, "_prepare", moved)
+    result = fit_views(_views(clean), _scale(clean[0]))
+    warned = [w for w in result.warnings if "its clicks lie" in w]
+    assert len(warned) == 1 and warned[0].startswith("view 2: its clicks lie "), result.warnings
+    assert result.views[1].click_rms_px > CLICK_WARN_PX
+
+
+def test_clean_views_carry_no_click_warning(cases) -> None:
+    for _, result in cases:
+        assert not any("its clicks lie" in w for w in result.warnings), result.warnings
 
 
 # A subtler wrong view than 15 %: its lines are judged against the shared box before the views are
