@@ -166,10 +166,17 @@ def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(st
     # Five retries, each waiting between half and all of its cap, which is at most half the
     # visibility timeout (10 s here): a retry waits unacknowledged, and past that timeout the
     # broker would hand out a copy. The log rounds to whole seconds.
+    # Per task: another task may ride out the same outage beside it (on a loaded machine, a
+    # previous test's last write was seen still retrying), so the waits are read per task id.
     caps = retry_caps_s(int(stack.env["PRISM_VISIBILITY_TIMEOUT_S"]))
-    waits = [float(w) for w in re.findall(r"Retry in (\d+(?:\.\d+)?)s", stack.workers[0].log[log_start:])]
-    assert len(waits) == 5, waits
-    assert all(cap / 2 - 1 <= w <= cap for w, cap in zip(waits, caps, strict=True)), (waits, caps)
+    per_task: dict[str, list[float]] = {}
+    for task_id, wait in re.findall(r"Task \S+\[([0-9a-f-]+)\] retry: Retry in (\d+(?:\.\d+)?)s",
+                                     stack.workers[0].log[log_start:]):
+        per_task.setdefault(task_id, []).append(float(wait))
+    gave_up = [waits for waits in per_task.values() if len(waits) == 5]
+    assert gave_up and all(len(waits) <= 5 for waits in per_task.values()), per_task
+    for waits in per_task.values():
+        assert all(cap / 2 - 1 <= w <= cap for w, cap in zip(waits, caps, strict=False)), (waits, caps)
     _wait_ready(stack, 200)
     figures.update({"faults survived": 1, "jobs submitted": 1, "jobs failed": 1})
 
