@@ -127,7 +127,11 @@ def test_rate_limit_refills_at_its_rate(apps, settings):
     keys = {**settings.api_keys, name: SecretStr(headers["X-API-Key"])}
     client = apps(api_keys=keys, rate_limit_per_minute=120)  # one call every 0.5 s, bursts of 120
     started = time.monotonic()
-    codes = [client.get("/v1/jobs", headers=headers).status_code for _ in range(140)]
+    # Calls until 20 were refused, not a fixed count: on a loaded machine 140 calls can take
+    # long enough for the refill to let every one through.
+    codes: list[int] = []
+    while codes.count(429) < 20 and len(codes) < 1000:
+        codes.append(client.get("/v1/jobs", headers=headers).status_code)
     elapsed = time.monotonic() - started
     allowed = codes.count(200)
     assert set(codes) == {200, 429}
@@ -167,8 +171,10 @@ def test_an_address_guessing_keys_is_locked_out_for_a_while(apps, settings):
 
 def test_a_locked_out_address_gets_its_budget_back_at_the_set_rate(apps, settings):
     client = apps(_address(), auth_failures_per_minute=120)  # one refused key every 0.5 s
-    codes = [client.get("/v1/jobs", headers={"X-API-Key": "guess"}).status_code for _ in range(125)]
-    assert codes[:120] == [401] * 120 and 429 in codes[120:]
+    codes: list[int] = []
+    while 429 not in codes and len(codes) < 1000:  # until locked out (the refill races the calls)
+        codes.append(client.get("/v1/jobs", headers={"X-API-Key": "guess"}).status_code)
+    assert codes[:120] == [401] * 120 and codes[-1] == 429
     time.sleep(0.6)
     assert client.get("/v1/jobs", headers=ACME).status_code == 200
 
