@@ -1,7 +1,7 @@
 """Joint fit of several views of one box (issue 20, items 1-2) against each view measured alone.
 
 Run: .venv/bin/python benchmarks/joint_fit.py [--cases 20] [--seed 0] [--views 3] [--no-video]
-     [--per-case] [--edge-agree-px PX] [--json out.json]
+     [--per-case] [--edge-agree-px PX] [--edge-radius-mm R] [--json out.json]
 
 Renders: `prismsynth.views.photo_like_views(seed)` for seeds S..S+N-1: one random box, one phone
 (focal 0.7-1.2 x width, unknown to the engine; distortion; rounded edges; JPEG), `--views`
@@ -14,6 +14,9 @@ Real video: the 12 hand-marked frames of OpenCV's cookie-box video (benchmarks/r
 Debian's opencv-doc), width known (258 mm), no focal: every frame alone (as
 benchmarks/real_video.py measures them) and the 12 frames as one box. Target: the joint fit
 within 2 % on height and depth.
+
+--edge-radius-mm R: every render's edges rounded R mm (0: sharp) instead of as drawn (0.5-2.5 mm):
+shows what the rounding costs (benchmarks/joint_rounding.py shows where it goes).
 
 --edge-agree-px PX: the joint fit leaves out each refined edge line whose clicked end corners lie
 farther than PX from it (`fit_views(edge_agree_px=...)`; default: every line is used).
@@ -53,9 +56,10 @@ def _errors(dims: tuple[float, float, float], sigma: tuple[float, float, float] 
     return out
 
 
-def render_case(seed: int, views: int, edge_agree_px: float | None = None) -> dict:
+def render_case(seed: int, views: int, edge_agree_px: float | None = None,
+                edge_radius_mm: float | None = None) -> dict:
     """One case: every view alone and the joint fit, errors in %."""
-    scenes = photo_like_views(seed, views)
+    scenes = photo_like_views(seed, views, edge_radius_mm=edge_radius_mm)
     p = scenes[0]
     truth = np.array([p.box.width_mm, p.box.height_mm, p.box.depth_mm])
     scale = KnownEdge(edge=p.known_edge, length_mm=p.known_length_mm)  # type: ignore[arg-type]
@@ -141,6 +145,8 @@ def print_renders(args: argparse.Namespace, cases: list[dict]) -> dict:
     single = summary([e for c in cases for e in c["singles"]])
     joint = summary([e for c in cases for e in c["joint"]])
     left = sum(len(c["left_out"]) for c in cases)
+    if args.edge_radius_mm is not None:
+        print(f"\nevery box's edges rounded {args.edge_radius_mm:g} mm (not as drawn)")
     guard = ("" if args.edge_agree_px is None
              else f"\njoint fit: edge lines > {args.edge_agree_px:g} px from their clicked corners left out")
     print(f"\nphoto-like renders: {args.cases} boxes x {args.views} views (seeds {args.seed}-"
@@ -169,11 +175,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--per-case", action="store_true", help="print every case")
     parser.add_argument("--edge-agree-px", type=float,
                         help="joint fit: leave out edge lines this far (px) from their clicked corners")
+    parser.add_argument("--edge-radius-mm", type=float,
+                        help="round every render's edges this much (0: sharp) instead of as drawn")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     cases = []
     for seed in range(args.seed, args.seed + args.cases):
-        case = render_case(seed, args.views, args.edge_agree_px)
+        case = render_case(seed, args.views, args.edge_agree_px, args.edge_radius_mm)
         cases.append(case)
         if args.per_case:
             single = ", ".join(f"{100 * e:+.2f}" for e, _ in case["singles"])
