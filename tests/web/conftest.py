@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, Page, sync_playwright
+from playwright.sync_api import Browser, Page, expect, sync_playwright
 from service.servers import service_env
 
 from prism_api.webapp import STATIC_DIR
@@ -19,6 +19,12 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 VIEWPORT = {"width": 1280, "height": 1000}
+# Playwright's expect() waits 5 s by default; much of what the tests expect waits on the stack
+# (an upload stored and probed, a video's frame decoded by the worker and polled for at the
+# Retry-After of 1 s, a result fetched). With a CI run and 3 CPU burners beside them, 2 cores,
+# those steps took up to 1.9 s of the 5 (test_page_video.py): 2.6x more load would miss them.
+# An expectation that holds passes as soon as it does; only a failing one waits longer.
+expect.set_options(timeout=30_000)
 
 
 class Stack:
