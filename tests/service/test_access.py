@@ -9,6 +9,8 @@ import logging
 import time
 import uuid
 import warnings
+from datetime import UTC, datetime
+from urllib.parse import parse_qs, urlsplit
 
 import httpx
 import pytest
@@ -100,7 +102,10 @@ def test_every_route_that_reads_or_changes_a_job_is_guarded(make, figures):
 
 
 def test_presigned_urls_expire(make, store, objects):
-    client = make(presign_ttl_s=2)
+    # A URL is valid for presign_ttl_s from its signing time (X-Amz-Date, in whole seconds), so
+    # from when it is handed out for between ttl - 1 and ttl s: 2 s left a download as little as
+    # 1 s, which a loaded machine can take between the poll and the store's check; 5 s leaves 4.
+    client = make(presign_ttl_s=5)
     job_id, _ = _acme_job(client)
     key = f"jobs/{job_id}/items/0/cloud.csv"
     objects.put_bytes(key, b"1,2,3\n")
@@ -109,7 +114,11 @@ def test_presigned_urls_expire(make, store, objects):
                                                               "outputs": {"csv": key}}))
     url = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0]["downloads"]["csv"]
     assert httpx.get(url).content == b"1,2,3\n"
-    time.sleep(3.2)
+    query = parse_qs(urlsplit(url).query)
+    signed = datetime.strptime(query["X-Amz-Date"][0], "%Y%m%dT%H%M%SZ").replace(tzinfo=UTC)
+    expiry = signed.timestamp() + int(query["X-Amz-Expires"][0])
+    assert query["X-Amz-Expires"] == ["5"]
+    time.sleep(max(0.0, expiry + 1.2 - time.time()))  # past the URL's own end, whatever the load
     assert httpx.get(url).status_code == 403  # the store refuses it once its time is up
     fresh = client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["items"][0]["downloads"]["csv"]
     assert fresh != url and httpx.get(fresh).status_code == 200  # a poll hands out a new one
