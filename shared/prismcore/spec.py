@@ -260,6 +260,8 @@ def search_area_problem(hint: tuple[float, float] | None, roi: tuple[float, floa
 
 SideFace = Literal["auto", "right", "left", "top"]
 
+_NO_FIRST_VIEW = "(the first view's photo)"
+
 
 def _field_error(loc: tuple[str | int, ...], message: str, value: object) -> ValidationError:
     """A validation error at `loc` inside the model being validated (pydantic prefixes the
@@ -389,6 +391,12 @@ class ScanSpec(_Strict):
         # "points": "auto" is kept as points None plus auto_points, so that code past the
         # search (which fills points) sees reference points or nothing.
         if isinstance(data, dict) and data.get("points") == "auto":
+            if data.get("views") is not None:
+                # Said here: past this point "auto" is auto_points, which the user did not send.
+                raise _field_error(("points",), "points \"auto\" does not go with views: each view "
+                                   "carries its own seven points (a joint fit does not search for "
+                                   "them; GET /v1/uploads/{id}/points finds them for a person to "
+                                   "check, then send them in the view); drop points", "auto")
             return {**data, "points": None, "auto_points": data.get("auto_points") or {}}
         return data
 
@@ -397,11 +405,15 @@ class ScanSpec(_Strict):
     def _image_from_views(cls, data: object) -> object:
         # The first view's photo is the item's `image`, so code that names an item's input (and
         # the stored record) has one field to read.
-        if isinstance(data, dict) and "image" not in data:
-            views = data.get("views")
-            if isinstance(views, list) and views and isinstance(views[0], dict) \
-                    and isinstance(views[0].get("image"), str):
-                return {**data, "image": views[0]["image"]}
+        if isinstance(data, dict) and data.get("image") is None and data.get("views") is not None:
+            views = data["views"]
+            first = views[0] if isinstance(views, list) and views else None
+            image = first.get("image") if isinstance(first, dict) else getattr(first, "image", None)
+            # Views without a first photo (none, not a list, the first one bad) are wrong in
+            # views, not in image: `_NO_FIRST_VIEW` stands in for image so that only views' own
+            # error is told (the field's, or `_joint_consistent`'s count). Such views never
+            # validate, so it never reaches a spec.
+            return {**data, "image": image if isinstance(image, str) and image else _NO_FIRST_VIEW}
         return data
 
     @model_validator(mode="before")
@@ -494,11 +506,9 @@ class ScanSpec(_Strict):
                 fail(("fit",), "fit \"frames\" is for a video's frames: views are measured as one box "
                      "(drop fit, or give \"joint\")", self.fit)
             # Each view carries its own points; one camera without a lens model; no cloud.
-            for name, default in (("points", None), ("auto_points", None), ("frame_points", None),
-                                  ("frames", None), ("side_image", None), ("camera", None),
-                                  ("principal_point", None), ("spacing_mm", None), ("side_face", "auto"),
-                                  ("method", "default"), ("cloud", "surface")):
-                if getattr(self, name) != default:
+            for name in ("points", "auto_points", "frame_points", "frames", "side_image", "camera",
+                         "principal_point", "spacing_mm", "side_face", "method", "cloud", *_CLOUD_ONLY):
+                if self._changed(name):
                     fail((name,), f"{name} does not go with views: " + _JOINT_ASIDE.get(
                         name, "each view carries its own points and side_face"), getattr(self, name))
             if self._formats_asked():
@@ -525,9 +535,10 @@ class ScanSpec(_Strict):
                 if getattr(self, name) is not None:
                     fail((name,), f"{name} does not go with fit \"joint\": " + _JOINT_ASIDE[name],
                          getattr(self, name))
-            changed = [name for name, off in (("method", self.method != "default"),
-                                              ("cloud", self.cloud != "surface"),
-                                              ("formats", self._formats_asked()))
+            changed = [name for name, off in (("method", self._changed("method")),
+                                              ("cloud", self._changed("cloud")),
+                                              ("formats", self._formats_asked()),
+                                              *((n, self._changed(n)) for n in _CLOUD_ONLY))
                        if off]
             if changed:
                 name = changed[0]
@@ -540,6 +551,12 @@ class ScanSpec(_Strict):
             fail(("scale",), "a joint fit needs one known edge of the part as its scale "
                  "({\"kind\": \"edge\", \"edge\": \"width\", \"length_mm\": ...}): it sets the "
                  "millimetres of every view", None if self.scale is None else self.scale.kind)
+
+    def _changed(self, name: str) -> bool:
+        """Is field `name` other than its default? (The value, not whether it was given: a stored
+        record reads back with every default written out.)"""
+        default = type(self).model_fields[name].get_default(call_default_factory=True)
+        return bool(getattr(self, name) != default)
 
     def _formats_asked(self) -> bool:
         """Does the spec ask for cloud formats other than the default? (In any order: a stored
@@ -569,13 +586,27 @@ class ScanSpec(_Strict):
         return self.frames is not None
 
 
+_CLOUD_ONLY = ("tolerance", "csv", "ply_ascii", "max_points")
+"""Options of the cloud a photo's scan makes, which a joint fit (no cloud) would silently ignore."""
+
+_NO_CLOUD = "a joint fit writes its report (joint.json), no cloud"
+
 _JOINT_ASIDE = {
+    "auto_points": "it says where points \"auto\" looks, and each view carries its own seven points",
+    "frames": "views are photos (a video's frames measured as one box are frame_points with fit "
+              "\"joint\")",
+    "side_image": "each view is one photo with its own second face (side_face); a side photo is "
+                  "another view",
+    "tolerance": "the RGB tolerance is the colour scan's, which makes a photo's cloud; " + _NO_CLOUD,
+    "csv": _NO_CLOUD,
+    "ply_ascii": _NO_CLOUD,
+    "max_points": _NO_CLOUD,
     "camera": "the joint fit finds one focal length and lens distortion from the views themselves "
               "(give focal_px if it is known)",
     "principal_point": "the joint fit takes the image centre as the optical centre",
-    "spacing_mm": "a joint fit writes its report (joint.json), no cloud",
-    "formats": "a joint fit writes its report (joint.json), no cloud",
-    "cloud": "a joint fit writes its report (joint.json), no cloud",
+    "spacing_mm": _NO_CLOUD,
+    "formats": _NO_CLOUD,
+    "cloud": _NO_CLOUD,
     "method": "the joint fit is the default method's perspective fit",
 }
 

@@ -82,6 +82,7 @@ def test_the_schema_says_views_replace_image_and_points(client):
 
 # (what is changed in a good 3-view item, the pointer of the one error, a word of its detail)
 BAD = {
+    "no views": (lambda i, r: {"views": []}, "/items/0/views", "at least 2 views of the part, got 0"),
     "one view": (lambda i, r: {**i, "views": i["views"][:1]}, "/items/0/views", "at least 2 views"),
     "too many": (lambda i, r: {**i, "views": [i["views"][0]] * (JOINT_MAX_VIEWS + 1)}, "/items/0/views",
                  f"at most {JOINT_MAX_VIEWS} views"),
@@ -94,6 +95,9 @@ BAD = {
                   "known edge"),
     "other image": (lambda i, r: {**i, "image": r[1]}, "/items/0/image", "first view's"),
     "points too": (lambda i, r: {**i, "points": SEVEN}, "/items/0/points", "each view carries"),
+    "points auto too": (lambda i, r: {**i, "points": "auto"}, "/items/0/points",
+                        "points \"auto\" does not go with views"),
+    "RGB tolerance": (lambda i, r: {**i, "tolerance": 30}, "/items/0/tolerance", "no cloud"),
     "formats": (lambda i, r: {**i, "formats": ["las"]}, "/items/0/formats", "no cloud"),
     "camera model": (lambda i, r: {**i, "principal_point": [128, 64]}, "/items/0/principal_point", "centre"),
     "fit frames": (lambda i, r: {**i, "fit": "frames"}, "/items/0/fit", "one box"),
