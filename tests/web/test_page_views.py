@@ -13,6 +13,8 @@ import json
 import re
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 from page_driver import PageDriver
 from playwright.sync_api import Page, Route, expect
@@ -77,8 +79,8 @@ def test_three_photos_of_one_part_measured_as_one_box(page, stack, tmp_path, sce
     d = PageDriver(page)
     d.log_in()
     d.add_photos(*[_save(s, tmp_path / f"view{k + 1}.jpg") for k, s in enumerate(scenes)])
-    # The photo decoded first is the front photo at first: choose photo 1.
-    page.get_by_label("Front photo", exact=True).select_option(label="view1.jpg")
+    # The first photo chosen is the front photo, whichever decodes first.
+    expect(page.locator("#front-photo option:checked")).to_have_text("view1.jpg")
     clicks = [s.clicks for s in scenes]
     status = page.locator("#part-status")
     items = page.locator("#part-list li")
@@ -204,3 +206,70 @@ def test_three_photos_of_one_part_measured_as_one_box(page, stack, tmp_path, sce
     expect(page.get_by_label("Also mark P6 and P7")).to_be_enabled()
     page.get_by_role("button", name="Add this scan to the batch").click()
     expect(page.locator("#batch li")).to_have_text(re.compile(r"^Scan 1: view1\.jpg Remove"))
+
+
+def _noisy_png(scene: PhotoLikeScene, path: Path) -> Path:
+    """The photo as a PNG with noise in every pixel: the same pixel size, a far larger file, slower
+    to decode than the JPEG."""
+    image = cv2.imdecode(np.frombuffer(scene.jpeg, np.uint8), cv2.IMREAD_COLOR)
+    noise = np.random.default_rng(7).integers(-12, 13, image.shape)
+    assert cv2.imwrite(str(path), np.clip(image + noise, 0, 255).astype(np.uint8))
+    return path
+
+
+def test_photos_chosen_together_keep_the_order_chosen(page, stack, tmp_path, scenes):
+    """Photos added in one selection are the part's photos in the selection's order, not in the
+    order the browser finished decoding them: the first, a large PNG, decodes last."""
+    d = PageDriver(page)
+    d.log_in()
+    big = _noisy_png(scenes[0], tmp_path / "big.png")
+    small = _save(scenes[1], tmp_path / "small.jpg")
+    assert big.stat().st_size > 20 * small.stat().st_size, (big.stat().st_size, small.stat().st_size)
+    d.add_photos(big, small)
+    listed = page.locator("#photo-list li")
+    expect(listed).to_have_text([re.compile(r"^big\.png "), re.compile(r"^small\.jpg ")])
+    expect(page.locator("#front-photo option:checked")).to_have_text("big.png")
+    expect(page.locator("#next-point")).to_contain_text("Click P1")
+    page.get_by_label("Also mark P6 and P7").check()
+    _type(page, scenes[0].clicks)
+    page.get_by_role("button", name="Mark another photo of this part").click()
+    items = page.locator("#part-list li")
+    expect(items).to_have_text([re.compile(r"^Photo 1: big\.png, 7 of 7 points "),
+                                re.compile(r"^Photo 2: small\.jpg, 0 of 7 points \(shown\)")])
+    expect(page.locator("#part-status")).to_have_text("small.jpg is shown: mark its seven points.")
+
+
+def test_photo_of_another_size_refused_before_submit(page, stack, tmp_path, scenes):
+    """The service measures a part's photos only from one camera at one image size (a 422
+    otherwise): the page, which knows each photo's size, refuses another size at once, naming both."""
+    d = PageDriver(page)
+    d.log_in()
+    image = cv2.imdecode(np.frombuffer(scenes[1].jpeg, np.uint8), cv2.IMREAD_COLOR)
+    half = tmp_path / "half.jpg"
+    assert cv2.imwrite(str(half), cv2.resize(image, (640, 480), interpolation=cv2.INTER_AREA))
+    d.add_photos(_save(scenes[0], tmp_path / "view1.jpg"), half)
+    page.get_by_label("Also mark P6 and P7").check()
+    _type(page, scenes[0].clicks)
+    add = page.get_by_role("button", name="Mark another photo of this part")
+    status = page.locator("#part-status")
+    items = page.locator("#part-list li")
+    by = "\u00d7"  # the page's multiplication sign
+    size_rule = (f"half.jpg is 640 {by} 480 pixels, this part's photos 1280 {by} 960 (view1.jpg): "
+                 "the photos of one part must come from one camera at one image size.")
+    add.click()
+    expect(status).to_have_text(f"{size_rule} Add a photo of that size, then press this again.")
+    expect(items).to_have_count(0)
+    expect(page.locator("#front-photo option:checked")).to_have_text("view1.jpg")
+
+    # A photo of the part's size added: it is the next one, the other still left aside.
+    page.get_by_label("Add photos").set_input_files(str(_save(scenes[1], tmp_path / "view2.jpg")))
+    expect(page.locator("#photo-list li", has_text="uploaded")).to_have_count(3)
+    add.click()
+    expect(status).to_have_text(f"view2.jpg is shown: mark its seven points. Left aside: {size_rule}")
+    expect(items).to_have_count(2)
+    # Chosen as the front photo while the part is marked: refused too, view2.jpg stays shown.
+    page.get_by_label("Front photo", exact=True).select_option(label="half.jpg")
+    expect(status).to_have_text(size_rule)
+    expect(page.locator("#front-photo option:checked")).to_have_text("view2.jpg")
+    expect(items).to_have_count(2)
+    expect(items.nth(1)).to_have_text(re.compile(r"^Photo 2: view2\.jpg, 0 of 7 points \(shown\)"))

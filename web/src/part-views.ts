@@ -6,7 +6,7 @@
 
 import { inPart, partPhotos, PART_MAX, removeFromPart, sevenPlaced, showInPart } from "./part";
 import { faceChoice } from "./points";
-import { nextPoint, photoShown, state } from "./state";
+import { nextPoint, photoShown, state, type PhotoEntry } from "./state";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
@@ -41,14 +41,17 @@ export class PartViews {
       }
       return this.say(`Place all seven points on ${photo.name} first (${nextPoint()?.toUpperCase()} is next).`);
     }
-    const next = state.photos.find((p) => p.bitmap && !p.video && p.id !== photo.id && !state.part.includes(p.id));
+    const others = state.photos.filter((p) => p.bitmap && !p.video && p.id !== photo.id && !state.part.includes(p.id));
+    const next = others.find((p) => !otherSize(p, photo));
+    const aside = others[0] !== next ? others[0] : undefined; // the first passed over, of another size
     if (!next) {
-      return this.say("Add the next photo of this part first (“Add photos or a video” above), then press this again.");
+      return this.say(aside ? `${otherSize(aside, photo)} Add a photo of that size, then press this again.` :
+        "Add the next photo of this part first (“Add photos or a video” above), then press this again.");
     }
     const starting = !inPart();
     this.shown(() => showInPart(next.id));
     if (starting) this.onStart();
-    this.say(`${next.name} is shown: mark its seven points.`);
+    this.say(`${next.name} is shown: mark its seven points.` + (aside ? ` Left aside: ${otherSize(aside, photo)}` : ""));
   }
 
   /** The front photo was chosen in the list of photos while a part is marked: show it as one of
@@ -58,7 +61,9 @@ export class PartViews {
     const back = state.partShown;
     const photo = photoShown("front");
     let refusal = "";
+    const first = state.photos.find((p) => p.id === state.part[0]);
     if (photo?.video) refusal = "A video cannot be one of the photos of a part: remove the part's photos first.";
+    else if (photo && first && otherSize(photo, first)) refusal = otherSize(photo, first);
     else if (chosen !== null && !state.part.includes(chosen) && state.part.length >= PART_MAX) {
       refusal = `At most ${PART_MAX} photos of one part are measured together here.`;
     }
@@ -103,6 +108,15 @@ export class PartViews {
       return li;
     }));
   }
+}
+
+/** Why `photo` cannot join a part whose photos are `part`'s size (the service's rule: one camera
+ *  at one image size), or "" when it can. */
+function otherSize(photo: PhotoEntry, part: PhotoEntry): string {
+  const [a, b] = [photo.bitmap, part.bitmap];
+  if (!a || !b || (a.width === b.width && a.height === b.height)) return "";
+  return `${photo.name} is ${a.width} × ${a.height} pixels, this part's photos ${b.width} × ${b.height} (${part.name}): ` +
+    "the photos of one part must come from one camera at one image size.";
 }
 
 function button(text: string, label: string, click: () => void): HTMLButtonElement {

@@ -16,7 +16,10 @@ export class Photos {
   constructor() {
     $<HTMLInputElement>("files").addEventListener("change", (e) => {
       const input = e.target as HTMLInputElement;
-      for (const file of Array.from(input.files ?? [])) void this.add(file);
+      // Decoded all at once, but each takes its place (the front photo, the side photo, the
+      // next photo of a part) after the one chosen before it, whichever decodes first.
+      let before = Promise.resolve();
+      for (const file of Array.from(input.files ?? [])) before = this.add(file, before);
       input.value = "";
     });
     $<HTMLSelectElement>("front-photo").addEventListener("change", (e) => {
@@ -40,25 +43,36 @@ export class Photos {
     }
   }
 
-  private async add(file: File): Promise<void> {
+  /** List `file`, decode it and upload it. Resolves once it has taken its place, which it does
+   *  only after `before` (the photo chosen before it) has: a video takes its own when the service
+   *  has read it, a file that cannot be shown none. */
+  private async add(file: File, before: Promise<void>): Promise<void> {
     const entry: PhotoEntry = {
       id: nextId++, name: file.name, bitmap: null, upload: null, status: "uploading…", video: null,
     };
     state.photos.push(entry);
     this.render();
-    if (await isVideo(file).catch(() => false)) return this.addVideo(entry, file);
+    if (await isVideo(file).catch(() => false)) {
+      void this.addVideo(entry, file);
+      return before;
+    }
     try {
       entry.bitmap = await createImageBitmap(file, { imageOrientation: "from-image" });
     } catch {
       entry.status = "this browser cannot show this file; use JPEG, PNG, WebP or BMP";
       this.render();
-      return;
+      return before;
     }
+    await before.catch(() => undefined); // whatever went wrong there, this photo still takes its place
     const firstFront = state.front === null;
     if (firstFront) state.front = entry.id;
     else if (state.twoPhoto && state.side === null) state.side = entry.id;
     this.render();
     this.onChange(firstFront ? "front" : "photos");
+    void this.upload(entry, file);
+  }
+
+  private async upload(entry: PhotoEntry, file: File): Promise<void> {
     try {
       entry.upload = await upload(file);
       entry.status = "uploaded";
