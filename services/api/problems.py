@@ -183,7 +183,8 @@ def validation_errors(raw: Sequence[Mapping[str, Any]], body: Any = _MISSING) ->
     for e in raw:
         loc = list(e.get("loc", ()))
         where, rest = (loc[0], loc[1:]) if loc else ("body", [])
-        message = str(e.get("msg", "invalid"))
+        # pydantic's "Value error, " before a validator's own message says nothing to a client.
+        message = str(e.get("msg", "invalid")).removeprefix("Value error, ")
         entry: dict[str, Any]
         if where in ("query", "path", "cookie"):
             entry = {"parameter": str(rest[0]) if rest else ""}

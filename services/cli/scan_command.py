@@ -41,7 +41,12 @@ def one_line(error: ValidationError) -> str:
     # a branch of a union) are not in the spec: left out.
     where = ".".join(str(p) for p in first["loc"] if not _internal(p)) or "spec"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
-    return f"{where}: {first['msg']}{more}"
+    # A validator's message that names its field already ("views: ...") is not prefixed again,
+    # and pydantic's "Value error, " before a validator's own message says nothing to a user.
+    message = first["msg"].removeprefix("Value error, ")
+    if message.startswith((f"{where}:", f"{where} ")):
+        return f"{message}{more}"
+    return f"{where}: {message}{more}"
 
 
 def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | None,
