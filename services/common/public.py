@@ -54,6 +54,9 @@ class JointViewPublic(BaseModel):
                                    "dimensions' unit.")
     disagreement: float | None = Field(description="Its chi-square against the other views (3 "
                                        "views or more; null with 2).")
+    lines_left_out: int = Field(0, description="Its refined edge lines left out: farther from the "
+                                "box the views share than a line's noise allows (a printed border, "
+                                "a shadow taken for an edge); its points still count.")
 
 
 class JointLeftOutPublic(BaseModel):

@@ -38,7 +38,8 @@ def joint_report(result: JointResult, labels: Sequence[int] | None = None) -> di
         "views": [{"index": label(k), "name": v.name, "click_rms_px": round(v.click_rms_px, 3),
                    "line_rms_px": round(v.line_rms_px, 3),
                    "alone": {a: round(getattr(v.single, a), 4) for a in _DIMENSIONS},
-                   "disagreement": None if v.disagreement is None else round(v.disagreement, 3)}
+                   "disagreement": None if v.disagreement is None else round(v.disagreement, 3),
+                   "lines_left_out": v.lines_left_out}
                   for k, v in zip(used, result.views, strict=True)],
         "left_out": [{"index": label(o.index), "name": o.name, "reason": o.reason} for o in result.left_out],
         "warnings": list(result.warnings) + list(d.notes),

@@ -62,6 +62,7 @@ def test_three_photos_measured_as_one_box(shots, tmp_path) -> None:
         assert result["dimensions"][name] == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
         assert result["uncertainty"][name] >= 0
     assert [v["name"] for v in result["views"]] == ["view1.png", "view2.png", "view3.png"]
+    assert all(isinstance(v["lines_left_out"], int) and v["lines_left_out"] >= 0 for v in result["views"])
     assert result["left_out"] == []
 
 

@@ -18,6 +18,7 @@ import pytest
 
 from prismcore import InputError
 from prismcore.joint import CLICK_WARN_PX, JointResult, View, fit_views
+from prismcore.joint_report import joint_report
 from prismcore.spec import KnownEdge, MmPerPx
 from prismsynth import PhotoLikeScene, photo_like_views
 
@@ -175,6 +176,9 @@ def test_an_edge_line_on_another_feature_is_left_out(clean, monkeypatch) -> None
     result = fit_views(_views(clean), _scale(clean[0]))
     assert result.views[1].lines_left_out >= 1
     assert result.lines_left_out == sum(v.lines_left_out for v in result.views)
+    # joint.json (the CLI's, the service's) says which view lost them
+    reported = [v["lines_left_out"] for v in joint_report(result)["views"]]
+    assert reported == [v.lines_left_out for v in result.views]
     box = clean[0].box
     for name in DIMENSIONS:
         assert getattr(result.dimensions, name) == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)
