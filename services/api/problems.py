@@ -23,6 +23,8 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import JSONResponse
 
+from prismcore.spec import error_message
+
 __all__ = ["BASE", "KINDS", "MEDIA_TYPE", "PROBLEM_SCHEMA", "Kind", "Problem", "declare_problems",
            "install_handlers", "pointer", "problem_response", "validation_errors"]
 
@@ -183,8 +185,7 @@ def validation_errors(raw: Sequence[Mapping[str, Any]], body: Any = _MISSING) ->
     for e in raw:
         loc = list(e.get("loc", ()))
         where, rest = (loc[0], loc[1:]) if loc else ("body", [])
-        # pydantic's "Value error, " before a validator's own message says nothing to a client.
-        message = str(e.get("msg", "invalid")).removeprefix("Value error, ")
+        message = error_message(str(e.get("msg", "invalid")))
         entry: dict[str, Any]
         if where in ("query", "path", "cookie"):
             entry = {"parameter": str(rest[0]) if rest else ""}

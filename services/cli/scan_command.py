@@ -19,6 +19,7 @@ from prismcore.camera import CameraModel
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
 from prismcore.locate import resolve_points
+from prismcore.spec import error_message
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
 from .joint_scan import scan_spec_views, scan_views
@@ -41,9 +42,8 @@ def one_line(error: ValidationError) -> str:
     # a branch of a union) are not in the spec: left out.
     where = ".".join(str(p) for p in first["loc"] if not _internal(p)) or "spec"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
-    # A validator's message that names its field already ("views: ...") is not prefixed again,
-    # and pydantic's "Value error, " before a validator's own message says nothing to a user.
-    message = first["msg"].removeprefix("Value error, ")
+    # A validator's message that names its field already ("views: ...") is not prefixed again.
+    message = error_message(first["msg"])
     if message.startswith((f"{where}:", f"{where} ")):
         return f"{message}{more}"
     return f"{where}: {message}{more}"

@@ -45,6 +45,7 @@ __all__ = [
     "Scale",
     "ScanSpec",
     "ViewSpec",
+    "error_message",
     "frame_folder",
     "parse_points",
     "search_area_problem",
@@ -261,6 +262,13 @@ def search_area_problem(hint: tuple[float, float] | None, roi: tuple[float, floa
 SideFace = Literal["auto", "right", "left", "top"]
 
 _NO_FIRST_VIEW = "(the first view's photo)"
+
+
+def error_message(msg: str) -> str:
+    """A spec validation error's message as a user reads it: pydantic's "Value error, " before a
+    validator's own message says nothing to a user (the CLI's one line and the API's problem
+    details both show it through here)."""
+    return msg.removeprefix("Value error, ")
 
 
 def _field_error(loc: tuple[str | int, ...], message: str, value: object) -> ValidationError:
