@@ -66,6 +66,12 @@ class Env:
         while time.monotonic() < deadline:
             job = self.store.get(job_id)
             if job is not None and job.state in (State.succeeded, State.failed, State.cancelled):
+                # The job ends, then job.json is written (lifecycle: state first, manifest
+                # after): give the manifest a moment so that the tests listing a job's keys
+                # do not race it (a full run at idle once listed them in between).
+                settle = time.monotonic() + 10
+                while "job.json" not in self.keys(job_id) and time.monotonic() < settle:
+                    time.sleep(0.1)
                 return job
             time.sleep(0.1)
         raise AssertionError(f"job {job_id} not final after {timeout} s: {job}\n{self.worker.log[-4000:]}")
