@@ -284,6 +284,11 @@ class JobStore(UploadRecords):
         yet delivered or given up (`webhook_done`)."""
         return cast("builtins.list[str]", self._r.zrangebyscore(_WEBHOOKS_DUE, 0, before))
 
+    def webhook_due_since(self, job_id: str) -> float | None:
+        """Since when (s, Redis's clock) a job's webhook has been due; None when it is not due."""
+        score = self._r.zscore(_WEBHOOKS_DUE, job_id)
+        return None if score is None else float(score)
+
     def webhook_resent(self, job_id: str, now: float) -> bool:
         """A job's delivery is sent again at `now`: due again from then. False when it is no
         longer due (delivered meanwhile): then it is not to be sent."""

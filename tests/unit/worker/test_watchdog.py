@@ -200,17 +200,22 @@ def test_ended_jobs_past_their_ttl_go(fakes: Fakes, job_ttl_days: int, expired: 
 
 
 def _ended_with_a_webhook(fakes: Fakes, webhook_url: str | None = "https://hooks.example/prism") -> str:
-    """A job that ended with its webhook due; the fake clock set to Redis's (which dates it)."""
+    """A job that ended with its webhook due; the fake clock set to the time Redis dated it due
+    (read back, not Redis's clock before the transition: a loaded machine can spend seconds
+    between the two)."""
     fakes.clock.now = fakes.store.server_time()
     job_id = fakes.job(items=1, state=State.running, webhook_url=webhook_url)
     assert fakes.store.transition(job_id, State.succeeded)
+    due = fakes.store.webhook_due_since(job_id)
+    if due is not None:
+        fakes.clock.now = due
     return job_id
 
 
 def test_a_webhook_delivery_lost_with_the_broker_is_sent_again_once(fakes: Fakes) -> None:
     job_id = _ended_with_a_webhook(fakes)
+    now = fakes.clock.now  # the time it became due
     silent = _ended_with_a_webhook(fakes, webhook_url=None)  # nothing to deliver: never due
-    now = fakes.clock.now
     assert watchdog.resend_webhooks(fakes.ctx, now + STALL - 5) == 0  # its task may be on its way
     fakes.redis.lpush("webhooks", _message(job_id))
     assert watchdog.resend_webhooks(fakes.ctx, now + STALL + 5) == 0  # queued: waiting its turn
