@@ -60,6 +60,7 @@ SNAP_SUSPECT_RMS_PX = 5.0  # a fit to the refined edges this far (RMS) from the 
 SNAP_CLICKS_BETTER = 3.0  # ... and is replaced when the clicks alone fit a box this many times closer
 FOCAL_MAX_REL_STD = 0.25  # a fitted focal less sure than this is "not determined"
 OBLIQUE_WARN = 0.01  # warn when the square-on model costs more than 1 % on some dimension
+POINT_LOSS_WARN = 0.2  # warn when a face's cloud lacks more than this share of its marked pixels
 _POINT_ROLES = {
     "p1": "the front face's upper-left corner",
     "p2": "the front face's upper-right corner",
@@ -538,6 +539,21 @@ def finish_scan(plan: ScanPlan, images: list[np.ndarray], scans: list[FaceScan])
     return ScanResult(cloud, report)
 
 
+def _point_loss_warning(plan: ScanPlan, scans: list[FaceScan]) -> list[str]:
+    """A warning when some face's cloud lacks more than POINT_LOSS_WARN of its marked pixels:
+    the figures come with a cloud full of holes (or nearly empty), and the user must be told."""
+    counts = [(s.plan.name, *s.point_loss_counts) for s in scans]
+    if not any(total and lost / total > POINT_LOSS_WARN for _, lost, total in counts):
+        return []
+    lost_all, total_all = sum(c[1] for c in counts), sum(c[2] for c in counts)
+    kept = " and ".join(f"{total - lost:,} of the {name} face's {total:,}" for name, lost, total in counts)
+    cause = (f"the faces' colour differs from the colour at P1 by more than the tolerance "
+             f"({plan.spec.tolerance:g})" if plan.spec.method == "paper"
+             else "the faces are not where the points put them")
+    return [f"point loss {lost_all / total_all:.1%}: the cloud keeps {kept} marked pixels; "
+            f"the points may not outline the faces, or {cause}"]
+
+
 def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[str, Any]:
     """The report.json content (without the writers' timings, which the caller adds)."""
     rejected = sum(s.point_loss_counts[0] for s in scans)
@@ -575,7 +591,7 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[st
         "cloud": plan.spec.cloud,
         "perspective_corrected": dims.perspective,
         "faces": faces,
-        "warnings": plan.warnings + list(dims.notes),
+        "warnings": plan.warnings + list(dims.notes) + _point_loss_warning(plan, scans),
         "timings_ms": {k: round(v, 3) for k, v in plan.timings_ms.items()},
         "images": [{"width": w, "height": h} for w, h in plan.image_sizes],
         "inputs": plan.spec.model_dump(mode="json"),

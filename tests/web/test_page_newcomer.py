@@ -1,0 +1,37 @@
+"""Rough edges a newcomer hit on the page with the sample photo (issue 30): what the result says
+about a large point loss, the number of points the page starts with, a given figure, formats."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from page_driver import PageDriver
+from playwright.sync_api import expect
+
+SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
+# samples/job.json's points
+POINTS = {"p1": (395, 293), "p2": (943, 331), "p3": (919, 761), "p4": (943, 331), "p5": (1035, 298),
+          "p6": (411, 647), "p7": (1009, 660)}
+
+
+def _sample(d: PageDriver, seven: bool) -> None:
+    """Log in, add the sample photo and click its five (or seven) points."""
+    d.log_in()
+    d.add_photos(SAMPLE)
+    extra = d.page.get_by_label("Also mark P6 and P7")
+    extra.check() if seven else extra.uncheck()
+    for name in ("p1", "p2", "p3", "p4", "p5") + (("p6", "p7") if seven else ()):
+        d.click_photo(POINTS[name])
+    expect(d.page.locator("#next-point")).to_contain_text("Every point is placed")
+
+
+def test_a_large_point_loss_is_a_warning(page, stack):
+    d = PageDriver(page)
+    _sample(d, seven=False)
+    page.get_by_label("Method").select_option(label="The paper's colour scan")
+    page.get_by_label("Scale", exact=True).select_option(label="One known edge")
+    page.get_by_label("Known edge").select_option(label="Width (P1 to P2)")
+    page.get_by_label("Its length (mm)").fill("120")
+    assert "Done" in d.submit_and_wait()
+    expect(page.locator("#result-warnings .warning", has_text="point loss 9")).to_contain_text(
+        "of the front face's 257,481")
