@@ -23,6 +23,7 @@ from .sample_command import sample
 from .scan_command import scan
 from .schema_command import schema
 from .serve_command import serve
+from .station_command import board, station_app
 
 __all__ = ["app", "main"]
 
@@ -40,6 +41,8 @@ cli.command()(results)
 cli.command()(jobs)
 cli.command()(cancel)
 cli.command()(serve)
+cli.command()(board)
+cli.add_typer(station_app, name="station")
 
 
 def main(argv: list[str] | None = None) -> int:

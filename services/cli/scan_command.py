@@ -265,11 +265,28 @@ def scan(
     frame_list: Annotated[str | None, typer.Option("--frames", help="Video: frame indices 0,5,9.")] = None,
     sharpest: Annotated[int | None, typer.Option(help="Video: the K sharpest frames.")] = None,
     max_frames: Annotated[int, typer.Option(help="Video: most frames measured.", min=1)] = DEFAULT_MAX_FRAMES,
+    station: Annotated[Path | None, typer.Option(
+        help="station.json (prism station calibrate): the part measured on the station, no points and "
+             "no known edge needed.")] = None,
 ) -> None:
     """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds;
     several photos of one part with --points-file: measured as one box."""
     started = time.perf_counter()
     images = image or []
+    if station is not None:
+        if len(images) != 1 or spec_file is not None or points_file is not None or side is not None:
+            raise InputError("--station measures one photo: "
+                             "prism scan PHOTO --station station.json --out DIR")
+        if points not in (None, "auto"):
+            raise InputError("--station finds the points itself: drop --points (or give --points auto)")
+        scales = (mm_per_px, distance_mm, width_mm, height_mm, depth_mm, focal_px, camera)
+        if any(v is not None for v in scales):
+            raise InputError("--station gives the scale and the camera: drop --mm-per-px, --distance-mm, "
+                             "--width-mm/--height-mm/--depth-mm, --focal-px and --camera")
+        from .station_scan import scan_on_station
+
+        scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels)
+        return
     if points_file is not None or len(images) > 1:
         if points_file is None:
             raise InputError(f"{len(images)} photos: give --points-file with one entry of points per photo "

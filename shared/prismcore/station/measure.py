@@ -1,0 +1,220 @@
+"""A part measured on a station: re-register, segment, fit the box, and say how sure it is.
+
+The seven reference points are derived from the fitted box, so the cloud, the overlay and the
+other outputs are made from the photo as for clicked points.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from .boxfit import _FACES, BoxFit, fit_box, fold_distance, project
+from .calibrate import Station
+from .segment import Registration, register, segment_part, undistorter
+
+__all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
+
+MAX_RESIDUAL_PX = 3.0  # the outline farther than this (RMS) from any box resting flat: refused
+WARN_RESIDUAL_PX = 1.5
+_WARN_RELATIVE_SIGMA = 0.02
+
+
+@dataclass
+class StationMeasurement:
+    """What the station measured of the part.
+
+    dimensions : width >= depth (the footprint's sides) and height (perpendicular to the
+    support), mm. uncertainty : their one-sigma, mm. position_mm : the footprint's centre in the
+    station's frame. yaw_deg : the footprint's longer side against the frame's x axis.
+    points : (7, 2) reference points in the photo as taken (P1..P7), side_face : their second face.
+    """
+
+    dimensions: dict[str, float]
+    uncertainty: dict[str, float]
+    position_mm: tuple[float, float]
+    yaw_deg: float
+    residual_px: float
+    contrast: float
+    registration: Registration
+    fit: BoxFit
+    points: np.ndarray
+    side_face: str
+    warnings: list[str] = field(default_factory=list)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    def report(self) -> dict[str, object]:
+        """The station's part of report.json."""
+        return {
+            "scale_source": "station",
+            "dimensions": {**{k: round(v, 3) for k, v in self.dimensions.items()}, "unit": "mm"},
+            "uncertainty": {k: round(v, 3) for k, v in self.uncertainty.items()},
+            "position_mm": [round(v, 2) for v in self.position_mm],
+            "yaw_deg": round(self.yaw_deg, 2),
+            "silhouette_residual_px": round(self.residual_px, 3),
+            "contrast": round(self.contrast, 1),
+            "registration": {
+                "source": self.registration.source,
+                "shift_px": round(self.registration.shift_px, 2),
+                "board_corners": self.registration.corners,
+            },
+            "points": [[round(float(x), 2), round(float(y), 2)] for x, y in self.points],
+            "side_face": self.side_face,
+            "warnings": list(self.warnings),
+            "timings_ms": {k: round(v, 2) for k, v in self.timings_ms.items()},
+        }
+
+
+def _distorted(X: np.ndarray, station: Station, reg: Registration) -> np.ndarray:
+    cam = station.camera
+    pts, _ = cv2.projectPoints(
+        X.astype(np.float64),
+        np.asarray(reg.pose.rvec),
+        np.asarray(reg.pose.tvec),
+        cam.matrix(),
+        cam.distortion(),
+    )
+    return pts.reshape(-1, 2)
+
+
+def reference_points(
+    corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.ndarray
+) -> tuple[np.ndarray, str]:
+    """P1..P7 of the fitted box as a person would click them.
+
+    corners : (8, 3) board-frame corners (footprint, then top). image_pts : (8, 2) their pixels.
+    The front face is the side face the camera sees largest; the second face the other side it
+    sees (right or left), else the top.
+    """
+    mid = corners.mean(axis=0)
+    sides = []
+    for name, idx in _FACES.items():
+        if name == "top":
+            continue
+        F = corners[list(idx)]
+        n = np.cross(F[1] - F[0], F[2] - F[0])
+        if n @ (F.mean(axis=0) - mid) < 0:
+            n = -n
+        facing = float(n @ (camera_centre - F.mean(axis=0)))
+        if facing > 0:
+            area = abs(cv2.contourArea(image_pts[list(idx)].astype(np.float32)))
+            sides.append((area, idx))
+    if not sides:
+        raise InputError("the fitted box shows no side face to the camera: the camera looks straight down")
+    sides.sort(key=lambda s: -s[0])
+    front = sides[0][1]
+    bottom = [i for i in front if i < 4]
+    top = [i for i in front if i >= 4]
+    # left/right in the image, by the bottom corners
+    bl, br = sorted(bottom, key=lambda i: image_pts[i, 0])
+    tl, tr = bl + 4, br + 4
+    p1, p2, p3, p6 = image_pts[tl], image_pts[tr], image_pts[br], image_pts[bl]
+    assert set(top) == {tl, tr}
+    if len(sides) > 1 and sides[1][0] > 0.05 * sides[0][0]:
+        other = sides[1][1]
+        shared = set(other) & set(front)
+        if br in shared:
+            far_b = next(i for i in other if i < 4 and i != br)
+            return np.array([p1, p2, p3, p2, image_pts[far_b + 4], p6, image_pts[far_b]]), "right"
+        far_b = next(i for i in other if i < 4 and i != bl)
+        return np.array([p1, p2, p3, p1, image_pts[far_b + 4], p6, image_pts[far_b]]), "left"
+
+    # The top: its far corners behind P1 and behind P2 (each one's other neighbour on the top).
+    def behind(corner: int, other: int) -> int:
+        ring = 4 + (corner - 4 + 1) % 4, 4 + (corner - 4 - 1) % 4
+        return ring[0] if ring[1] == other else ring[1]
+
+    return np.array([p1, p2, p3, p1, image_pts[behind(tl, tr)], p6, image_pts[behind(tr, tl)]]), "top"
+
+
+def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasurement:
+    """Measure the one box resting on the station's support in `photo` (RGB (H, W, 3) uint8).
+
+    Raises
+    ------
+    InputError
+        A photo of another size, no plate, the camera moved beyond re-registration, no part,
+        two parts, a part cut by the photo's edge, a part that is not a box resting flat.
+    """
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    cam = station.camera
+    h, w = photo.shape[:2]
+    if (w, h) != (cam.image_width, cam.image_height):
+        raise InputError(
+            f"the photo is {w}x{h} px, the station's camera {cam.image_width}x{cam.image_height}"
+        )
+    plate = station.plate()
+    if plate is None:
+        raise InputError("the station has no plate (a photo of the empty support): calibrate it with --plate")
+    und = undistorter(cam)
+    photo_u, plate_u = und.image(photo), und.image(plate)
+    t1 = time.perf_counter()
+    reg = register(photo_u, plate_u, photo, station.board, cam, station.plane)
+    t2 = time.perf_counter()
+    sil = segment_part(photo_u, plate_u, reg.homography)
+    t3 = time.perf_counter()
+    K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
+    gray = cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY)
+    fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask), sil.difference)
+    t4 = time.perf_counter()
+    timings.update(
+        undistort=(t1 - t0) * 1e3, register=(t2 - t1) * 1e3, segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3
+    )
+    if fit.residual_px > MAX_RESIDUAL_PX:
+        raise InputError(
+            f"the part is not a box resting flat on the support: its outline is "
+            f"{fit.residual_px:.1f} px (RMS) from the best such box (over {MAX_RESIDUAL_PX} px)"
+        )
+    warnings = list(sil.warnings)
+    if fit.residual_px > WARN_RESIDUAL_PX:
+        warnings.append(
+            f"the outline is {fit.residual_px:.1f} px (RMS) from the fitted box: a part that is "
+            "not quite a box, or resting tilted; the dimensions may be off"
+        )
+    L, W, H = fit.length_mm, fit.width_mm, fit.height_mm
+    sL, sW, sH = fit.sigma_mm()
+    if L >= W:
+        dims, sig, yaw = (
+            {"width": L, "height": H, "depth": W},
+            {"width": sL, "height": sH, "depth": sW},
+            fit.params[2],
+        )
+    else:
+        dims, sig, yaw = (
+            {"width": W, "height": H, "depth": L},
+            {"width": sW, "height": sH, "depth": sL},
+            fit.params[2] + np.pi / 2,
+        )
+    # The camera's pose is known to its calibration, not better: a floor on each sigma.
+    sig = {k: float(np.hypot(sig[k], 0.002 * dims[k] + 0.05)) for k in dims}
+    for k in dims:
+        if not np.isfinite(sig[k]) or sig[k] > _WARN_RELATIVE_SIGMA * dims[k] + 1.0:
+            warnings.append(
+                f"{k} is poorly determined from this view ({dims[k]:.1f} +- {sig[k]:.1f} mm): "
+                "turn the part so two of its sides face the camera"
+            )
+    corners = fit.corners()
+    image_pts = _distorted(corners, station, reg)
+    points, side = reference_points(corners, project(corners, K, R, t), -R.T @ t)
+    # the points in the photo as taken: the same corners through the lens
+    lookup = {tuple(np.round(p, 6)): i for i, p in enumerate(project(corners, K, R, t))}
+    points = np.array([image_pts[lookup[tuple(np.round(p, 6))]] for p in points])
+    return StationMeasurement(
+        dimensions=dims,
+        uncertainty=sig,
+        position_mm=(float(fit.params[0]), float(fit.params[1])),
+        yaw_deg=float(np.degrees(yaw) % 180),
+        residual_px=fit.residual_px,
+        contrast=sil.contrast,
+        registration=reg,
+        fit=fit,
+        points=points,
+        side_face=side,
+        warnings=warnings,
+        timings_ms=timings,
+    )

@@ -1,0 +1,351 @@
+"""The part against the empty support: the photo re-registered on the plate, the light's change
+taken out, shadows told from the part, and the part's outline.
+
+Everything here works in the undistorted (pinhole) image of the station's camera.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..camera import CameraModel
+from ..errors import InputError
+from .board import BoardSpec, find_board_corners
+from .calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
+
+__all__ = ["MAX_SHIFT_PX", "Registration", "Silhouette", "register", "segment_part", "undistorter"]
+
+MAX_SHIFT_PX = 25.0  # the camera moved further than this since calibration: refused
+_SHADOW_RANGE = (0.25, 1.08)  # a shadow (or the light's change) scales the background by this
+_MIN_AREA_FRACTION = 2e-4  # of the photo: smaller blobs are noise or dust
+_SECOND_PART = 0.2  # a second blob this large against the first is a second part
+_LOW_CONTRAST = 25.0  # RGB levels: a part whose colour differs less from the support is flagged
+
+
+class Undistorter:
+    """The maps that remove a camera's lens distortion, built once per camera."""
+
+    def __init__(self, camera: CameraModel) -> None:
+        self.camera = camera
+        self.K = camera.matrix()
+        size = (camera.image_width, camera.image_height)
+        self.maps = (
+            cv2.initUndistortRectifyMap(self.K, camera.distortion(), None, self.K, size, cv2.CV_16SC2)
+            if camera.has_distortion
+            else None
+        )
+
+    def image(self, image: np.ndarray) -> np.ndarray:
+        if self.maps is None:
+            return image
+        return cv2.remap(image, self.maps[0], self.maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+_UNDISTORTERS: dict[str, Undistorter] = {}
+
+
+def undistorter(camera: CameraModel) -> Undistorter:
+    key = camera.model_dump_json()
+    if key not in _UNDISTORTERS:
+        _UNDISTORTERS.clear()
+        _UNDISTORTERS[key] = Undistorter(camera)
+    return _UNDISTORTERS[key]
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Where the camera is now against where it was calibrated.
+
+    pose : the support plane's pose now. homography : plate pixels -> photo pixels (undistorted).
+    shift_px : how far the support moved in the image (median over the photo). source : what it
+    was measured on: "board" (its corners found again), "plate" (the support's texture), "none".
+    """
+
+    pose: PlanePose
+    homography: np.ndarray
+    shift_px: float
+    source: str
+    corners: int = 0
+
+
+def _plane_h(K: np.ndarray, pose: PlanePose) -> np.ndarray:
+    R, t = pose.rotation(), pose.translation()
+    return K @ np.column_stack([R[:, 0], R[:, 1], t])
+
+
+def _shift(H: np.ndarray, size: tuple[int, int]) -> float:
+    w, h = size
+    grid = np.array([[x, y] for x in np.linspace(0, w - 1, 5) for y in np.linspace(0, h - 1, 5)], np.float64)
+    moved = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), H).reshape(-1, 2)
+    return float(np.median(np.linalg.norm(moved - grid, axis=1)))
+
+
+def _pose_from_h(K: np.ndarray, H_plane: np.ndarray, ref: PlanePose) -> PlanePose:
+    M = np.linalg.inv(K) @ H_plane
+    scale = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
+    M = M * scale
+    if M[2, 2] < 0:
+        M = -M
+    r1, r2 = M[:, 0], M[:, 1]
+    R = np.column_stack([r1, r2, np.cross(r1, r2)])
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ Vt
+    rvec = cv2.Rodrigues(R)[0].ravel()
+    return PlanePose(
+        rvec=[float(v) for v in rvec],
+        tvec=[float(v) for v in M[:, 2]],
+        rms_px=ref.rms_px,
+        corners=ref.corners,
+    )
+
+
+def register(
+    photo_u: np.ndarray,
+    plate_u: np.ndarray | None,
+    photo: np.ndarray,
+    board: BoardSpec,
+    camera: CameraModel,
+    calibrated: PlanePose,
+) -> Registration:
+    """The support's pose in `photo` and the plate -> photo homography.
+
+    photo_u, plate_u : undistorted RGB (H, W, 3) uint8. photo : the photo as taken (the board's
+    corners are found there, with the lens model, as at calibration).
+
+    Raises
+    ------
+    InputError
+        The camera moved more than ``MAX_SHIFT_PX``, or could not be re-registered.
+    """
+    K = camera.matrix()
+    size = (photo_u.shape[1], photo_u.shape[0])
+    H_cal = _plane_h(K, calibrated)
+    view = find_board_corners(photo, board)
+    if view is not None and len(view) >= MIN_PLANE_CORNERS:
+        pose = board_pose(view, camera)
+        if pose.rms_px <= 1.5:
+            H = _plane_h(K, pose) @ np.linalg.inv(H_cal)
+            shift = _shift(H, size)
+            if shift > MAX_SHIFT_PX:
+                raise InputError(
+                    f"the camera moved {shift:.0f} px since calibration (over {MAX_SHIFT_PX:.0f} "
+                    "px): calibrate the station again"
+                )
+            return Registration(pose, H, shift, "board", len(view))
+    if plate_u is None:
+        return Registration(calibrated, np.eye(3), 0.0, "none")
+    # The support's own texture: a translation by phase correlation, then an ECC homography.
+    small = 0.25
+    a = cv2.resize(
+        cv2.cvtColor(plate_u, cv2.COLOR_RGB2GRAY), None, fx=small, fy=small, interpolation=cv2.INTER_AREA
+    ).astype(np.float32)
+    b = cv2.resize(
+        cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY), None, fx=small, fy=small, interpolation=cv2.INTER_AREA
+    ).astype(np.float32)
+    (dx, dy), _ = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_32F))
+    # ECC on the support alone: what changed (the part, its shadow) is left out.
+    shifted = cv2.warpAffine(
+        a, np.float32([[1, 0, dx], [0, 1, dy]]), a.shape[::-1], borderMode=cv2.BORDER_REPLICATE
+    )
+    ratio = float(np.median(b)) / max(float(np.median(shifted)), 1.0)
+    changed = np.abs(b - ratio * shifted) > 12
+    changed = cv2.dilate(changed.astype(np.uint8), np.ones((9, 9), np.uint8))
+    valid = (changed == 0).astype(np.uint8)
+    # ECC's warp maps photo coordinates to plate coordinates.
+    warp = np.array([[1, 0, -dx], [0, 1, -dy], [0, 0, 1]], np.float32)
+    try:
+        cc, warp = cv2.findTransformECC(
+            a,
+            b,
+            warp,
+            cv2.MOTION_HOMOGRAPHY,
+            (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 80, 1e-6),
+            valid,
+            5,
+        )
+    except cv2.error:
+        cc = 0.0
+    if cc >= 0.6:
+        # Refined at half size: a quarter-size pixel is two pixels of the photo, and the board's
+        # squares show a pixel's misregistration as a part.
+        half = 0.5
+        a2 = cv2.resize(
+            cv2.cvtColor(plate_u, cv2.COLOR_RGB2GRAY), None, fx=half, fy=half, interpolation=cv2.INTER_AREA
+        ).astype(np.float32)
+        b2 = cv2.resize(
+            cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY), None, fx=half, fy=half, interpolation=cv2.INTER_AREA
+        ).astype(np.float32)
+        up = np.diag([2.0, 2.0, 1.0])
+        warp2 = (up @ warp.astype(np.float64) @ np.linalg.inv(up)).astype(np.float32)
+        valid2 = cv2.resize(valid, a2.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        try:
+            cc2, warp2 = cv2.findTransformECC(
+                a2,
+                b2,
+                warp2,
+                cv2.MOTION_HOMOGRAPHY,
+                (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 1e-6),
+                valid2,
+                3,
+            )
+            if cc2 >= cc - 0.05:
+                small, warp = half, warp2
+        except cv2.error:
+            pass
+    if cc < 0.6:
+        raise InputError(
+            f"the camera cannot be re-registered on the support (correlation {cc:.2f}): "
+            "it moved since calibration, or the support changed; calibrate again"
+        )
+    S = np.diag([small, small, 1.0])
+    # Invert for plate -> photo.
+    H = np.linalg.inv(np.linalg.inv(S) @ warp.astype(np.float64) @ S)
+    shift = _shift(H, size)
+    if shift > MAX_SHIFT_PX:
+        raise InputError(
+            f"the camera moved {shift:.0f} px since calibration (over {MAX_SHIFT_PX:.0f} px): "
+            "calibrate the station again"
+        )
+    return Registration(_pose_from_h(K, H @ H_cal, calibrated), H, shift, "plate")
+
+
+@dataclass(frozen=True)
+class Silhouette:
+    """The part's outline in the undistorted photo.
+
+    contour : (N, 2) float64 image (x, y) px, the outline's pixels in order. mask : (H, W) bool.
+    contrast : median RGB distance of the part's pixels from the support (levels).
+    """
+
+    contour: np.ndarray
+    mask: np.ndarray
+    contrast: float
+    area_px: int
+    warnings: list[str]
+    difference: np.ndarray  # (H, W) float32: the photo's distance from the shadow-scaled support
+
+
+def _difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    """The photo's distance (RGB levels) from the support scaled by the best shadow factor."""
+    dot = np.einsum("ijc,ijc->ij", P, bg)
+    nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
+    s = np.clip(dot / nb, *_SHADOW_RANGE)
+    return np.linalg.norm(P - s[..., None] * bg, axis=2)
+
+
+def _gain(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    """The light's change: one gain per channel, the median ratio (the part is a minority)."""
+    bs, ps = bg.reshape(-1, 3), P.reshape(-1, 3)
+    ok = bs.min(axis=1) > 30
+    return np.median(ps[ok] / bs[ok], axis=0) if ok.sum() > 100 else np.ones(3)
+
+
+def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    """A shadow scales the support; the part does not. The support is also compared shifted by a
+    pixel each way and the least difference kept: the registration's last fraction of a pixel
+    then shows no difference along the board's edges, while the part differs from every shift."""
+    resid = _difference(P, bg)
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        np.minimum(resid, _difference(P, np.roll(bg, (dy, dx), axis=(0, 1))), out=resid)
+    return resid
+
+
+def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
+    """Hysteresis: a face barely apart from a dark square is kept where it joins the part."""
+    k = max(3, round(5 * scale) | 1)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    strong = cv2.morphologyEx((resid > max(14.0, 4.0 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel)
+    weak = cv2.morphologyEx((resid > max(6.0, 2.5 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel)
+    n_weak, weak_labels = cv2.connectedComponents(weak | strong, connectivity=8)
+    keep = np.zeros(n_weak, np.uint8)
+    keep[np.unique(weak_labels[strong > 0])] = 1
+    keep[0] = 0
+    close = max(3, round(9 * scale) | 1)
+    return cv2.morphologyEx(
+        keep[weak_labels], cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close, close))
+    )
+
+
+_COARSE = 4  # the part is first found in a photo this many times smaller
+
+
+def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray) -> Silhouette:
+    """The one part in `photo_u` against the plate (warped by `homography` onto the photo).
+
+    Found first at a quarter of the size (how many parts, where), then outlined at full size in
+    the part's own window.
+
+    Raises
+    ------
+    InputError
+        No part, more than one, or a part cut by the photo's edge.
+    """
+    h, w = photo_u.shape[:2]
+    bg_full = cv2.warpPerspective(
+        plate_u, homography, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    small = (w // _COARSE, h // _COARSE)
+    Ps = cv2.resize(photo_u, small, interpolation=cv2.INTER_AREA).astype(np.float32)
+    Bs = cv2.resize(bg_full, small, interpolation=cv2.INTER_AREA).astype(np.float32)
+    gain = _gain(Ps, Bs)
+    resid_s = _residual(Ps, Bs * gain)
+    noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
+    mask_s = _mask(resid_s, noise_s, 1 / _COARSE)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask_s, connectivity=8)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    min_area = _MIN_AREA_FRACTION * small[0] * small[1]
+    big = [i + 1 for i in np.argsort(-areas) if areas[i] >= min_area]
+    if not big:
+        raise InputError("no part found on the support (nothing differs from the plate)")
+    first = big[0]
+    others = [i for i in big[1:] if areas[i - 1] >= _SECOND_PART * areas[first - 1]]
+    if others:
+        raise InputError(f"{1 + len(others)} parts found: one part per photo")
+    x0, y0, bw, bh = (int(v) for v in stats[first, :4])
+    if x0 <= 0 or y0 <= 0 or x0 + bw >= small[0] or y0 + bh >= small[1]:
+        raise InputError("the part is cut by the photo's edge: move it into view")
+    # The part's window at full size, with a margin of support around it.
+    m = 6
+    X0, Y0 = max(0, (x0 - m) * _COARSE), max(0, (y0 - m) * _COARSE)
+    X1, Y1 = min(w, (x0 + bw + m) * _COARSE), min(h, (y0 + bh + m) * _COARSE)
+    P = photo_u[Y0:Y1, X0:X1].astype(np.float32)
+    bg = bg_full[Y0:Y1, X0:X1].astype(np.float32) * gain
+    resid = _residual(P, bg)
+    near = cv2.resize((labels == first).astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)[
+        Y0:Y1, X0:X1
+    ]
+    near = cv2.dilate(near, np.ones((9, 9), np.uint8))
+    outside = resid[near == 0]
+    noise = float(np.median(outside)) * 1.4826 + 1.0 if outside.size > 100 else noise_s
+    mask = _mask(resid, noise, 1.0)
+    count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if count < 2:
+        raise InputError("no part found on the support (nothing differs from the plate)")
+    part = (lab == 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    filled = np.zeros_like(part)
+    cv2.drawContours(filled, [contour.astype(np.int32).reshape(-1, 1, 2)], -1, 1, thickness=-1)
+    inside_roi = filled.astype(bool)
+    contrast = float(np.median(np.linalg.norm(P[inside_roi] - bg[inside_roi], axis=1)))
+    warnings = []
+    if contrast < _LOW_CONTRAST:
+        warnings.append(
+            f"the part's colour is close to the support's (contrast {contrast:.0f} RGB levels, "
+            f"under {_LOW_CONTRAST:.0f}): its outline may be wrong; a support of another colour helps"
+        )
+    inside = np.zeros((h, w), bool)
+    inside[Y0:Y1, X0:X1] = inside_roi
+    difference = np.zeros((h, w), np.float32)
+    difference[Y0:Y1, X0:X1] = resid
+    return Silhouette(
+        contour=contour + np.array([X0, Y0], np.float64),
+        mask=inside,
+        contrast=contrast,
+        area_px=int(inside_roi.sum()),
+        warnings=warnings,
+        difference=difference,
+    )
