@@ -18,7 +18,7 @@ from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
 from .routes import health, jobs, previews, results, upload_points, upload_video, uploads
-from .webapp import mount_docs, mount_web
+from .webapp import mount_docs, mount_guide, mount_web
 
 __all__ = ["app", "create_app"]
 
@@ -60,6 +60,7 @@ def create_app() -> FastAPI:
     app.include_router(health.router)
     mount_web(app)
     mount_docs(app)
+    mount_guide(app)
     app.add_middleware(BodyLimit)
     install_handlers(app, (redis.ConnectionError, redis.TimeoutError, BotoCoreError, S3UploadFailedError))
 

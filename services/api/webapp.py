@@ -1,5 +1,6 @@
 """The web page: `web/` built by Vite into `static/`, served at /app/, with / redirecting there;
-and the API's docs, /docs (Swagger UI) and /redoc (ReDoc), from `static/docs/`.
+the API's docs, /docs (Swagger UI) and /redoc (ReDoc), from `static/docs/`; and the guide, the
+docs site `scripts/docs` builds into `guide/`, at /guide/.
 
 The page's key lives in the browser's sessionStorage, so the page is served with a strict
 Content-Security-Policy: only this origin's own scripts, styles and API, nothing inline. The docs
@@ -17,11 +18,13 @@ from fastapi import FastAPI, status
 from fastapi.responses import HTMLResponse, PlainTextResponse, RedirectResponse
 from starlette.responses import Response
 from starlette.staticfiles import StaticFiles
-from starlette.types import Scope
+from starlette.types import Receive, Scope, Send
 
-__all__ = ["CSP", "DOCS_CSP", "STATIC_DIR", "mount_docs", "mount_web"]
+__all__ = ["CSP", "DOCS_CSP", "GUIDE_CSP", "GUIDE_DIR", "STATIC_DIR", "mount_docs", "mount_guide",
+           "mount_web"]
 
 STATIC_DIR = Path(__file__).with_name("static")
+GUIDE_DIR = Path(__file__).with_name("guide")
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
        "connect-src 'self' blob:; object-src 'none'; base-uri 'none'; frame-ancestors 'none'; "
        "form-action 'self'")
@@ -29,6 +32,13 @@ DOCS_CSP = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inl
             "img-src 'self' data: blob:; font-src 'self' data:; worker-src 'self' blob:; "
             "connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'; "
             "form-action 'self'")
+# The guide is MkDocs Material's static site: its pages start the theme with small inline
+# scripts, so those are allowed; everything else is this origin's (no fonts or CDN: theme.font off).
+GUIDE_CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
+             "img-src 'self' data:; font-src 'self' data:; worker-src 'self' blob:; connect-src 'self'; "
+             "object-src 'none'; base-uri 'none'; frame-ancestors 'none'; form-action 'self'")
+GUIDE_NOT_BUILT = ("The guide has not been built here: run scripts/docs (it builds docs/ into "
+                   "services/api/guide).")
 NOT_BUILT = ("The web page has not been built here: run scripts/setup with node and npm installed "
              "(it runs npm ci and npm run build in web/).")
 
@@ -111,3 +121,27 @@ def mount_docs(app: FastAPI, directory: Path = STATIC_DIR / "docs") -> None:
                       include_in_schema=False)
     if directory.is_dir():
         app.mount("/static/docs", _DocsAssets(directory=directory), name="docs-assets")
+
+
+class _Guide(StaticFiles):
+    """The built docs site; looked for at each request, so a build made while the API runs shows."""
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if not (Path(str(self.directory)) / "index.html").is_file():
+            response: Response = PlainTextResponse(GUIDE_NOT_BUILT, status_code=status.HTTP_404_NOT_FOUND)
+            await response(scope, receive, send)
+            return
+        await super().__call__(scope, receive, send)
+
+    async def get_response(self, path: str, scope: Scope) -> Response:
+        response = await super().get_response(path, scope)
+        response.headers["Content-Security-Policy"] = GUIDE_CSP
+        response.headers["X-Content-Type-Options"] = "nosniff"
+        response.headers["Referrer-Policy"] = "no-referrer"
+        response.headers["Cache-Control"] = "no-cache"
+        return response
+
+
+def mount_guide(app: FastAPI, directory: Path = GUIDE_DIR) -> None:
+    """Serve the docs site built in `directory` at /guide/ (without a build, it says how to make one)."""
+    app.mount("/guide", _Guide(directory=directory, html=True, check_dir=False), name="guide")
