@@ -14,10 +14,11 @@ from .webhook_secret import signing_key
 
 __all__ = ["Settings", "get_settings"]
 
-# Typed, so that mypy checks these against OutputFormat's names. Compact (LAZ + glb: about 3.5
-# MB stored per 1280x1024 photo against 25 MB of CSV + PLY); an item without a scale, which
-# cannot have them (they are in mm), gets csv and ply (prism_api.routes.jobs._formats).
-_DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("laz", "glb")
+# Typed, so that mypy checks these against OutputFormat's names. The text cloud and PLY, as the
+# design promises (about 25 MB stored per 1280x1024 photo); PRISM_DEFAULT_FORMATS='["laz","glb"]'
+# (about 3.5 MB) for the compact ones, which go to items with a scale only (they are in mm: an
+# item without one gets csv and ply, prism_api.routes.jobs._formats).
+_DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
 
 
 class Settings(BaseSettings):
@@ -84,8 +85,8 @@ class Settings(BaseSettings):
     video_split_part_s: float = Field(default=120.0, gt=0)
     public_base_url: str | None = None  # for Location headers behind a proxy
     # The outputs of an item whose spec names no formats (a spec's own list wins), e.g.
-    # PRISM_DEFAULT_FORMATS='["csv","ply"]' for text and PLY clouds; the metric ones (las, laz,
-    # glb) go to items with a scale only, and an item left with none gets csv and ply.
+    # PRISM_DEFAULT_FORMATS='["laz","glb"]' for compressed LAS and the box model; the metric ones
+    # (las, laz, glb) go to items with a scale only, and an item left with none gets csv and ply.
     default_formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
 
     @field_validator("webhook_secret")

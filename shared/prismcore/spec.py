@@ -376,8 +376,8 @@ class ScanSpec(_Strict):
         default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1, description="The outputs: the "
         "cloud as csv, ply, las or laz (compressed LAS), and glb (the fitted box, a textured glTF "
         "model); las, laz and glb are in mm and need a scale. Not given: the service's default "
-        "(PRISM_DEFAULT_FORMATS: laz and glb, or csv and ply for an item without a scale); "
-        "prism scan and the engine write csv and ply.")
+        "(PRISM_DEFAULT_FORMATS: csv and ply unless the operator set others; las, laz and glb "
+        "only for an item with a scale); prism scan and the engine write csv and ply.")
     spacing_mm: PositiveMm | None = Field(
         default=None, description="Thin the cloud so neighbouring points are about this far apart, "
         "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")

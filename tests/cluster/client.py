@@ -43,7 +43,8 @@ def png(image: np.ndarray) -> bytes:
 
 
 def item(reference: str, s: Scene) -> dict:
-    # CSV and PLY, not the default LAZ + glb: the oracle compares the PLY, the engine's exact cloud.
+    # CSV and PLY named (the service's default, but a deployment may set another): the oracle
+    # compares the PLY, the engine's exact cloud.
     return {"image": reference, "points": [list(map(round, s.points[n])) for n in NAMES],
             "focal_px": s.focal_px, "scale": {"kind": "pinhole", "distance_mm": s.distance_mm},
             "formats": ["csv", "ply"]}

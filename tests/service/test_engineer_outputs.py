@@ -1,7 +1,7 @@
 """Issue 13 through the whole service (API under uvicorn, a Celery worker, redis-server and
 SeaweedFS): LAZ and glb outputs downloaded and read back with laspy and pygltflib, the items'
-verdicts against a nominal size and the job's counts of them, the service's default formats
-(PRISM_DEFAULT_FORMATS unset: laz + glb with a scale, csv + ply without), the job's results
+verdicts against a nominal size and the job's counts of them, an operator's default formats
+(PRISM_DEFAULT_FORMATS set to laz + glb: those with a scale, csv + ply without), the job's results
 table as CSV and JSON, and `prism results` / `prism download` on it.
 """
 
@@ -59,8 +59,10 @@ class Stack:
 @pytest.fixture(scope="module")
 def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     tmp = tmp_path_factory.mktemp("engineer")
-    # No PRISM_DEFAULT_FORMATS: the service's own default (laz + glb where there is a scale).
-    env = service_env(redis_server.port, s3_server.port, db=9, bucket="engineer-e2e")
+    # The compact formats as the deployment's default (the service's own is csv + ply): laz + glb
+    # where there is a scale.
+    env = service_env(redis_server.port, s3_server.port, db=9, bucket="engineer-e2e",
+                      DEFAULT_FORMATS='["laz", "glb"]')
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=2)
     made = Stack(api.port)
@@ -91,7 +93,7 @@ def _item(reference: str, scene, **extra) -> dict:
 
 @pytest.fixture(scope="module")
 def finished(stack, scene, photo) -> tuple[dict, list[dict]]:
-    """One job: laz+glb asked for with a true nominal; the service's defaults with a nominal
+    """One job: laz+glb asked for with a true nominal; the operator's defaults with a nominal
     30 mm too wide; and an item without a scale (so no metric formats, and no nominal)."""
     ref = stack.upload(photo)
     items = [_item(ref, scene, formats=["laz", "glb"], nominal=[BOX.width_mm, BOX.height_mm, BOX.depth_mm],

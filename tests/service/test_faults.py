@@ -101,7 +101,7 @@ def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
     print(f"\nredis restart: {queued} jobs were queued; final states {states}")
     assert states == ["succeeded"] * len(ids), [j for j in jobs.values() if j["state"] != "succeeded"]
     for job_id in ids:
-        assert {f"items/{i}/cloud.laz" for i in range(3)} <= stack.keys(job_id)  # the default cloud
+        assert {f"items/{i}/cloud.ply" for i in range(3)} <= stack.keys(job_id)  # the default cloud
     figures.update({"faults survived": 1, "jobs submitted": len(ids), "jobs succeeded": len(ids)})
 
 

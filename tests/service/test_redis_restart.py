@@ -125,7 +125,7 @@ def test_worker_survives_redis_sigkilled_with_a_message_unacked(stack, figures):
     assert log.count(" ready.") == readies  # the same process throughout
     assert states == ["succeeded"] * len(ids), list(jobs.values())
     for job_id in ids:
-        assert "items/0/cloud.laz" in stack.keys(job_id)  # the default cloud (with a scale)
+        assert "items/0/cloud.ply" in stack.keys(job_id)  # the default cloud
     figures.update({"faults survived": 1, "jobs submitted": len(ids), "jobs succeeded": len(ids)})
 
 

@@ -194,7 +194,7 @@ def test_primary_killed_with_jobs_in_flight_sentinel_promotes_and_nothing_is_los
         log = worker.log
         assert log.count(" ready.") == 1 and "Unrecoverable error" not in log, log[-3000:]
     for job_id in accepted.values():
-        assert {"items/0/cloud.laz", "items/1/cloud.laz"} <= stack.keys(job_id)  # the default cloud
+        assert {"items/0/cloud.ply", "items/1/cloud.ply"} <= stack.keys(job_id)  # the default cloud
     figures.update({"faults survived": 1, "jobs submitted": len(accepted),
                     "jobs succeeded": states.count("succeeded")})
 

@@ -98,10 +98,10 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     photo = _jpeg(scene.image)
     second = _jpeg(render_oblique_view(Box(90, 140, 45), seed=4).image)
     scene2 = render_oblique_view(Box(90, 140, 45), seed=4)
-    # The first item gets the service's default outputs (LAZ and glb: it has a scale), the
-    # second asks for CSV and PLY.
-    r = stack.submit([_item(stack.upload(photo), scene),
-                      _item(stack.upload(second), scene2, formats=["csv", "ply"])],
+    # The first item asks for the compact outputs (LAZ and glb: it has a scale), the second
+    # gets the service's default (CSV and PLY).
+    r = stack.submit([_item(stack.upload(photo), scene, formats=["laz", "glb"]),
+                      _item(stack.upload(second), scene2)],
                      client_reference="batch-1")
     assert r.status_code == 202, r.text
     assert r.headers["Location"].endswith(f"/v1/jobs/{r.json()['id']}")
@@ -216,8 +216,8 @@ def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
         client.close()
     names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
     assert names == {"item-0/summary.json"} | {f"item-0/{frame_folder(n)}/{f}" for n in (0, 2) for f in
-                                               ("cloud.laz", "box.glb", "preview.ply", "overlay.png",
-                                                                "report.json")}  # the defaults with a scale
+                                               ("cloud.csv", "cloud.ply", "preview.ply", "overlay.png",
+                                                                "report.json")}  # the defaults
     report = json.loads((tmp_path / "out/item-0/frame_000002/report.json").read_text())
     assert report["dimensions"] == item["frames"][1]["result"]["dimensions"]
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import base64
 import hashlib
 import hmac
-import io
 import json
 import os
 import queue
@@ -28,7 +27,6 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import httpx
-import laspy
 import pytest
 import redis
 import standardwebhooks.webhooks
@@ -220,10 +218,10 @@ def test_a_delivery_verifies_with_the_standard_library(delivered):
     # The very document GET answers; only the presigned links' signatures and expiry differ.
     assert _unsigned(payload) == _unsigned(job)
     item = payload["items"][0]
-    assert set(item["downloads"]) == {"laz", "glb", "preview", "overlay", "report"}  # default, with a scale
-    laz = httpx.get(item["downloads"]["laz"], timeout=10)  # presigned: no credentials needed
-    assert laz.status_code == 200
-    assert laspy.read(io.BytesIO(laz.content)).header.point_count == item["result"]["points"]
+    assert set(item["downloads"]) == {"csv", "ply", "preview", "overlay", "report"}  # the default
+    csv = httpx.get(item["downloads"]["csv"], timeout=10)  # presigned: no credentials needed
+    assert csv.status_code == 200
+    assert csv.content.count(b"\n") == item["result"]["points"]  # one line a point
     assert "x-prism-signature" not in headers  # the old scheme is gone
 
 

@@ -1,6 +1,6 @@
 """The formats an item gets at submit (`prism_api.routes.jobs._formats`): its own list always;
-else the operator's PRISM_DEFAULT_FORMATS (unset: laz + glb), less the metric ones (las, laz,
-glb: in mm) for an item without a scale; csv + ply when nothing is left.
+else the operator's PRISM_DEFAULT_FORMATS (unset: csv + ply, as the design promises), less the
+metric ones (las, laz, glb: in mm) for an item without a scale; csv + ply when nothing is left.
 
 The oracle is the rule written out over every combination, not the function's own code.
 """
@@ -25,14 +25,14 @@ def _settings(**env: Any) -> Settings:
     return Settings(api_keys={"t": "k" * 16}, webhook_secret="x" * 16, **env)
 
 
-def test_the_service_default_is_compact(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_service_default_is_csv_and_ply(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("PRISM_DEFAULT_FORMATS", raising=False)
-    assert _settings().default_formats == ["laz", "glb"]
+    assert _settings().default_formats == ["csv", "ply"]
 
 
 def test_the_operator_sets_the_default(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("PRISM_DEFAULT_FORMATS", '["csv", "ply"]')
-    assert _settings().default_formats == ["csv", "ply"]
+    monkeypatch.setenv("PRISM_DEFAULT_FORMATS", '["laz", "glb"]')  # the compact ones
+    assert _settings().default_formats == ["laz", "glb"]
 
 
 DEFAULTS = [["laz", "glb"], ["csv", "ply"], ["las"], ["glb", "csv"], ["ply"]]

@@ -3,6 +3,7 @@ about a large point loss, the number of points the page starts with, a given fig
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from page_driver import PageDriver
@@ -35,3 +36,32 @@ def test_a_large_point_loss_is_a_warning(page, stack):
     assert "Done" in d.submit_and_wait()
     expect(page.locator("#result-warnings .warning", has_text="point loss 9")).to_contain_text(
         "of the front face's 257,481")
+
+
+def _pinhole(page) -> None:
+    """samples/job.json's scale: 279.132 mm away at a focal length of 1400 px."""
+    page.get_by_label("Scale", exact=True).select_option(label="Shooting distance and focal length")
+    page.get_by_label("Shooting distance to the front face (mm)").fill("279.132")
+    page.get_by_label("Focal length", exact=False).fill("1400")
+
+
+def test_csv_and_ply_by_default_and_the_compact_formats_need_a_scale(page, stack):
+    d = PageDriver(page)
+    _sample(d, seven=True)
+    outputs = page.get_by_label("Outputs")
+    expect(outputs.locator("option")).to_have_text([
+        "The service's default (CSV and PLY unless it was set up otherwise)",
+        "Cloud as CSV and PLY (about 23 MB a photo)",
+        "Cloud as LAZ, and the box as a glTF model (about 1.3 MB a photo; needs a scale)",
+        "All of them: CSV, PLY, LAZ and glTF (needs a scale)"])
+    outputs.select_option(value="laz,glb")  # without a scale: said at once, nothing sent
+    page.get_by_role("button", name="Submit job").click()
+    expect(page.locator("#form-error")).to_contain_text("need a scale")
+    outputs.select_option(value="")
+    _pinhole(page)
+    with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
+        assert "Done" in d.submit_and_wait()
+    assert "formats" not in json.loads(sent.value.post_data)["items"][0]  # the service's default
+    expect(page.locator(".downloads a")).to_have_text(
+        [f"Download {name}" for name in ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (PNG)")])
+

@@ -243,6 +243,7 @@ def test_layout_at_laptop_size_nominal_from_the_page(page, stack, tmp_path):
     for dim, value in zip(("width", "height", "depth"), (120, 80, 70), strict=True):
         page.get_by_label(f"Nominal {dim} (mm)").fill(str(value))
     page.get_by_label("Tolerance (± mm").fill("5, 5, 1")
+    page.get_by_label("Outputs").select_option(value="laz,glb")
     with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
         assert "Done" in d.submit_and_wait()
     spec = ScanSpec.model_validate(json.loads(sent.value.post_data)["items"][0])
@@ -271,9 +272,9 @@ def test_layout_at_laptop_size_nominal_from_the_page(page, stack, tmp_path):
     assert result["y"] < photo["y"] + photo["height"] and photo["y"] < result["y"] + result["height"]
     dims = page.locator("#dimensions").bounding_box()
     assert dims["y"] + dims["height"] <= LAPTOP["height"], dims
-    # The page names no formats, so an item with a scale gets the service's default (LAZ + glb):
-    # the model button is there and the relay serves the model.
-    assert spec.formats == ["csv", "ply"] and "formats" not in json.loads(sent.value.post_data)["items"][0]
+    # The compact outputs chosen on the page (LAZ + glb): the model button is there and the relay
+    # serves the model.
+    assert spec.formats == ["laz", "glb"]
     expect(page.get_by_role("button", name="Box model (glb)")).to_be_visible()
     job_id = page.locator("#job-state").text_content().split()[1].rstrip(":")
     job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]

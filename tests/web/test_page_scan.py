@@ -90,10 +90,10 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     result = job["items"][0]["result"]
     assert shown == {k: round(result["dimensions"][k], 2) for k in shown}
     expect(page.locator("#details dd[data-field=points]")).to_have_text(f"{result['points']:,}")
-    # The service's default outputs with a scale (LAZ and glb), the report and the overlay.
+    # The service's default outputs (CSV and PLY), the report and the overlay.
     expect(page.locator(".downloads a")).to_have_text(
         [f"Download {name}" for name in
-         ("Cloud (LAZ)", "Box model (glTF .glb)", "Report (JSON)", "Fit overlay (PNG)")])
+         ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (PNG)")])
     expect(page.locator(f"#jobs tr[data-job='{job['id']}']")).to_contain_text("succeeded")
 
     pixels = d.viewer_pixels()  # the 3D view rendered: many colours, not one flat fill

@@ -102,8 +102,8 @@ def test_a_frame_marked_then_every_second_frame_measured(page, stack, clip):
     expect(rows).to_have_count(5)
     assert [rows.nth(i).get_attribute("data-frame") for i in range(5)] == ["0", "2", "3", "4", "6"]
     expect(page.locator("#frame-results tbody tr", has_text="succeeded")).to_have_count(5)
-    # Per frame: the service's default outputs with a scale (LAZ and glb) and the report.
-    expect(page.locator("#frame-results a")).to_have_text(["LAZ", "Box model", "Report"] * 5)
+    # Per frame: the service's default outputs (CSV and PLY) and the report.
+    expect(page.locator("#frame-results a")).to_have_text(["CSV", "PLY", "Report"] * 5)
     expect(page.get_by_role("link", name="Download the summary (JSON)")).to_be_visible()
 
     page.get_by_label("Frame in the 3D view").select_option(label="Frame 3")

@@ -102,8 +102,8 @@ function partScan(settings: Settings): Scan {
     const points = complete(view.marks, `Photo ${k + 1} of this part (${name}): `, true);
     return { image: ref, points, side_face: view.face, name: name.slice(0, 200) };
   });
-  // No cloud is made: the cloud's settings (colour tolerance, method, cloud kind) do not apply,
-  // and each view carries its own second face.
-  const { tolerance: _t, method: _m, cloud: _c, side_face: _f, ...rest } = settings;
+  // No cloud is made: the cloud's settings (colour tolerance, method, cloud kind, outputs) do not
+  // apply, and each view carries its own second face.
+  const { tolerance: _t, method: _m, cloud: _c, side_face: _f, formats: _o, ...rest } = settings;
   return { spec: { views, ...rest }, label: `${views.length} photos of one part (${views.map((v) => v.name).join(", ")})` };
 }

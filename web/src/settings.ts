@@ -1,4 +1,4 @@
-// Step 3 of the page: tolerance, method, cloud kind, scale and focal length, read into the
+// Step 3 of the page: tolerance, method, cloud kind, outputs, scale and focal length, read into the
 // matching fields of the scan spec; a field left wrong gets a sentence naming it.
 
 import type { Scale, ScanSpec } from "./types";
@@ -7,7 +7,10 @@ const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as 
 const value = (id: string) => $<HTMLInputElement | HTMLSelectElement>(id).value;
 
 export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px" | "side_face"
-  | "nominal" | "tolerance_mm">;
+  | "nominal" | "tolerance_mm" | "formats">;
+
+/** Formats in millimetres: they need a scale (prismcore.spec). */
+const METRIC = ["las", "laz", "glb"];
 
 export class SettingsForm {
   /** `joint`: several photos of one part are marked, to be measured as one box (a known edge). */
@@ -94,6 +97,16 @@ export class SettingsForm {
     if (scale) settings.scale = scale;
     if (focal !== undefined) settings.focal_px = focal;
     if (!this.twoPhoto()) settings.side_face = value("second-face") as Settings["side_face"];
+    // Not chosen: none sent, so the service's default applies (PRISM_DEFAULT_FORMATS).
+    const formats = value("formats").split(",").filter(Boolean);
+    if (formats.length) {
+      if (!scale && formats.some((f) => METRIC.includes(f))) {
+        $("formats").focus();
+        throw new Error("LAZ and the glTF box model are in millimetres and need a scale: choose one under Scale, " +
+          "or the cloud as CSV and PLY under Outputs.");
+      }
+      settings.formats = formats;
+    }
     const quality = nominal();
     if (quality) {
       if (!scale) {

@@ -5,8 +5,8 @@ import type { Dimension, Frame, Item, Summary } from "./types";
 import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
-// A frame has the formats its item asked for (the service's default: LAZ and glb with a scale,
-// CSV and PLY without one) and its report.
+// A frame has the formats its item asked for (the service's default: CSV and PLY unless the operator chose others,
+// LAZ and glb only with a scale) and its report.
 const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"],
   ["glb", "Box model"], ["report", "Report"]];
 
