@@ -8,7 +8,6 @@ split into tiles while every item of a batch (one tile per face) is scanned whol
 from __future__ import annotations
 
 import io
-import time
 from collections.abc import Iterator
 
 import pytest
@@ -81,7 +80,7 @@ def test_a_redelivered_batch_item_writes_each_object_once(env, scenes):
         env.celery.send_task(TASK_PLAN_ITEM, (job_id, 0))
     job = env.wait(job_id)
     assert job.state == State.succeeded and [i.state for i in job.items] == [State.succeeded] * 2
-    time.sleep(1.0)  # let the second copy run out
+    env.wait_no_task(job_id)  # the second copy has run out
     assert env.keys(job_id) == {f"items/{i}/{name}" for i in (0, 1) for name in OUTPUTS} | {"job.json"}
     total, done = env.units(job_id)
     assert total == done == 2 * 2

@@ -191,7 +191,7 @@ def test_cancelled_before_it_runs_produces_nothing(env, scene):
     before = env.runs(TASK_RUN_JOB), env.runs(TASK_PLAN_ITEM)
     env.celery.send_task(TASK_RUN_JOB, (job_id,))
     env.celery.send_task(TASK_PLAN_ITEM, (job_id, 0))  # as if sent just before the cancel
-    deadline = time.monotonic() + 20
+    deadline = time.monotonic() + 60
     while (env.runs(TASK_RUN_JOB), env.runs(TASK_PLAN_ITEM)) < (before[0] + 1, before[1] + 1):
         assert time.monotonic() < deadline, env.worker.log[-4000:]
         time.sleep(0.1)
@@ -211,7 +211,7 @@ def test_tasks_run_twice_write_each_object_once(env, scene):
         env.celery.send_task(TASK_PLAN_ITEM, (job_id, 0))
     job = env.wait(job_id)
     assert job.state == State.succeeded and job.progress == 100
-    time.sleep(1.0)  # let the second copy's tiles and finish run out (they find the job final)
+    env.wait_no_task(job_id)  # the second copy's tiles and finish have run out (they find the job final)
     names = _tile_names(spec, load_image(photo))
     assert env.keys(job_id) == _item_files(0, names) | {"job.json"}
     total, done = env.units(job_id)
@@ -231,7 +231,7 @@ def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
     env.objects.put_bytes(f"jobs/{job_id}/items/0/plan.json", dumps_plan(plan, tiles=[]))
     # A tile of a face the plan does not have: an error no retry can help (a bug, say).
     env.celery.send_task(TASK_SCAN_TILE, (job_id, 0, "top", 0, 1))
-    job = env.wait(job_id, timeout=20)
+    job = env.wait(job_id)
     assert job.state == State.failed and job.error == "all items failed"
     assert job.items[0].state == State.failed
     assert job.items[0].error == "internal error: ValueError"
@@ -276,7 +276,7 @@ def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
     photo = encode(scene.image)
     specs = [spec_for(env.upload(photo), scene) for _ in range(4)]
     job_id = env.submit(specs)
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 60
     while env.store.get(job_id).progress <= 5:
         assert time.monotonic() < deadline
         time.sleep(0.02)
@@ -289,7 +289,7 @@ def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
     while env.worker.log.count(" ready.") == readies:
         assert time.monotonic() < deadline, env.worker.log[-4000:]
         time.sleep(0.1)
-    job = env.wait(job_id, timeout=90)
+    job = env.wait(job_id, timeout=180)  # the visibility timeout, a stall and a sweep, then the rest
     assert job.state == State.succeeded, (lost, job)
     assert f"watchdog: job {job_id} made no progress" in env.worker.log, lost
     assert all(item.state == State.succeeded for item in job.items), job

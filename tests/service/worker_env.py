@@ -24,6 +24,7 @@ from prism_common.settings import Settings
 from prism_common.storage import ObjectStore, object_key
 from prism_common.store import JobStore
 
+from prism_worker.broker import pending_job_ids
 from prismcore import ScanSpec
 
 from .conftest import API_KEYS, WEBHOOK_SECRET
@@ -69,7 +70,7 @@ class Env:
                 # The job ends, then job.json is written (lifecycle: state first, manifest
                 # after): give the manifest a moment so that the tests listing a job's keys
                 # do not race it (a full run at idle once listed them in between).
-                settle = time.monotonic() + 10
+                settle = time.monotonic() + 30
                 while "job.json" not in self.keys(job_id) and time.monotonic() < settle:
                     time.sleep(0.1)
                 return job
@@ -86,6 +87,24 @@ class Env:
 
     def runs(self, task: str) -> int:
         return int(read_task_durations(self.redis).get(task, {}).get("count", 0))
+
+    def wait_no_task(self, job_id: str, timeout: float = 60) -> None:
+        wait_no_task(self.redis, job_id, timeout)
+
+
+def wait_no_task(client: redis.Redis, job_id: str, timeout: float = 60) -> None:
+    """Until no task of the job is queued, running or due for a retry (the broker's lists and
+    its unacked hash, as the watchdog reads them), on two looks in a row: a task between its
+    queue and the unacked hash is in neither for a moment. What a fixed pause assumed (the
+    redelivered copies or the tasks in flight at a cancel have run out) is waited for."""
+    deadline = time.monotonic() + timeout
+    quiet = 0
+    while True:
+        quiet = quiet + 1 if job_id not in pending_job_ids(client) else 0
+        if quiet == 2:
+            return
+        assert time.monotonic() < deadline, f"job {job_id} still has tasks after {timeout} s"
+        time.sleep(0.2)
 
 
 @contextmanager
