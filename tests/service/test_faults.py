@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from datetime import UTC, datetime
 
 import httpx
@@ -33,6 +33,8 @@ from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene
 
 TILES_PER_FACE = 4
+RETRY_WAITS = re.compile(r"Task \S+\[([0-9a-f-]+)\] retry: Retry in (\d+(?:\.\d+)?)s")  # task id, wait
+RETRIED = re.compile(r"Task \S+\[([0-9a-f-]+)\] retry: ")  # the id of a task that met an outage
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +90,7 @@ def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
     ref = stack.upload(png(scene.image))
     ids = [stack.submit([item(ref, scene)] * 3, key=uuid.uuid4().hex) for _ in range(8)]
     client = stack.redis_client()
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 60
     while not client.zcard("prism:state:running"):
         assert time.monotonic() < deadline
         time.sleep(0.01)
@@ -103,6 +105,13 @@ def test_redis_restarted_with_jobs_queued_and_running(stack, figures):
     for job_id in ids:
         assert {f"items/{i}/cloud.ply" for i in range(3)} <= stack.keys(job_id)  # the default cloud
     figures.update({"faults survived": 1, "jobs submitted": len(ids), "jobs succeeded": len(ids)})
+
+
+def _wait_for(condition: Callable[[], bool], timeout: float = 60) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.05)
 
 
 def _wait_ready(stack: FaultStack, want: int, timeout: float = 60) -> dict:
@@ -135,8 +144,15 @@ def test_object_store_down_for_a_while_retries_and_finishes(stack, figures, busy
     stack.s3.stop()
     down = time.monotonic()
     assert _wait_ready(stack, 503) == {"redis": "ok", "object_store": "down"}
+    log_start = len(stack.workers[0].log)
     ids = [stack.submit([item(ref, scene)]) for _ in range(3)]  # submit needs only Redis
-    time.sleep(3)  # the tasks meet the outage and back off (the store's restart comes on top)
+    # The tasks meet the outage and back off: as many tasks retrying as jobs, waited for (a
+    # fixed 3 s let a loaded machine bring the store back before they had met it, or left an
+    # idle one down longer than it needed to be).
+    deadline = time.monotonic() + 60
+    while len(set(RETRIED.findall(stack.workers[0].log[log_start:]))) < len(ids):
+        assert time.monotonic() < deadline, stack.workers[0].log[-3000:]
+        time.sleep(0.1)
     assert all(stack.job(j)["state"] in ("queued", "running") for j in ids)
     stack.s3.start()
     assert _wait_ready(stack, 200) == {"redis": "ok", "object_store": "ok"}
@@ -170,8 +186,7 @@ def test_object_store_down_past_the_retry_limit_fails_the_job_with_the_reason(st
     # previous test's last write was seen still retrying), so the waits are read per task id.
     caps = retry_caps_s(int(stack.env["PRISM_VISIBILITY_TIMEOUT_S"]))
     per_task: dict[str, list[float]] = {}
-    for task_id, wait in re.findall(r"Task \S+\[([0-9a-f-]+)\] retry: Retry in (\d+(?:\.\d+)?)s",
-                                     stack.workers[0].log[log_start:]):
+    for task_id, wait in RETRY_WAITS.findall(stack.workers[0].log[log_start:]):
         per_task.setdefault(task_id, []).append(float(wait))
     gave_up = [waits for waits in per_task.values() if len(waits) == 5]
     assert gave_up and all(len(waits) <= 5 for waits in per_task.values()), per_task
@@ -199,10 +214,14 @@ def test_api_restarted_while_clients_submit_and_poll(stack, figures):
     threads = [threading.Thread(target=client, args=(mine,)) for mine in keys]
     for t in threads:
         t.start()
-    time.sleep(0.5)
+    # Each restart meets clients at work (waited for, not a fixed 0.5 s): every client's first
+    # submit answered before the SIGTERM, and one more answered by the restarted API before the
+    # crash (unless every submit is in already).
+    _wait_for(lambda: all(mine[0] in got for mine in keys))
     stack.api.stop()  # SIGTERM, then start again
     stack.api.start()
-    time.sleep(0.5)
+    answered = len(got)
+    _wait_for(lambda: len(got) > answered or len(got) == sum(map(len, keys)))
     stack.api.kill()  # and a crash
     stack.api.start()
     stop.set()
@@ -230,7 +249,7 @@ def test_a_job_whose_message_was_lost_is_restarted_by_the_watchdog(stack, figure
     job = JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
                     items=[ItemRecord(index=0, spec=spec)])
     JobStore(stack.redis_client()).create(job)
-    final = stack.wait([job.id], timeout=90)[job.id]  # stall 15 s + a 2 s sweep, then the run
+    final = stack.wait([job.id], timeout=180)[job.id]  # stall 15 s + a 2 s sweep, then the run
     assert final["state"] == "succeeded", final
     assert f"watchdog: job {job.id} made no progress" in "".join(w.log for w in stack.workers)
     figures.update({"faults survived": 1, "jobs submitted": 1, "jobs succeeded": 1})
