@@ -15,6 +15,7 @@ import httpx
 import laspy
 import numpy as np
 import pytest
+import redis
 from plyfile import PlyData
 from prism_common.public import JobPublic
 
@@ -27,6 +28,7 @@ from prismsynth import Box, render_clip, render_oblique_view, write_video
 
 from .conftest import API_KEYS
 from .servers import service_env
+from .worker_env import wait_no_task
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -168,7 +170,11 @@ def test_cancel_stops_a_job_and_tells_the_truth(stack, scene):
         time.sleep(0.1)
     cancelled = stack.http.post(f"/v1/jobs/{job_id}/cancel", headers=ACME)
     assert cancelled.status_code == 200 and cancelled.json()["state"] == "cancelled"
-    time.sleep(3)  # tasks in flight reach their next step
+    # The tasks in flight reach their next step and stop: none of the job's is left in the
+    # broker, waited for (a fixed 3 s, on a loaded machine, read an item whose task was still
+    # finishing, and the job changed after).
+    broker = redis.Redis.from_url(stack.env["PRISM_REDIS_URL"], decode_responses=True)
+    wait_no_task(broker, job_id)
     job = stack.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
     states = [item["state"] for item in job["items"]]
     assert job["state"] == "cancelled"
@@ -177,7 +183,9 @@ def test_cancel_stops_a_job_and_tells_the_truth(stack, scene):
     assert 1 <= done < 12
     # Progress counts finished work only: never 100 for a job that stopped part way.
     assert job["progress"] < 100
-    time.sleep(3)
+    time.sleep(1)
+    wait_no_task(broker, job_id)  # nothing was sent after the cancel either
+    broker.close()
     later = stack.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
     assert [item["state"] for item in later["items"]] == states  # nothing runs on after the cancel
     assert later["progress"] == job["progress"]
