@@ -80,7 +80,13 @@ def test_an_item_over_the_time_limit_fails_with_the_reason_and_the_next_one_runs
     error = job.items[0].error or ""
     assert f"time limit of {LIMIT_S} s" in error, error
     # The worker is not held: a small photo right after succeeds, well inside the limit on a
-    # loaded machine too (its task took 0.68 s at a load of 8 on 2 cores).
+    # loaded machine too (its task took 0.68 s at a load of 8 on 2 cores). The limit is the wall
+    # clock's, so a stall of the whole machine past it may fail that one try: another is made
+    # then (never for any other error), and one of three must succeed.
     tiny = render_oblique_view(Box(120.0, 80.0, 60.0), image_size=(320, 256), focal_px=350.0, seed=1)
-    ok = env.wait(env.submit([spec_for(env.upload(encode(tiny.image)), tiny)]), timeout=60)
+    ref = env.upload(encode(tiny.image))
+    for _ in range(3):
+        ok = env.wait(env.submit([spec_for(ref, tiny)]), timeout=60)
+        if f"time limit of {LIMIT_S} s" not in (ok.items[0].error or ""):
+            break
     assert ok.items[0].state == State.succeeded, ok.items[0].error
