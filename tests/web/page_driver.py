@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import operator
 import re
+import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -13,6 +17,7 @@ from service.conftest import API_KEYS
 from prismsynth import Scene
 
 KEY = API_KEYS["acme"]
+T = TypeVar("T")
 
 
 def save_photo(scene: Scene, path: Path) -> Path:
@@ -129,3 +134,24 @@ class PageDriver:
         expect(self.page.locator("#viewer-status")).to_contain_text("Showing", timeout=30_000)
         png = self.page.locator("#viewer canvas").screenshot()
         return cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+
+    def settled(self, read: Callable[[], T], *, same: Callable[[T, T], bool] = operator.eq,
+                unlike: T | None = None, timeout_s: float = 30) -> T:
+        """What `read` gives once two reads in a row agree, and (given `unlike`, the view before a
+        change) differ from it: the layout settled, or a change drawn by the 3D view, which
+        renders on its own frames. Waited for, not a fixed pause (a loaded machine draws later);
+        after `timeout_s` the last read, for the caller's assertion to fail on."""
+        deadline = time.monotonic() + timeout_s
+        last = read()
+        while True:
+            self.page.wait_for_timeout(150)
+            now = read()
+            if same(now, last) and (unlike is None or not same(now, unlike)):
+                return now
+            if time.monotonic() > deadline:
+                return now
+            last = now
+
+    def settled_view(self, unlike: np.ndarray | None = None, timeout_s: float = 30) -> np.ndarray:
+        """The 3D view once it stays the same (and, given `unlike`, is no longer that view)."""
+        return self.settled(self.viewer_pixels, same=np.array_equal, unlike=unlike, timeout_s=timeout_s)

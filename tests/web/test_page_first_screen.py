@@ -83,7 +83,7 @@ def test_result_warnings_and_3d_view_on_the_first_screen(page, tmp_path):
     assert "Done" in d.submit_and_wait()
     expect(page.locator("#viewer-status")).to_contain_text("Showing", timeout=30_000)
     page.wait_for_function("document.getElementById('overlay').naturalWidth > 0")
-    page.wait_for_timeout(300)  # the viewer's resize observer and the labels settle
+    d.settled(lambda: page.evaluate(MEASURE))  # the viewer's resize observer and the labels settle
     page.evaluate("window.scrollTo(0, 0)")
     ARTEFACTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(ARTEFACTS / "first-screen.png"))
@@ -171,10 +171,10 @@ def test_depth_colours_show_the_front_face_without_streaks(page, stack):
     d.log_in()
     page.get_by_role("button", name=f"Open job {job_id[:8]} (succeeded)").click()
     expect(page.locator("#viewer-status")).to_contain_text("Showing", timeout=30_000)
+    before = d.settled_view()
     page.get_by_label("Dimension lines").uncheck()  # only the points on the picture
     page.get_by_label("Point colours").select_option("depth")
-    page.wait_for_timeout(300)
-    pixels = d.viewer_pixels()
+    pixels = d.settled_view(unlike=before)  # the change drawn, waited for
     ARTEFACTS.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(ARTEFACTS / "viewer-depth.png"), cv2.cvtColor(pixels, cv2.COLOR_RGB2BGR))
     front = np.linalg.norm(pixels.astype(float) - FRONT_DEPTH_RGB, axis=-1) < 40

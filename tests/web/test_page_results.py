@@ -188,19 +188,19 @@ def test_verdicts_and_the_3d_view_with_dimension_lines(page, batch):
     expect(page.locator("#viewer .scale-bar")).to_contain_text(re.compile(r"^\d+(\.\d+)? mm$"))
     page.locator("#viewer").screenshot(path=str(_dir() / "viewer-cloud.png"))
     d = PageDriver(page)
-    with_lines = d.viewer_pixels()
+    with_lines = d.settled_view()
     page.get_by_label("Dimension lines").uncheck()
     expect(page.locator("#viewer .dim-label[data-dim=width]")).to_be_hidden()
-    assert (d.viewer_pixels().astype(int) != with_lines).any(axis=-1).mean() > 0.002
+    assert (d.settled_view(unlike=with_lines).astype(int) != with_lines).any(axis=-1).mean() > 0.002
     page.get_by_label("Dimension lines").check()
+    cloud = d.settled_view()
     # The glb box model instead of the cloud, relayed through the API (no S3 origin: the CSP).
     with page.expect_response(re.compile(r"/items/0/box\.glb$")) as got:
         page.get_by_role("button", name="Box model (glb)").click()
     assert got.value.status == 200 and got.value.headers["content-type"] == "model/gltf-binary"
     expect(page.locator("#viewer-status")).to_contain_text("box model")
     expect(page.locator("#viewer .dim-label[data-dim=depth]")).to_be_visible()
-    page.wait_for_timeout(300)
-    assert d.viewer_pixels().std() > 5
+    assert d.settled_view(unlike=cloud).std() > 5  # the model drawn (waited for), not a blank view
     page.locator("#viewer").screenshot(path=str(_dir() / "viewer-model.png"))
     assert colour  # (the part verdict's colour was read: text and colour both present)
 

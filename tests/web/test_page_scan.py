@@ -105,16 +105,16 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     # Orbit (drag) and zoom (wheel) move the camera: the picture changes each time.
     box = page.locator("#viewer canvas").bounding_box()
     centre = (box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
-    before = d.viewer_pixels()
+    before = d.settled_view()
     page.mouse.move(*centre)
     page.mouse.down()
     page.mouse.move(centre[0] + 90, centre[1] + 40, steps=6)
     page.mouse.up()
-    orbited = d.viewer_pixels()
+    orbited = d.settled_view(unlike=before)
     assert np.abs(orbited.astype(int) - before).mean() > 1
     page.mouse.wheel(0, -500)
-    page.wait_for_timeout(300)
-    assert np.abs(d.viewer_pixels().astype(int) - orbited).mean() > 1
+    zoomed = d.settled_view(unlike=orbited)  # drawn on the view's next frames, however late
+    assert np.abs(zoomed.astype(int) - orbited).mean() > 1
 
     # The key stays with the tab (sessionStorage, never the URL): a reload is still logged in,
     # and the job can be opened again from the list of recent jobs.
