@@ -36,7 +36,7 @@ def poll(api: TestClient, path: str, *, working: str, headers: dict, timeout: fl
         time.sleep(0.1)
 
 
-def wait_for(condition: Callable[[], bool], timeout: float = 30) -> None:
+def wait_for(condition: Callable[[], bool], timeout: float = 60) -> None:
     deadline = time.monotonic() + timeout
     while not condition():
         assert time.monotonic() < deadline, "condition not met in time"

@@ -78,7 +78,7 @@ def test_bad_file_fails_its_item_only(stack, case, figures):
     name, data, expected = CASES[case]
     bad, good = stack.upload(data, name=name), stack.upload(GOOD)
     job_id = stack.submit([item(bad, SCENE), item(good, SCENE)])
-    job = stack.wait([job_id], timeout=60)[job_id]
+    job = stack.wait([job_id])[job_id]
     figures["inputs tried"] += 1
     assert job["state"] == "succeeded", job
     failed, fine = job["items"]
@@ -92,7 +92,7 @@ def test_bad_file_fails_its_item_only(stack, case, figures):
 def test_mislabelled_but_readable_files_are_read_by_content(stack, figures):
     refs = [stack.upload(JPEG, name="photo.png"), stack.upload(GOOD, name="photo.jpg")]
     job_id = stack.submit([item(r, SCENE) for r in refs])
-    job = stack.wait([job_id], timeout=60)[job_id]
+    job = stack.wait([job_id])[job_id]
     figures["inputs tried"] += 2
     assert [i["state"] for i in job["items"]] == ["succeeded", "succeeded"], job
 
@@ -157,7 +157,7 @@ def test_bad_video_fails_its_item_only_or_reads_what_is_there(stack, clip, case,
     name, spoil = VIDEO_CASES[case]
     bad, good = stack.upload(spoil(video), name=name), stack.upload(GOOD)
     job_id = stack.submit([_video_item(bad, scenes[0]), item(good, SCENE)])
-    job = stack.wait([job_id], timeout=90)[job_id]
+    job = stack.wait([job_id])[job_id]
     figures["inputs tried"] += 1
     assert job["state"] == "succeeded", job
     spoilt, fine = job["items"]
@@ -180,7 +180,7 @@ def test_a_video_with_nothing_to_measure_fails_its_item_only(stack, clip, tmp_pa
     bad = {**_video_item(stack.upload(path.read_bytes(), name="empty.avi"), scenes[0])}
     needle = "'empty.avi'"
     job_id = stack.submit([bad, item(stack.upload(GOOD), SCENE)])
-    job = stack.wait([job_id], timeout=90)[job_id]
+    job = stack.wait([job_id])[job_id]
     figures["inputs tried"] += 1
     spoilt, fine = job["items"]
     assert job["state"] == "succeeded" and fine["state"] == "succeeded", job

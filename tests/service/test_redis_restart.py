@@ -46,7 +46,7 @@ def _teardown_like_celery(tmp_path, transport: str) -> tuple[str, str, int]:
     try:
         conn.default_channel.basic_qos(prefetch_count=2)
         conn.Consumer(queue, callbacks=[lambda body, message: received.append(message)]).consume()
-        conn.drain_events(timeout=5)
+        conn.drain_events(timeout=30)  # returns with the message, already in Redis
         assert len(received) == 1
         mailbox = conn.channel()
         mailbox.basic_consume("frames", True, lambda message: None, "mailbox")

@@ -79,7 +79,7 @@ class SentinelStack(FaultStack):
     def processes(self) -> list[ManagedProcess]:
         return [*self.workers, self.api, self.s3, *self.sentinels, self.replica, self.primary]
 
-    def _wait_replicated(self, timeout: float = 30) -> None:
+    def _wait_replicated(self, timeout: float = 60) -> None:
         """The replica in sync and every sentinel aware of it and of the others."""
         deadline = time.monotonic() + timeout
         while True:
@@ -156,7 +156,7 @@ def test_primary_killed_with_jobs_in_flight_sentinel_promotes_and_nothing_is_los
     submitter.start()
     assert started.wait(60) and not errors, errors
     client = stack.redis_client()
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 60
     while not client.zcard("prism:state:running"):  # jobs in flight, not only queued
         assert time.monotonic() < deadline
         time.sleep(0.02)
