@@ -1,6 +1,6 @@
 """The typed API client's logic against scripted answers (httpx.MockTransport): retries that
 honour Retry-After, one Idempotency-Key across a submit's retries, problem details in one line,
-one upload per file. The real-stack tier (tests/test_readme.py, test_stack.py) runs it for real."""
+one upload per file. The real-stack tier (tests/test_docs.py, test_stack.py) runs it for real."""
 
 from __future__ import annotations
 

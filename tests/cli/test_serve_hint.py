@@ -1,7 +1,7 @@
 """`prism serve`'s `try:` line, built for the shell it will be pasted into: prism's full path
 unless `prism` on PATH is this one, PRISM_API_URL unless the port is the client's default, the
 key unless PRISM_API_KEYS holds the keys, the sample by its full path (or rendered by `prism
-sample` where there is none). tests/test_readme.py runs the printed line for real."""
+sample` where there is none). tests/test_docs.py runs the printed line for real."""
 
 from __future__ import annotations
 

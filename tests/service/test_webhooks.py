@@ -48,7 +48,7 @@ from .conftest import API_KEYS
 from .servers import free_port, service_env, wait_for_port
 from .worker_env import Env, encode, spec_for, worker_env
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+RECEIVER_PAGE = Path(__file__).resolve().parents[2] / "docs" / "how-to" / "webhooks.md"
 ACME = {"X-API-Key": API_KEYS["acme"]}
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 # The standard's form of secret: "whsec_" + base64 of 32 key bytes.
@@ -321,14 +321,13 @@ def test_a_retry_has_the_same_id_and_a_fresh_signature(stack, scene, photo, redi
         assert Webhook(SECRET).verify(delivery.body, delivery.headers)["id"] == job_id
 
 
-# -- the README's receiver -------------------------------------------------------------------------
+# -- the docs' receiver -------------------------------------------------------------------------
 
 def _readme_receiver() -> str:
-    """The python block of the README's Webhooks section."""
-    section = README.read_text().split("\n### Webhooks\n", 1)[1]
-    section = re.split(r"^##+ ", section, maxsplit=1, flags=re.M)[0]
+    """The python block of the docs' webhooks how-to."""
+    section = RECEIVER_PAGE.read_text()
     blocks = re.findall(r"^```python\n(.*?)^```$", section, re.S | re.M)
-    assert len(blocks) == 1, f"README's Webhooks section: {len(blocks)} python blocks"
+    assert len(blocks) == 1, f"docs/how-to/webhooks.md: {len(blocks)} python blocks"
     assert blocks[0].count("8080") == 1
     return blocks[0]
 

@@ -1,0 +1,534 @@
+"""Every command the README and the docs site (docs/**/*.md) show is run here, as written.
+
+Their `sh` blocks are what a user types; `text` blocks are output or usage synopses with
+placeholders, `json` and `python` blocks data and code (the python blocks are run too). Each
+`sh` block must be claimed by one of the runners below, so a block added without a test fails
+this file. The only changes made to a block before it runs: the key placeholder `k-...` becomes
+the key this test's `prism serve` generated, and the API's port 8000 becomes this test's port
+(the server and client commands are pointed at it through their documented environment
+variables), and the webhook receiver's port 8080 becomes a free one. A few blocks cannot run
+here and are checked instead of run, each saying so below: `docker compose` and `kubectl` (no
+Docker engine or cluster), a test file run on its own (the suite runs it), `scripts/test` and
+`scripts/test-cluster` (CI runs them).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+PAGES = [README, *sorted((ROOT / "docs").rglob("*.md"))]
+SITE = ROOT / "services" / "api" / "guide"
+_BLOCK = re.compile(r"^```(\w+)\n(.*?)^```$", re.S | re.M)
+SAMPLE_SIZE = (120.0, 80.0, 60.0)  # samples/box.jpg's box, mm
+_SIZE = r"([\d.]+) ± ([\d.]+)"
+_MEASURED = re.compile(rf"item \d+: succeeded  {_SIZE} x {_SIZE} x {_SIZE} mm")
+
+
+def measured_within_sigma(out: str, size: tuple[float, float, float] = SAMPLE_SIZE) -> int:
+    """How many items `out` shows measured; each must hold the true size within its printed ±."""
+    found = _MEASURED.findall(out)
+    for groups in found:
+        values = [float(v) for v in groups]
+        for (value, sigma), true in zip(zip(values[::2], values[1::2], strict=True), size, strict=True):
+            assert abs(value - true) <= sigma + 0.01, (groups, out)  # 0.01: the printed rounding
+    return len(found)
+
+
+def blocks(lang: str) -> list[tuple[Path, str]]:
+    return [(page, body) for page in PAGES for kind, body in _BLOCK.findall(page.read_text()) if kind == lang]
+
+
+def sh_blocks() -> list[str]:
+    return [body for _, body in blocks("sh")]
+
+
+def python_block(marker: str) -> str:
+    found = {body for _, body in blocks("python") if marker in body}
+    assert len(found) == 1, f"docs: expected one python block containing {marker!r}, found {len(found)}"
+    return found.pop()
+
+
+def _blocks(marker: str) -> list[str]:
+    """The distinct sh blocks holding `marker` (a block shown on two pages is run once)."""
+    found = list(dict.fromkeys(b for b in sh_blocks() if marker in b))
+    assert found, f"docs: no sh block contains {marker!r}"
+    return found
+
+
+def _block(marker: str) -> str:
+    found = _blocks(marker)
+    assert len(found) == 1, f"docs: expected one sh block containing {marker!r}, found {found}"
+    return found[0]
+
+
+def _bash(script: str, *, cwd: Path, env: dict[str, str], timeout: float) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def _table_fields(page: Path, heading: str) -> set[str]:
+    """The `field` names of the table under `## heading` in `page`."""
+    section = page.read_text().split(f"\n## {heading}\n", 1)[1].split("\n## ", 1)[0]
+    return set(re.findall(r"^\| `(\w+)` \|", section, re.M))
+
+
+OUTPUTS = ROOT / "docs" / "reference" / "outputs.md"
+
+# Each runner claims the blocks holding its marker.
+MARKERS = {
+    "two commands": "scripts/demo",
+    "local scan": "--focal-px 1400 --distance-mm 279.132",
+    "exit codes": 'echo "exit $?"',
+    "several photos": "--points-file",
+    "video": "render_clip",
+    "calibrate": "prism calibrate",
+    "serve": "&& .venv/bin/prism serve",
+    "webhook secret": "export PRISM_WEBHOOK_SECRET=",
+    "webhooks serve": "PRISM_WEBHOOK_ALLOW_PRIVATE=true",
+    "webhook submit": "--webhook http://127.0.0.1:8080/",
+    "client": "export PRISM_API_KEY=k-...",
+    "curl": "curl ",
+    "mistakes": "refused (exit",
+    "lock": "scripts/lock",
+    "docs": "scripts/docs",
+    "k8s render": "render.py --check",
+    "kubectl": "kubectl ",
+    "compose": "docker compose",
+    "a test file": "-m pytest ",
+    "cluster": "scripts/test-cluster",
+}
+
+
+def test_every_sh_block_is_run_by_a_test():
+    for body in sh_blocks():
+        claims = [name for name, marker in MARKERS.items() if marker in body]
+        assert len(claims) == 1, f"docs sh block claimed by {claims or 'no test'}: {body}"
+    for marker in MARKERS.values():
+        _blocks(marker)
+
+
+def test_no_page_names_an_issue():
+    for page in PAGES:
+        text = page.read_text()
+        assert not re.search(r"\bissues? \d+", text, re.I), f"{page} names an issue number"
+
+
+def test_every_benchmark_command_named_exists_with_its_flags():
+    """The figures' commands (inline in the explanation pages' tables): each script is there and
+    takes each flag named."""
+    named = 0
+    for page in PAGES:
+        for script, args in re.findall(r"`\.venv/bin/python (benchmarks/\w+\.py)([^`]*)`", page.read_text()):
+            source = (ROOT / script).read_text()
+            for flag in re.findall(r"--[\w-]+", args):
+                assert f'"{flag}"' in source, f"{page.name}: {script} has no {flag}"
+            named += 1
+    assert named >= 10
+
+
+@pytest.fixture
+def user_dir(tmp_path: Path) -> Path:
+    """A folder like the repository's top as a user's shell sees it (samples, .venv), whose
+    outputs (`out/...`) land in the test's temporary folder."""
+    for name in ("samples", ".venv", "README.md"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    return tmp_path
+
+
+def test_two_commands_block():
+    lines = {line.split("#")[0].strip() for block in _blocks(MARKERS["two commands"])
+             for line in block.splitlines() if line.strip()}
+    assert lines == {"scripts/demo", "scripts/test"}, lines
+    # scripts/test is what CI runs (.ci/run runs it, then scripts/test-cluster), so it runs on
+    # every submission; running it from inside the suite would recurse.
+    assert "scripts/test" in (ROOT / ".ci" / "run").read_text().splitlines()
+    run = _bash("scripts/demo", cwd=ROOT, env=dict(os.environ), timeout=600)
+    assert run.returncode == 0, run.stderr
+    report = json.loads((ROOT / "out" / "demo" / "report.json").read_text())
+    assert report["dimensions"]["unit"] == "mm"
+    # The demo says what the sample truly measures, beside what it measured, and the error.
+    dims = report["dimensions"]
+    assert "true size       120 x 80 x 60 mm" in run.stdout, run.stdout
+    measured = " x ".join(f"{dims[d]:.2f}" for d in ("width", "height", "depth"))
+    assert f"measured        {measured} mm" in run.stdout, run.stdout
+    error = next(line for line in run.stdout.splitlines() if line.startswith("error"))
+    for d, true in zip(("width", "height", "depth"), SAMPLE_SIZE, strict=True):
+        assert f"{d} {dims[d] - true:+.2f} mm ({100 * (dims[d] - true) / true:+.2f} %" in error, error
+    # The README shows the demo's last lines as they are.
+    shown = [b for _, b in blocks("text") if b.startswith("true size")]
+    assert shown and shown[0].splitlines() == run.stdout.strip().splitlines()[-3:], (shown, run.stdout)
+
+
+def test_lock_block_is_the_command_test_lock_runs():
+    # Running it rewrites the locks, so tests/test_lock.py runs it on a copy of the repository
+    # and requires the committed locks back unchanged.
+    block = _block(MARKERS["lock"])
+    assert [line.split("#")[0].strip() for line in block.splitlines() if line.strip()] == ["scripts/lock"]
+    assert '["scripts/lock"]' in (ROOT / "tests" / "test_lock.py").read_text()
+
+
+def test_local_scan_block(user_dir: Path):
+    for block in _blocks(MARKERS["local scan"]):  # the README's and the first tutorial's
+        run = _bash(block, cwd=user_dir, env=dict(os.environ), timeout=300)
+        assert run.returncode == 0, run.stderr
+        assert "120.01 ± 1.01 x 79.99 ± 0.79 x 59.99 ± 0.85 mm" in run.stdout, run.stdout
+    report = json.loads((user_dir / "out" / "box" / "report.json").read_text())
+    assert report["dimensions"]["unit"] == "mm"
+    assert (user_dir / "out" / "box" / "cloud.ply").stat().st_size > 0
+    # Every field of report.json is in the reference's table.
+    documented = _table_fields(OUTPUTS, "report.json")
+    assert set(report) <= documented, set(report) - documented
+
+
+def test_exit_codes_block_exits_2_in_one_line(user_dir: Path):
+    run = _bash(_block(MARKERS["exit codes"]), cwd=user_dir, env=dict(os.environ), timeout=120)
+    assert run.returncode == 0 and run.stdout.strip() == "exit 2", run.stdout + run.stderr
+    assert run.stderr.strip().count("\n") == 0 and run.stderr.startswith("prism: error:"), run.stderr
+    shown = ROOT / "docs" / "reference" / "exit-codes.md"
+    assert run.stderr.strip() in shown.read_text(), run.stderr
+
+
+def test_several_photos_block_measures_one_box(user_dir: Path):
+    run = _bash(_block(MARKERS["several photos"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "3 of 3 views as one box" in run.stdout, run.stdout
+    joint = json.loads((user_dir / "out" / "part" / "joint" / "joint.json").read_text())
+    for value, sigma, true in zip((joint["dimensions"][d] for d in ("width", "height", "depth")),
+                                  (joint["uncertainty"][d] for d in ("width", "height", "depth")),
+                                  SAMPLE_SIZE, strict=True):
+        assert abs(value - true) <= 2 * sigma + 0.05, joint
+    assert set(joint) <= _table_fields(OUTPUTS, "joint.json"), set(joint)
+
+
+def test_video_block_measures_the_frames(user_dir: Path):
+    run = _bash(_block(MARKERS["video"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    scan = user_dir / "out" / "video" / "scan"
+    summary = json.loads((scan / "summary.json").read_text())
+    assert summary["frames"] == {"selected": 4, "measured": 4, "failed": 0}, summary
+    assert summary["dimensions"]["height"]["median"] == pytest.approx(80, rel=0.01)
+    assert set(summary) <= _table_fields(OUTPUTS, "summary.json"), set(summary)
+    report = json.loads((scan / "frame_000005" / "report.json").read_text())
+    assert set(report) <= _table_fields(OUTPUTS, "report.json"), set(report)
+
+
+def test_calibrate_block_calibrates_on_opencvs_photos(user_dir: Path):
+    if not Path("/usr/share/doc/opencv-doc/examples/data/left01.jpg").is_file():
+        pytest.fail("Debian's opencv-doc is missing: run scripts/setup as root")
+    run = _bash(_block(MARKERS["calibrate"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "views used     13 of 13" in run.stdout, run.stdout
+    camera = json.loads((user_dir / "out" / "camera.json").read_text())
+    assert camera["fx"] == pytest.approx(533.2, abs=1)
+
+
+def test_docs_block_builds_the_site_strictly_offline():
+    """scripts/docs: mkdocs --strict (a broken link or a warning fails), every generated
+    reference page made from the code, nothing loaded from another origin."""
+    assert _block(MARKERS["docs"]).split("#")[0].strip() == "scripts/docs"
+    started = time.monotonic()
+    run = _bash("scripts/docs", cwd=ROOT, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    print(f"\nscripts/docs built the site in {time.monotonic() - started:.1f} s")
+    import typer.main
+
+    from prism_cli.main import cli
+
+    cli_page = (SITE / "reference" / "cli" / "index.html").read_text()
+    for name in typer.main.get_command(cli).commands:
+        assert f'id="prism-{name}"' in cli_page, name
+    assert "POST /v1/jobs" in (SITE / "reference" / "http-api" / "index.html").read_text()
+    assert "PRISM_DEFAULT_FORMATS" in (SITE / "reference" / "configuration" / "index.html").read_text()
+    assert "backend-unavailable" in (SITE / "reference" / "problems" / "index.html").read_text()
+    assert "views" in (SITE / "reference" / "job-spec" / "index.html").read_text()
+    elsewhere = re.compile(r"""(src|href)=["']?(https?:)?//[^"' >]*\.(js|css|woff2?)\b""")
+    for page in SITE.rglob("*.html"):
+        text = page.read_text()
+        assert not elsewhere.search(text), page
+        assert "fonts.googleapis" not in text, page
+
+
+def test_k8s_render_block_finds_the_manifest_current():
+    run = _bash(_block(MARKERS["k8s render"]), cwd=ROOT, env=dict(os.environ), timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
+def test_kubectl_block_is_checked_not_run():
+    """No cluster here: the block parses, and the file it applies and the keys it sets are the
+    service's (tests/deploy validates the manifest itself)."""
+    block = _block(MARKERS["kubectl"])
+    assert subprocess.run(["bash", "-n", "-c", block]).returncode == 0
+    assert (ROOT / "deploy" / "k8s" / "prismcloud.yaml").is_file()
+    from prism_common.settings import Settings
+
+    for name in re.findall(r"--from-literal=PRISM_(\w+)=", block):
+        assert name.lower() in Settings.model_fields, name
+
+
+def test_compose_block_is_checked_not_run():
+    """No Docker engine here: the block parses, it sets every variable docker-compose.yml
+    requires, and the service it scales is there."""
+    block = _block(MARKERS["compose"])
+    assert subprocess.run(["bash", "-n", "-c", block]).returncode == 0
+    compose = (ROOT / "docker-compose.yml").read_text()
+    required = set(re.findall(r"\$\{(\w+):\?", compose))
+    exported = set(re.findall(r"\b(\w+)=", block.split("docker compose")[0]))
+    assert required <= exported, required - exported
+    for service in re.findall(r"--scale (\w+)=", block):
+        assert f"\n  {service}:\n" in compose, service
+
+
+def test_webhooks_blocks_deliver_a_signed_job_to_the_receiver(tmp_path: Path):
+    """The how-to as a user follows it: a key made by its block, its receiver (the python block)
+    on this machine, `prism serve` started by its block, a job naming the receiver; the receiver
+    prints the job's id and state. The receiver's port 8080 is made a free one."""
+    from prism_cli.stack import free_port
+
+    made = _bash(_block(MARKERS["webhook secret"]) + '\nprintf %s "$PRISM_WEBHOOK_SECRET"', cwd=tmp_path,
+                 env=dict(os.environ), timeout=60)
+    assert made.returncode == 0 and made.stdout.startswith("whsec_"), made.stdout + made.stderr
+    import base64
+
+    assert len(base64.b64decode(made.stdout.removeprefix("whsec_"))) == 32
+    receiver_port, api_port = free_port(), free_port()
+    env = {**os.environ, "PRISM_WEBHOOK_SECRET": made.stdout, "PRISM_SERVE_PORT": str(api_port),
+           "PRISM_SERVE_DATA_DIR": str(tmp_path / ".prism"), "COLUMNS": "300"}
+    env.pop("PRISM_API_KEYS", None)
+    script = tmp_path / "receiver.py"
+    script.write_text(python_block("standardwebhooks").replace("8080", str(receiver_port)))
+    received = (tmp_path / "received.out").open("w")
+    receiver = subprocess.Popen([str(ROOT / ".venv" / "bin" / "python"), str(script)], env=env,
+                                stdout=received, stderr=subprocess.STDOUT, start_new_session=True)
+    log = (tmp_path / "serve.out").open("w")
+    serve = subprocess.Popen(["bash", "-euo", "pipefail", "-c", _block(MARKERS["webhooks serve"])], cwd=ROOT,
+                             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while "ready: API" not in (tmp_path / "serve.out").read_text():
+            assert serve.poll() is None and time.monotonic() < deadline, (tmp_path / "serve.out").read_text()
+            time.sleep(0.5)
+        key = json.loads((tmp_path / ".prism" / "credentials.json").read_text())["api_key"]
+        client = {**env, "PRISM_API_URL": f"http://127.0.0.1:{api_port}", "PRISM_API_KEY": key}
+        submit = _block(MARKERS["webhook submit"]).replace("8080", str(receiver_port))
+        run = _bash(submit, cwd=ROOT, env=client, timeout=300)
+        assert run.returncode == 0, run.stdout + run.stderr
+        job_id = run.stdout.split()[0]
+        deadline = time.monotonic() + 60
+        heard = tmp_path / "received.out"
+        while f"{job_id} succeeded" not in heard.read_text():
+            assert receiver.poll() is None and time.monotonic() < deadline, heard.read_text()
+            time.sleep(0.3)
+        assert "refused" not in heard.read_text()
+    finally:
+        for proc in (serve, receiver):
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGINT)
+                try:
+                    proc.wait(60)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
+        log.close()
+        received.close()
+
+
+def test_test_file_blocks_name_files_the_suite_runs():
+    """`pytest tests/service/...` blocks: scripts/test runs every file under tests/ (but
+    tests/cluster), so CI runs them; here only that each is such a file."""
+    for block in _blocks(MARKERS["a test file"]):
+        (path,) = re.findall(r"-m pytest (?:-\w+ )*(tests/\S+\.py)", block)
+        assert (ROOT / path).is_file() and not path.startswith("tests/cluster"), path
+
+
+def test_cluster_block_is_what_ci_runs():
+    block = _block(MARKERS["cluster"])
+    assert block.split("#")[0].strip() == "scripts/test-cluster"
+    assert "scripts/test-cluster" in (ROOT / ".ci" / "run").read_text().splitlines()
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory) -> Iterator[dict[str, str]]:
+    """The README's serve block, run as written (setup included) in the background."""
+    from prism_cli.stack import free_port
+
+    data = tmp_path_factory.mktemp("prism-serve")
+    port = free_port()
+    env = {**os.environ, "PRISM_SERVE_PORT": str(port), "PRISM_SERVE_DATA_DIR": str(data / ".prism"),
+           "COLUMNS": "300"}
+    env.pop("PRISM_API_KEYS", None)
+    log = (data / "serve.out").open("w")
+    proc = subprocess.Popen(["bash", "-euo", "pipefail", "-c", _block(MARKERS["serve"])], cwd=ROOT,
+                            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while "ready: API" not in (data / "serve.out").read_text():
+            assert proc.poll() is None, (data / "serve.out").read_text()
+            assert time.monotonic() < deadline, (data / "serve.out").read_text()
+            time.sleep(0.5)
+        key = json.loads((data / ".prism" / "credentials.json").read_text())["api_key"]
+        yield {"port": str(port), "key": key, "log": str(data / "serve.out")}
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        log.close()
+
+
+def _client_env(served: dict[str, str]) -> dict[str, str]:
+    return {**os.environ, "PRISM_API_URL": f"http://127.0.0.1:{served['port']}",
+            "PRISM_API_KEY": served["key"]}
+
+
+def _as_user(block: str, served: dict[str, str]) -> str:
+    return block.replace("k-...", served["key"]).replace("127.0.0.1:8000", f"127.0.0.1:{served['port']}")
+
+
+def test_serve_prints_ready_and_a_one_line_hint(served):
+    out = Path(served["log"]).read_text()
+    hint = [line for line in out.splitlines() if "try:" in line]
+    assert len(hint) == 1 and "--wait" in hint[0], out
+
+
+def test_the_try_line_runs_as_printed_from_anywhere(served, tmp_path: Path):
+    """Pasted into another shell as printed: no .venv/bin on PATH, no PRISM_* set, another
+    folder; the port is not the default, so the line must name PRISM_API_URL itself."""
+    out = Path(served["log"]).read_text()
+    line = next(line for line in out.splitlines() if "try:" in line).split("try:", 1)[1].strip()
+    assert f"PRISM_API_URL=http://127.0.0.1:{served['port']}" in line and served["key"] in line, line
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "COLUMNS": "300"}
+    run = _bash(line, cwd=tmp_path, env=env, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert measured_within_sigma(run.stdout) == 1, run.stdout
+
+
+def test_client_blocks_submit_wait_and_download(served, user_dir: Path):
+    for block in _blocks(MARKERS["client"]):
+        run = _bash(_as_user(block, served), cwd=user_dir, env=_client_env(served), timeout=600)
+        assert run.returncode == 0, run.stdout + run.stderr
+        # Every result shown holds the sample's true size within its printed ±.
+        assert measured_within_sigma(run.stdout) >= 1, run.stdout
+    reports = list((user_dir / "out" / "job").glob("item-0/report.json"))
+    assert reports, run.stdout
+    dims = json.loads(reports[0].read_text())["dimensions"]
+    assert dims["unit"] == "mm" and dims["height"] == pytest.approx(80, rel=1e-3)
+    assert (user_dir / "out" / "job" / "results.csv").is_file()
+
+
+def test_curl_block_uploads_submits_polls_and_downloads(served, user_dir: Path):
+    run = _bash(_as_user(_block(MARKERS["curl"]), served), cwd=user_dir, env=_client_env(served),
+                timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    got = user_dir / "out" / "curl"
+    assert run.stdout.split() == sorted(p.name for p in got.iterdir()), run.stdout
+    assert run.stdout.split() == ["cloud.csv", "cloud.ply", "overlay.png", "preview.ply", "report.json",
+                                  "results.csv"], run.stdout
+    dims = json.loads((got / "report.json").read_text())["dimensions"]
+    assert dims["unit"] == "mm" and dims["width"] == pytest.approx(120, rel=1e-6)
+    assert (got / "results.csv").read_text().startswith("job_id,")
+
+
+def test_the_guide_is_served_at_guide_and_linked_from_the_page(served):
+    if not (SITE / "index.html").is_file():
+        subprocess.run(["scripts/docs"], cwd=ROOT, check=True, capture_output=True, timeout=300)
+    base = f"http://127.0.0.1:{served['port']}"
+    with urllib.request.urlopen(f"{base}/guide/", timeout=30) as answer:
+        assert answer.status == 200 and "PrismCloud" in answer.read().decode()
+        assert "default-src 'self'" in answer.headers["Content-Security-Policy"]
+    with urllib.request.urlopen(f"{base}/guide/tutorials/first-job/", timeout=30) as answer:
+        assert "First job over HTTP" in answer.read().decode()
+    with urllib.request.urlopen(f"{base}/app/", timeout=30) as answer:
+        assert 'href="../guide/"' in answer.read().decode()
+
+
+def test_serve_refuses_a_taken_port_in_one_line(served):
+    run = subprocess.run([str(ROOT / ".venv" / "bin" / "prism"), "serve", "--port", served["port"]],
+                         capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert run.returncode == 2
+    assert run.stderr.strip().count("\n") == 0 and "taken" in run.stderr, run.stderr
+    assert "ready" not in run.stdout
+
+
+def test_mistakes_block_refuses_a_text_file_and_a_point_outside_in_one_line_each(served, user_dir: Path):
+    run = _bash(_as_user(_block(MARKERS["mistakes"]), served), cwd=user_dir, env=_client_env(served),
+                timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert run.stdout.count("refused (exit 2)") == 2, run.stdout
+    errors = [line for line in run.stderr.splitlines() if line.startswith("prism: error:")]
+    assert len(errors) == 2 and len(run.stderr.strip().splitlines()) == 2, run.stderr
+    assert "HTTP 415" in errors[0] and "'README.md' is text" in errors[0], errors
+    assert "HTTP 422" in errors[1] and "p5" in errors[1] and "outside" in errors[1], errors
+
+
+def test_serve_restarted_keeps_download_links_working_and_says_stopped(tmp_path: Path):
+    """Ctrl-C prints one 'stopped' line; started again on the same data, the object store is on
+    the same port, so a download link handed out before the restart still works."""
+    from prism_cli.stack import free_port
+
+    port = free_port()
+    env = {**os.environ, "PRISM_SERVE_PORT": str(port), "PRISM_SERVE_DATA_DIR": str(tmp_path / ".prism")}
+    env.pop("PRISM_API_KEYS", None)
+    prism = str(ROOT / ".venv" / "bin" / "prism")
+
+    def start() -> tuple[subprocess.Popen, Path]:
+        log = tmp_path / f"serve-{time.monotonic_ns()}.out"
+        with log.open("w") as sink:  # the child keeps its own copy
+            proc = subprocess.Popen([prism, "serve"], cwd=ROOT, env=env, stdout=sink,
+                                    stderr=subprocess.STDOUT, start_new_session=True)
+        deadline = time.monotonic() + 120
+        while "ready: API" not in log.read_text():
+            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+            time.sleep(0.3)
+        return proc, log
+
+    def stop(proc: subprocess.Popen, log: Path) -> str:
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(60) == 0
+        return log.read_text()
+
+    proc, log = start()
+    key = json.loads((tmp_path / ".prism" / "credentials.json").read_text())["api_key"]
+    client = {**os.environ, "PRISM_API_URL": f"http://127.0.0.1:{port}", "PRISM_API_KEY": key}
+    run = subprocess.run([prism, "submit", str(ROOT / "samples" / "box.jpg"), "--points",
+                          "395,293 943,331 919,761 943,331 1035,298", "--width-mm", "120", "--wait"],
+                         env=client, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    job_id = run.stdout.split()[0]
+    status = subprocess.run([prism, "status", job_id, "--json"], env=client, capture_output=True,
+                            text=True, timeout=60)
+    link = json.loads(status.stdout)["items"][0]["downloads"]["report"]
+    out = stop(proc, log)
+    assert out.strip().splitlines()[-1] == "stopped" and out.count("stopped") == 1, out
+    proc, log = start()
+    try:
+        with urllib.request.urlopen(link, timeout=30) as answer:  # signed before the restart
+            assert json.loads(answer.read())["dimensions"]["unit"] == "mm"
+    finally:
+        stop(proc, log)
+
+
+def test_python_client_block_measures_the_sample(served, user_dir: Path):
+    script = user_dir / "client_example.py"
+    script.write_text(python_block("from prism_cli.client import ApiClient"))
+    run = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(script)], cwd=user_dir,
+                         env=_client_env(served), capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "succeeded 100" in run.stdout and "fitted" in run.stdout, run.stdout
+    report = json.loads((user_dir / "out" / "client" / "item-0" / "report.json").read_text())
+    assert report["camera"]["focal_source"] == "fitted"
+    assert (user_dir / "out" / "client" / "item-0" / "overlay.png").stat().st_size > 0
