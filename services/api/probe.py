@@ -5,7 +5,8 @@ a video from a copy of it on local disk (`prismcore.video_decode.probe_video`: O
 files only). Both are the engine's own readers, so what the upload is said to be is what a
 worker will find. The engine (numpy, OpenCV) is imported on the first upload, not when the API
 starts. A file that is neither a photo the engine reads nor a video is :class:`Unsupported`,
-named by what it looks like.
+named by what it looks like. A JPEG, PNG or WebP photo cut short (its header whole, the rest
+missing: a copy interrupted) is found as it streams past (:class:`ImageEnd`) and refused too.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ from typing import Any
 
 from prismcore.containers import HEAD_BYTES, video_container
 
-__all__ = ["Unsupported", "detect_type", "is_video_head", "probe_image_head", "probe_video_file"]
+__all__ = ["ImageEnd", "Unsupported", "detect_type", "is_video_head", "probe_image_head",
+           "probe_video_file"]
 
 # Recognised only to name a refused file: (leading bytes, what it is).
 _KNOWN: tuple[tuple[bytes, str], ...] = (
@@ -38,6 +40,104 @@ class Unsupported(Exception):  # noqa: N818 - a finding, not a failure of the co
     def __init__(self, detected: str) -> None:
         super().__init__(detected)
         self.detected = detected
+
+
+class ImageEnd:
+    """Fed a photo's bytes as they pass, says whether the photo's end was in them.
+
+    A JPEG ends at the end-of-image marker that follows its scans (the segments are walked by
+    their lengths, the entropy-coded data scanned for its next marker: an EXIF thumbnail's own
+    marker, or data appended after the image, as motion photos have, are not mistaken for it);
+    a PNG at its IEND chunk (the chunks walked by their lengths); a WebP where its RIFF header's
+    size says. Other formats (BMP, TIFF) are not checked here: the worker reports them damaged.
+    """
+
+    def __init__(self, head: bytes) -> None:
+        self.format = ("JPEG" if head.startswith(b"\xff\xd8\xff") else
+                       "PNG" if head.startswith(b"\x89PNG\r\n\x1a\n") else
+                       "WEBP" if head[:4] == b"RIFF" and head[8:12] == b"WEBP" else None)
+        self.size = 0
+        self.ended = self.format is None  # nothing to check
+        self._buf = b""
+        self._skip = 2 if self.format == "JPEG" else 8 if self.format == "PNG" else 0  # SOI, signature
+        self._entropy = False
+        self._riff = int.from_bytes(head[4:8], "little") + 8 if self.format == "WEBP" else 0
+
+    def feed(self, data: bytes) -> None:
+        self.size += len(data)
+        if self.ended:
+            return
+        if self.format == "WEBP":
+            self.ended = self.size >= self._riff
+            return
+        if self._skip:
+            n = min(self._skip, len(data))
+            self._skip -= n
+            data = data[n:]
+        buf = self._buf + data
+        i = self._jpeg(buf) if self.format == "JPEG" else self._png(buf)
+        self._buf = buf[i:]
+
+    def _jpeg(self, buf: bytes) -> int:
+        """Walk `buf` from its start; the offset of the first byte not yet understood."""
+        i = 0
+        while True:
+            if self._entropy:  # scan data: ff 00 (a stuffed ff) and ff d0-d7 (restarts) belong to it
+                j = buf.find(b"\xff", i)
+                if j < 0 or j + 1 >= len(buf):
+                    return len(buf) if j < 0 else j
+                marker = buf[j + 1]
+                if marker == 0 or 0xD0 <= marker <= 0xD7:
+                    i = j + 2
+                    continue
+                self._entropy, i = False, j
+                continue
+            if len(buf) - i < 2:
+                return i
+            if buf[i] != 0xFF:  # stray bytes before a marker: decoders skip them, so do we
+                j = buf.find(b"\xff", i)
+                i = len(buf) if j < 0 else j
+                continue
+            marker = buf[i + 1]
+            if marker == 0xFF:  # fill byte
+                i += 1
+            elif marker == 0xD9:
+                self.ended = True
+                return len(buf)
+            elif marker in (0x01, 0xD8) or 0xD0 <= marker <= 0xD7:  # no length
+                i += 2
+            else:
+                if len(buf) - i < 4:
+                    return i
+                end = i + 2 + int.from_bytes(buf[i + 2 : i + 4], "big")
+                self._entropy = marker == 0xDA  # start of scan: its data follows the header
+                if end > len(buf):
+                    self._skip = end - len(buf)
+                    return len(buf)
+                i = end
+
+    def _png(self, buf: bytes) -> int:
+        i = 0
+        while len(buf) - i >= 8:
+            length, kind = int.from_bytes(buf[i : i + 4], "big"), buf[i + 4 : i + 8]
+            if kind == b"IEND":
+                self.ended = True
+                return len(buf)
+            end = i + 12 + length
+            if end > len(buf):
+                self._skip = end - len(buf)
+                return len(buf)
+            i = end
+        return i
+
+    def problem(self, name: str) -> str | None:
+        """Why the photo is cut short, once every byte was fed; None when it is whole."""
+        if self.ended:
+            return None
+        end = {"JPEG": "its end-of-image marker", "PNG": "its IEND chunk",
+               "WEBP": f"the {self._riff:,} bytes its header announces"}[self.format or ""]
+        return (f"{name!r} is a truncated {self.format} ({self.size:,} bytes, cut short before {end}): "
+                "the file was not copied whole; upload the complete photo")
 
 
 def detect_type(head: bytes) -> str:

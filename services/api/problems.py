@@ -56,6 +56,7 @@ KINDS: dict[str, Kind] = {k.slug: k for k in (
     Kind("body-too-large", "Request body too large", 413),
     Kind("unsupported-media-type", "Unsupported file type", 415),
     Kind("validation", "Invalid input", 422),
+    Kind("damaged-file", "The file is damaged", 422),
     Kind("rate-limited", "Too many requests", 429),
     Kind("internal-error", "Internal error", 500),
     Kind("at-capacity", "The service is at capacity", 503),

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable
-from typing import IO
+from typing import IO, Protocol
 
 from anyio import from_thread
 from anyio.lowlevel import EventLoopToken, current_token
@@ -22,6 +22,10 @@ __all__ = ["HEAD_KEEP", "MULTIPART_OVERHEAD", "MultipartFile"]
 
 MULTIPART_OVERHEAD = 64 * 1024  # boundaries, part headers and small extra fields beside the file
 HEAD_KEEP = 1 << 20  # the file's first bytes, kept for the probe: a photo's header lies in them
+
+
+class Watcher(Protocol):
+    def feed(self, data: bytes) -> None: ...
 
 
 def _safe_name(raw: bytes | None) -> str:
@@ -38,11 +42,13 @@ class MultipartFile:
     (400, 413, 422) is raised from read() and kept in `failure`, since boto3 may wrap what it
     raises. The file's first `HEAD_KEEP` bytes are kept in `head`; `spool_when`, given the
     first bytes read, may return a file into which the whole file is then copied as it passes
-    (a video, which can only be probed from a file).
+    (a video, which can only be probed from a file); `watch_when`, likewise, an object whose
+    feed() is given every byte (a photo's `ImageEnd`, which finds a file cut short).
     """
 
     def __init__(self, request: Request, field: str, limit: int, *,
-                 spool_when: Callable[[bytes], IO[bytes] | None] | None = None) -> None:
+                 spool_when: Callable[[bytes], IO[bytes] | None] | None = None,
+                 watch_when: Callable[[bytes], Watcher | None] | None = None) -> None:
         kind, options = parse_options_header(request.headers.get("content-type", ""))
         if kind != b"multipart/form-data" or not options.get(b"boundary"):
             raise HTTPException(422, "send the file as multipart/form-data, field 'file'",
@@ -60,6 +66,8 @@ class MultipartFile:
         self.head = bytearray()
         self._spool_when = spool_when
         self.spool: IO[bytes] | None = None
+        self._watch_when = watch_when
+        self.watch: Watcher | None = None
         self.failure: HTTPException | None = None
         self._parser = MultipartParser(options[b"boundary"], callbacks={
             "on_part_begin": self._part_begin, "on_header_field": self._on_field,
@@ -140,6 +148,10 @@ class MultipartFile:
             raise self._refuse(422, "the uploaded file is empty")
         if out and not self.head and self._spool_when is not None:
             self.spool = self._spool_when(out)
+        if out and not self.head and self._watch_when is not None:
+            self.watch = self._watch_when(out)
+        if self.watch is not None and out:
+            self.watch.feed(out)
         if len(self.head) < HEAD_KEEP:
             self.head += out[: HEAD_KEEP - len(self.head)]
         if self.spool is not None and out:

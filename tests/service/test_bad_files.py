@@ -1,7 +1,7 @@
 """Bad photos through the whole service (API, worker, object store): truncated, corrupt and
 mislabelled files, a decompression bomb, an image over the pixel limit, a region of zero pixels.
 Each one fails its own item with a message naming the file or the reason; the good item beside it
-succeeds; no call answers 5xx and no worker dies.
+succeeds; no call answers 5xx and no worker dies. A photo cut short is refused at upload.
 """
 
 from __future__ import annotations
@@ -44,9 +44,6 @@ BIG = png(cv2.resize(SCENE.image, (400, 300)))
 
 # name -> (file name, bytes, a piece the item's error must hold)
 CASES = {
-    "truncated-png": ("cut.png", GOOD[: len(GOOD) // 2], "'cut.png'"),
-    "truncated-jpeg": ("cut.jpg", JPEG[: len(JPEG) * 2 // 3], "'cut.jpg'"),
-    "png-header-only": ("head.png", GOOD[:40], "'head.png'"),
     "corrupt-middle": ("bits.png", GOOD[:200] + bytes(b ^ 0x5A for b in GOOD[200:400]) + GOOD[400:],
                        "'bits.png'"),
     "decompression-bomb": ("bomb.png", _bomb(), "'bomb.png'"),
@@ -62,6 +59,25 @@ REFUSED = {
     "gif": ("anim.png", b"GIF89a\x01\x00\x01\x00\x00\x00\x00;" * 3, "image/gif"),
     "svg": ("vector.png", b'<svg xmlns="http://www.w3.org/2000/svg" width="9" height="9"/>', "image/svg+xml"),
 }
+
+
+# name -> (file name, bytes, the format named): a photo whose header reads but whose data stops
+# short of its end, refused at upload (422 damaged-file) and not stored.
+CUT = {
+    "truncated-png": ("cut.png", GOOD[: len(GOOD) // 2], "PNG"),
+    "truncated-jpeg": ("cut.jpg", JPEG[: len(JPEG) * 2 // 3], "JPEG"),
+    "png-header-only": ("head.png", GOOD[:40], "PNG"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CUT))
+def test_a_photo_cut_short_is_refused_at_upload(stack, case, figures):
+    name, data, fmt = CUT[case]
+    r = stack.call("POST", "/v1/uploads", files={"file": (name, data)})
+    figures["inputs tried"] += 1
+    assert r.status_code == 422 and r.headers["content-type"] == "application/problem+json", r.text
+    assert r.json()["type"].endswith("/damaged-file"), r.text
+    assert r.json()["detail"].startswith(f"{name!r} is a truncated {fmt} ({len(data):,} bytes"), r.text
 
 
 @pytest.mark.parametrize("case", sorted(REFUSED))

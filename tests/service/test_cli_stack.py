@@ -20,6 +20,7 @@ from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
+import cv2
 import pytest
 
 from prism_cli.stack import ManagedProcess, start_api, start_worker
@@ -97,10 +98,16 @@ def refused_in_one_line(run: subprocess.CompletedProcess) -> bool:
 
 
 def test_a_failed_job_exits_1_and_so_does_waiting_for_it(api, tmp_path: Path):
-    # Issue 21's reproduction: a cut JPEG is stored (its header reads), its item fails.
+    # Issue 21's reproduction was a cut JPEG, which is now refused at upload (issue 30): one line.
     cut = tmp_path / "t.jpg"
     cut.write_bytes(SAMPLE.read_bytes()[:2000])
     run = prism(api, "submit", str(cut), "--points", FIVE, "--width-mm", "120", "--wait")
+    assert refused_in_one_line(run) and "'t.jpg' is a truncated JPEG (2,000 bytes" in run.stderr, run.stderr
+    # A whole PNG whose pixel data is corrupt is stored (its header reads), its item fails.
+    photo = cv2.imencode(".png", cv2.imread(str(SAMPLE)))[1].tobytes()
+    damaged = tmp_path / "t.png"
+    damaged.write_bytes(photo[:200] + bytes(b ^ 0x5A for b in photo[200:400]) + photo[400:])
+    run = prism(api, "submit", str(damaged), "--points", FIVE, "--width-mm", "120", "--wait")
     assert run.returncode == 1, run.stdout + run.stderr
     job_id = run.stdout.split()[0]
     assert f"job {job_id}: failed" in run.stdout and "error:" in run.stdout, run.stdout

@@ -50,7 +50,8 @@ def test_soak(stack, figures):
     for tenant in tenants:
         refs = [stack.upload(p, f"box{i}.png", tenant) for i, p in enumerate(photos)]
         specs[tenant] = [item(r, s) for r, s in zip(refs, scenes, strict=True)]
-        corrupt = stack.upload(photos[0][: len(photos[0]) // 2], "cut.png", tenant)  # truncated
+        damaged = photos[0][:200] + bytes(b ^ 0x5A for b in photos[0][200:400]) + photos[0][400:]
+        corrupt = stack.upload(damaged, "cut.png", tenant)  # whole, but its pixel data corrupt
         bad[tenant] = {"corrupt": {**specs[tenant][0], "image": corrupt},
                        "points": {**specs[tenant][1], "max_points": 10}}
     points = [run_scan(ScanSpec.model_validate(s), load_image(p)).report["points"]

@@ -150,8 +150,9 @@ def test_idempotent_submit(stack, scene):
 
 
 def test_failing_item_beside_a_good_one(stack, scene):
-    photo = _jpeg(scene.image)  # cut short: its header (and so its size) reads, its pixels do not
-    bad = stack.upload(photo[: len(photo) // 2], name="bad.png")
+    # Whole, its header (and so its size) reads, its pixels do not: the item fails, not the upload.
+    photo = cv2.imencode(".png", cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR))[1].tobytes()
+    bad = stack.upload(photo[:200] + bytes(b ^ 0x5A for b in photo[200:400]) + photo[400:], name="bad.png")
     job = stack.wait(stack.submit([_item(bad, scene),
                                    _item(stack.upload(_jpeg(scene.image)), scene)]).json()["id"])
     assert job["state"] == "succeeded"

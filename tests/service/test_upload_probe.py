@@ -7,6 +7,7 @@ photo or out of order is refused at submit with a pointer to it."""
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -157,3 +158,29 @@ def test_frame_indices_past_the_end_are_refused_at_submit(client, tmp_path):
     assert error["pointer"] == "/items/0/frame_points/7"
     ok = _submit(client, [{"image": video, "points": POINTS, "frames": {"indices": [0, 4]}}])
     assert ok.status_code == 202, ok.text
+
+
+SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
+
+
+def _cut(data: bytes) -> bytes:
+    return data[:40_000]
+
+
+@pytest.mark.parametrize(("data", "fmt"), [
+    (SAMPLE.read_bytes(), "JPEG"),
+    (cv2.imencode(".png", cv2.imread(str(SAMPLE)))[1].tobytes(), "PNG"),
+    (cv2.imencode(".webp", cv2.imread(str(SAMPLE)))[1].tobytes(), "WEBP"),
+    (cv2.imencode(".jpg", cv2.imread(str(SAMPLE)), [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes(), "JPEG"),
+], ids=["jpeg", "png", "webp", "progressive-jpeg"])
+def test_a_photo_cut_short_is_refused_as_truncated_and_not_kept(client, objects, data, fmt):
+    # Its header is whole (the pixel size reads), the rest missing: the job would fail later.
+    whole = post(client, data + b"appended after the image, as motion photos have" * 10, "whole.jpg")
+    assert whole.status_code == 201 and whole.json()["probe"]["error"] is None, whole.text
+    before = set(objects.list_keys("uploads/"))
+    r = post(client, _cut(data), "cut.jpg")
+    assert r.status_code == 422, r.text
+    body = r.json()
+    assert body["type"] == "https://prismcloud.dev/problems/damaged-file" and body["truncated"] is True
+    assert body["detail"].startswith(f"'cut.jpg' is a truncated {fmt} (40,000 bytes, cut short before"), body
+    assert set(objects.list_keys("uploads/")) == before  # deleted again

@@ -65,3 +65,15 @@ def test_csv_and_ply_by_default_and_the_compact_formats_need_a_scale(page, stack
     expect(page.locator(".downloads a")).to_have_text(
         [f"Download {name}" for name in ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (PNG)")])
 
+
+def test_a_truncated_jpeg_is_said_to_be_truncated(page, stack, tmp_path):
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(SAMPLE.read_bytes()[:40_000])  # the header whole, most of the scan missing
+    d = PageDriver(page)
+    d.log_in()
+    page.get_by_label("Add photos").set_input_files(str(cut))
+    line = page.locator("#photo-list li", has_text="cut.jpg")
+    expect(line).to_contain_text("'cut.jpg' is a truncated JPEG (40,000 bytes, cut short before its "
+                                 "end-of-image marker)")
+    expect(line).to_have_class("error")
+    assert "this browser cannot show" not in line.text_content()

@@ -59,7 +59,16 @@ export class Photos {
     try {
       entry.bitmap = await createImageBitmap(file, { imageOrientation: "from-image" });
     } catch {
-      entry.status = "this browser cannot show this file; use JPEG, PNG, WebP or BMP";
+      // The service says what is wrong with a file it refuses (a JPEG cut short, a PDF), which
+      // the browser cannot: ask it before blaming the browser.
+      entry.status = "the browser cannot show this file; asking the service what it is…";
+      this.render();
+      try {
+        await upload(file);
+        entry.status = "this browser cannot show this file; use JPEG, PNG, WebP or BMP";
+      } catch (err) {
+        entry.status = `refused: ${message(err)}`;
+      }
       this.render();
       return before;
     }
@@ -114,7 +123,7 @@ export class Photos {
       const li = document.createElement("li");
       const size = p.bitmap && !p.video ? ` (${p.bitmap.width} × ${p.bitmap.height})` : "";
       li.textContent = `${p.name}${p.video ? " (video)" : size}: ${p.status}`;
-      li.className = /^(upload failed|not a video|this browser)/.test(p.status) ? "error" : "";
+      li.className = /^(upload failed|not a video|this browser|refused)/.test(p.status) ? "error" : "";
       return li;
     }));
     for (const [id, chosen] of [["front-photo", state.front], ["side-photo", state.side]] as const) {

@@ -1,8 +1,9 @@
 """POST /v1/uploads: a photo or video streamed into object storage, to be named by jobs as upload:ID.
 
 Each upload is probed as it is stored (`prism_api.probe`): a file that is neither a photo the
-engine reads nor a video is refused (415) and deleted; what the others are (format, pixel size,
-a video's frames) is recorded with the upload, so a job naming it is checked at submit.
+engine reads nor a video is refused (415) and deleted, and so is a photo cut short (422,
+damaged-file); what the others are (format, pixel size, a video's frames) is recorded with the
+upload, so a job naming it is checked at submit.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from fastapi.concurrency import run_in_threadpool
 from prism_common.upload_keys import upload_key
 
 from ..deps import ObjectsDep, SettingsDep, StoreDep, TenantDep
-from ..probe import Unsupported, is_video_head, probe_image_head, probe_video_file
+from ..probe import ImageEnd, Unsupported, is_video_head, probe_image_head, probe_video_file
 from ..problems import Problem
 from ..schemas import UploadProbe, UploadPublic
 from ..upload_stream import HEAD_KEEP, MULTIPART_OVERHEAD, MultipartFile
@@ -37,13 +38,27 @@ def _spool_videos(first: bytes) -> IO[bytes] | None:
         else None
 
 
+class Truncated(Exception):  # noqa: N818 - a finding, not a failure of the code
+    """A photo whose header is whole but whose data stops short of its end."""
+
+
+def _watch_photos(first: bytes) -> ImageEnd | None:
+    return None if is_video_head(first) else ImageEnd(first)
+
+
 def _probe(upload: MultipartFile) -> dict[str, Any]:
     """What the stored file is (in a worker thread: OpenCV may decode a whole video)."""
     head = bytes(upload.head)
     if upload.spool is not None:
         upload.spool.flush()
         return probe_video_file(upload.spool.name, head=head, name=upload.name)
-    return probe_image_head(head, complete=upload.size <= HEAD_KEEP, name=upload.name)
+    probe = probe_image_head(head, complete=upload.size <= HEAD_KEEP, name=upload.name)
+    # After the probe: a file that is no photo at all is Unsupported, whatever its end.
+    cut = upload.watch.problem(upload.name) if isinstance(upload.watch, ImageEnd) else None
+    if cut is not None:
+        raise Truncated(cut)
+    return probe
+
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadPublic,
@@ -52,17 +67,20 @@ def _probe(upload: MultipartFile) -> dict[str, Any]:
                        "model": UploadPublic},
                  413: {"description": "Larger than the upload limit"},
                  415: {"description": "Neither a photo nor a video: `detail` names what it is"},
-                 422: {"description": "No non-empty multipart `file`"}})
+                 422: {"description": "No non-empty multipart `file`, or a photo cut short "
+                       "(damaged-file: `detail` says so)"}})
+
 async def create_upload(request: Request, response: Response, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
     """Stream the multipart field `file` into object storage; refused past the size limit (413)
-    and when it is neither a photo nor a video (415). The answer says what the file is."""
+    and when it is neither a photo nor a video (415) or is a photo cut short (422). The answer
+    says what the file is."""
     limit = settings.upload_max_bytes
     length = request.headers.get("content-length", "")
     if length.isdigit() and int(length) > limit + MULTIPART_OVERHEAD:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE,  # refused unread
                             f"the upload is larger than {limit} bytes", headers={"Connection": "close"})
-    upload = MultipartFile(request, "file", limit, spool_when=_spool_videos)
+    upload = MultipartFile(request, "file", limit, spool_when=_spool_videos, watch_when=_watch_photos)
     upload_id = uuid4().hex
     key = upload_key(tenant, upload_id)
     try:
@@ -81,6 +99,9 @@ async def create_upload(request: Request, response: Response, tenant: TenantDep,
             await anyio.to_thread.run_sync(objects.delete_keys, [key])
             raise Problem("unsupported-media-type", f"{upload.name!r} is {exc.detected}, not {_SUPPORTED}",
                           detected_type=exc.detected) from None
+        except Truncated as exc:
+            await anyio.to_thread.run_sync(objects.delete_keys, [key])
+            raise Problem("damaged-file", str(exc), truncated=True) from None
     finally:
         if upload.spool is not None:
             upload.spool.close()  # deletes the local copy
