@@ -77,3 +77,16 @@ def test_a_truncated_jpeg_is_said_to_be_truncated(page, stack, tmp_path):
                                  "end-of-image marker)")
     expect(line).to_have_class("error")
     assert "this browser cannot show" not in line.text_content()
+
+
+def test_the_page_starts_with_seven_points(page, stack):
+    # Five points measure the sample as 120 x 94.0 x 20.6 mm (the box is 120 x 80 x 60): the
+    # page starts where perspective is corrected, and asks for P6 and P7 after P5.
+    d = PageDriver(page)
+    d.log_in()
+    d.add_photos(SAMPLE)
+    expect(page.get_by_label("Also mark P6 and P7")).to_be_checked()
+    for name in ("p1", "p2", "p3", "p4", "p5"):
+        d.click_photo(POINTS[name])
+    expect(page.locator("#next-point")).to_contain_text("Click P6")
+    expect(page.locator("#point-table tbody tr")).to_have_count(7)

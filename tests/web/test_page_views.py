@@ -86,7 +86,9 @@ def test_three_photos_of_one_part_measured_as_one_box(page, stack, tmp_path, sce
     items = page.locator("#part-list li")
     add = page.get_by_role("button", name="Mark another photo of this part")
 
-    # Photo 1 with five points, as for one photo (the one-photo prompt): another photo needs all seven.
+    # Photo 1 with five points, as for one photo (P6 and P7 unticked; the page starts with seven):
+    # another photo needs all seven.
+    page.get_by_label("Also mark P6 and P7").uncheck()
     _type(page, clicks[0], NAMES[:5])
     expect(page.locator("#next-point")).to_have_text(re.compile(r"^Every point is placed"))
     add.click()

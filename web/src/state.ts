@@ -22,7 +22,7 @@ export interface PartView {
 export const state = {
   photos: [] as PhotoEntry[],
   twoPhoto: false,
-  extra: false,
+  extra: true, // seven points: perspective corrected (five is the paper's square-on model)
   front: null as number | null, // photo ids
   side: null as number | null,
   shown: "front" as Photo,
