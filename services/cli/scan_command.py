@@ -222,7 +222,8 @@ def scan(
              "their order, or keyed by file name; an entry may be {\"points\": [...], \"side_face\": "
              "\"top\"}): the photos are measured as ONE box (one known edge), joint.json in --out.")] = None,
     points: Annotated[str | None, typer.Option(
-        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels, or auto (found in '
+        # \[: the help is rich markup, in which [x6,y6 x7,y7] is a tag (and was not shown).
+        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 \\[x6,y6 x7,y7]" in image pixels, or auto (found in '
              'the photo; refused, exit 2, when not sure).')] = None,
     hint: Annotated[str | None, typer.Option(help="--points auto: X,Y px on the box wanted.")] = None,
     roi: Annotated[str | None, typer.Option(

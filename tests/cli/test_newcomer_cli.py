@@ -4,9 +4,17 @@ and report.json say about a large point loss, the help's synopsis, a given or fo
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
+
+import click
+import pytest
+from typer.main import get_command
+from typer.testing import CliRunner
+
+from prism_cli.main import cli
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 # P1..P5 of samples/job.json: measured with the paper's colour scan, the front face's colour
@@ -38,3 +46,25 @@ def test_a_small_point_loss_is_no_warning(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["point_loss"] < 0.01
     assert not [w for w in report["warnings"] if "point loss" in w], report["warnings"]
+
+
+def _commands(command: click.Command, path: tuple[str, ...] = ()):
+    yield path, command
+    for name, sub in getattr(command, "commands", {}).items():
+        yield from _commands(sub, (*path, name))
+
+
+HELPED = [(path, param.name, text) for path, command in _commands(get_command(cli))
+          for param in command.params
+          for text in re.findall(r"\\?\[[^\]]*\]", getattr(param, "help", None) or "")]
+
+
+def test_the_scan_synopsis_shows_p6_and_p7():
+    assert any(text.endswith("[x6,y6 x7,y7]") for _, _, text in HELPED), HELPED
+
+
+@pytest.mark.parametrize(("path", "name", "text"), HELPED, ids=[f"{' '.join(p)} --{n}" for p, n, _ in HELPED])
+def test_bracketed_help_is_shown_not_eaten_as_markup(path, name, text):
+    # The help is rich markup: "[x6,y6 x7,y7]" unescaped is a tag, and vanished from --help.
+    shown = CliRunner().invoke(cli, [*path, "--help"], env={"COLUMNS": "2000"}, terminal_width=2000).output
+    assert text.lstrip("\\") in " ".join(shown.split()), shown
