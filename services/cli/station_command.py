@@ -6,13 +6,19 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 from pydantic import ValidationError
 from rich.console import Console
 
 from prismcore import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from prismcore.station.board import BoardSpec
+    from prismcore.station.calibrate import Station
 
 __all__ = ["board", "load_board", "load_station", "station_app"]
 
@@ -32,7 +38,7 @@ def _squares(text: str) -> tuple[int, int]:
     return int(match[1]), int(match[2])
 
 
-def load_board(path: Path):
+def load_board(path: Path) -> BoardSpec:
     """board.json as a BoardSpec; a bad file exits 2 naming the field."""
     from prismcore.station.board import BoardSpec
 
@@ -46,7 +52,7 @@ def load_board(path: Path):
         raise InputError(f"{path}: {where}: {first['msg'].removeprefix('Value error, ')}") from None
 
 
-def load_station(path: Path):
+def load_station(path: Path) -> Station:
     from prismcore.station.calibrate import Station
 
     try:
@@ -57,7 +63,7 @@ def load_station(path: Path):
         raise InputError(f"{path}: not a station.json ({where}: {first['msg']})") from None
 
 
-def _pdf(board_png, spec, paper: str, path: Path) -> None:
+def _pdf(board_png: np.ndarray, spec: BoardSpec, paper: str, path: Path) -> None:
     """The board at 1:1 on `paper` (landscape), a 100 mm check ruler and its parameters beside it."""
     import numpy as np
     from PIL import Image, ImageDraw
@@ -68,7 +74,8 @@ def _pdf(board_png, spec, paper: str, path: Path) -> None:
     px = _PDF_DPI / 25.4
     page = Image.new("L", (round(w_mm * px), round(h_mm * px)), 255)
     bw, bh = spec.size_mm
-    art = Image.fromarray(np.asarray(board_png)).resize((round(bw * px), round(bh * px)), Image.NEAREST)
+    size = (round(bw * px), round(bh * px))
+    art = Image.fromarray(np.asarray(board_png)).resize(size, Image.Resampling.NEAREST)
     x0, y0 = round((w_mm - bw) / 2 * px), round(12 * px)
     page.paste(art, (x0, y0))
     draw = ImageDraw.Draw(page)
@@ -173,11 +180,14 @@ def calibrate(
     out.write_text(station.model_dump_json(indent=2) + "\n")
     info, c = station.calibration, station.camera
     if info.get("source") == "photos":
+        # station.json's calibration (written by calibrate_station): views and views_left_out are
+        # lists of the photos' names
+        views = cast("list[str]", info["views"])
         console.print(
             f"camera: fx {c.fx:.1f} fy {c.fy:.1f} px, centre ({c.cx:.1f}, {c.cy:.1f}), "
-            f"RMS {info['rms_px']:.3f} px over {info['corners']} corners of {len(info['views'])} photos"
+            f"RMS {info['rms_px']:.3f} px over {info['corners']} corners of {len(views)} photos"
         )
-        for name in info.get("views_left_out", []):
+        for name in cast("list[str]", info.get("views_left_out", [])):
             console.print(f"[yellow]left out:[/] {name} (too few board corners)")
     else:
         console.print(f"camera: from {camera} (fx {c.fx:.1f} px)")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any, cast
 
 from rich.console import Console
 
@@ -21,7 +22,7 @@ console = Console()
 
 def scan_on_station(
     image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000
-) -> dict:
+) -> dict[str, Any]:
     """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report."""
     from prismcore.auto_points import scan_found
     from prismcore.images import load_image
@@ -70,10 +71,11 @@ def scan_on_station(
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(report, indent=2) + "\n")
     d, s = report["dimensions"], report["uncertainty"]
+    position = cast("list[float]", station_report["position_mm"])  # [x, y] mm, as report() writes it
     console.print(
         f"[bold]station[/]  width {d['width']:.2f} ± {s['width']:.2f}  height {d['height']:.2f} ± "
         f"{s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  (position "
-        f"{station_report['position_mm'][0]:.1f}, {station_report['position_mm'][1]:.1f} mm, yaw "
+        f"{position[0]:.1f}, {position[1]:.1f} mm, yaw "
         f"{station_report['yaw_deg']:.1f} deg; outline {station_report['silhouette_residual_px']:.2f} px)",
         soft_wrap=True,
     )

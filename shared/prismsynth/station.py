@@ -12,6 +12,7 @@ h mm above the table has z = -h).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import cv2
 import numpy as np
@@ -185,7 +186,7 @@ def _project(
 def _plane_homography(setup: StationSetup, R: np.ndarray, t: np.ndarray, scale: float) -> np.ndarray:
     """Board-frame (x, y) mm -> ideal image px at `scale`."""
     S = np.array([[scale, 0, (scale - 1) / 2], [0, scale, (scale - 1) / 2], [0, 0, 1]])
-    return S @ setup.K @ np.column_stack([R[:, 0], R[:, 1], t])
+    return cast("np.ndarray", S @ setup.K @ np.column_stack([R[:, 0], R[:, 1], t]))
 
 
 def _distort_map(setup: StationSetup) -> tuple[np.ndarray, np.ndarray]:
@@ -225,7 +226,7 @@ def _render(
     Hp = _plane_homography(setup, R, t, _SS)
     ox, oy = setup.table_origin_mm
     T = np.array([[1 / _TEX_PX_PER_MM, 0, ox], [0, 1 / _TEX_PX_PER_MM, oy], [0, 0, 1]])
-    img = cv2.warpPerspective(
+    img: np.ndarray = cv2.warpPerspective(
         setup.table, Hp @ T, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
     ).astype(np.float32)
     # The board, printed on matte white paper.
@@ -244,7 +245,7 @@ def _render(
         ground = X + s[:, None] * light  # light points from the lamp towards the table (z > 0)
         poly = _project(setup, ground, R, t, _SS)
         hull = cv2.convexHull(poly.astype(np.float32))
-        mask = np.zeros((H, W), np.float32)
+        mask: np.ndarray = np.zeros((H, W), np.float32)
         cv2.fillConvexPoly(mask, np.round(hull * 16).astype(np.int32), 1.0, lineType=cv2.LINE_AA, shift=4)
         mask = cv2.GaussianBlur(mask, (0, 0), 3.0)
         img *= (1 - shadow * mask)[..., None]
@@ -281,9 +282,9 @@ def _render(
         _MAPS.clear()
         _MAPS[key] = _distort_map(setup)
     mx, my = _MAPS[key]
-    out = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    out: np.ndarray = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
     out = out + rng.normal(0, 2.0, out.shape).astype(np.float32)
-    return np.clip(out, 0, 255).astype(np.uint8)
+    return cast("np.ndarray", np.clip(out, 0, 255).astype(np.uint8))
 
 
 def _jpeg(image: np.ndarray, quality: int) -> np.ndarray:
@@ -291,7 +292,8 @@ def _jpeg(image: np.ndarray, quality: int) -> np.ndarray:
         ".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality]
     )
     assert ok
-    return cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    decoded = cast("np.ndarray", cv2.imdecode(data, cv2.IMREAD_COLOR))  # None only for bad bytes
+    return cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB)
 
 
 def _random_box(
@@ -309,9 +311,8 @@ def _random_box(
         colour = np.clip(near_colour + rng.uniform(-10, 10, 3), 0, 255)
     else:
         colour = rng.uniform(20, 235, 3)
-    return StationBox(
-        length, width, height, x, y, float(rng.uniform(0, 180)), tuple(float(c) for c in colour)
-    )
+    rgb = (float(colour[0]), float(colour[1]), float(colour[2]))
+    return StationBox(length, width, height, x, y, float(rng.uniform(0, 180)), rgb)
 
 
 def _in_view(setup: StationSetup, box: StationBox, margin: float) -> bool:

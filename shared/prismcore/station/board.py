@@ -183,7 +183,8 @@ class BoardView:
 def _gray(image: np.ndarray) -> np.ndarray:
     if image.ndim == 2:
         return image if image.dtype == np.uint8 else np.clip(image, 0, 255).astype(np.uint8)
-    return cv2.cvtColor(np.clip(image, 0, 255).astype(np.uint8), cv2.COLOR_RGB2GRAY)
+    gray = cv2.cvtColor(np.clip(image, 0, 255).astype(np.uint8), cv2.COLOR_RGB2GRAY)
+    return np.asarray(gray, dtype=np.uint8)
 
 
 def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
@@ -196,7 +197,7 @@ def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
         corners = find_board(np.dstack([gray] * 3), board.inner_corners)
         if corners is None:
             return None
-        ids = np.arange(len(corners))
+        ids: np.ndarray = np.arange(len(corners))
         return BoardView(np.asarray(corners, np.float64), board.corner_points(), ids)
     detector = cv2.aruco.CharucoDetector(board.charuco())
     corners, ids, _, _ = detector.detectBoard(gray)

@@ -8,6 +8,7 @@ its eight projected corners; the fit moves the six until that hull lies on the o
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -34,7 +35,7 @@ def box_corners(params: np.ndarray) -> np.ndarray:
 def project(X: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Pinhole projection of board-frame points (N, 3) -> image (x, y) px (N, 2)."""
     cam = X @ R.T + t
-    return (cam[:, :2] / cam[:, 2:3]) * (K[0, 0], K[1, 1]) + (K[0, 2], K[1, 2])
+    return cast("np.ndarray", (cam[:, :2] / cam[:, 2:3]) * (K[0, 0], K[1, 1]) + (K[0, 2], K[1, 2]))
 
 
 def _hull(pts: np.ndarray) -> np.ndarray:
@@ -54,7 +55,7 @@ def _signed_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     cross = ab[None, :, 0] * ap[..., 1] - ab[None, :, 1] * ap[..., 0]
     orient = np.sign(np.sum(a[:, 0] * np.roll(a[:, 1], -1) - np.roll(a[:, 0], -1) * a[:, 1]))
     inside = np.all(cross * orient >= 0, axis=1)
-    return np.where(inside, -dist, dist)
+    return cast("np.ndarray", np.where(inside, -dist, dist))
 
 
 @dataclass(frozen=True)
@@ -132,9 +133,11 @@ def _lookup(dt: np.ndarray, pts: np.ndarray) -> np.ndarray:
     y = np.clip(pts[:, 1], 0, h - 1.001)
     x0, y0 = x.astype(int), y.astype(int)
     fx, fy = x - x0, y - y0
-    return (dt[y0, x0] * (1 - fx) + dt[y0, x0 + 1] * fx) * (1 - fy) + (
-        dt[y0 + 1, x0] * (1 - fx) + dt[y0 + 1, x0 + 1] * fx
-    ) * fy
+    return cast(
+        "np.ndarray",
+        (dt[y0, x0] * (1 - fx) + dt[y0, x0 + 1] * fx) * (1 - fy)
+        + (dt[y0 + 1, x0] * (1 - fx) + dt[y0 + 1, x0 + 1] * fx) * fy,
+    )
 
 
 def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
@@ -190,7 +193,7 @@ def fold_distance(gray: np.ndarray, mask: np.ndarray) -> np.ndarray:
     inner = cv2.erode(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
     edges[inner == 0] = 0
     dt = cv2.distanceTransform((edges == 0).astype(np.uint8), cv2.DIST_L2, 3)
-    return np.minimum(dt, _FOLD_CAP_PX).astype(np.float32)
+    return cast("np.ndarray", np.minimum(dt, _FOLD_CAP_PX).astype(np.float32))
 
 
 _PROFILE = np.arange(-4.0, 4.01, 0.5)
@@ -230,7 +233,7 @@ def refine_outline(outline: np.ndarray, hull: np.ndarray, difference: np.ndarray
     v0, v1 = prof[rows, last], prof[rows, last + 1]
     frac = np.clip((v0 - level) / np.maximum(v0 - v1, 1e-6), 0, 1)
     offset = _PROFILE[last] + 0.5 * frac
-    return (outline + offset[:, None] * normal)[ok]
+    return cast("np.ndarray", (outline + offset[:, None] * normal)[ok])
 
 
 def fit_box(
@@ -297,7 +300,7 @@ def fit_box(
     r1 = best.fun[: len(pts)]
     robust = 1.4826 * float(np.median(np.abs(r1 - np.median(r1))))
     sigma = max(_MIN_SIGMA_PX, robust)
-    J = best.jac
+    J = np.asarray(best.jac, dtype=np.float64)  # dense: method="lm"
     inflation = max(1.0, _CORRELATION / step)
     try:
         cov = np.linalg.inv(J.T @ J) * sigma**2 * inflation

@@ -54,7 +54,7 @@ class PlanePose(BaseModel):
 
     def camera_centre(self) -> np.ndarray:
         """The camera's centre in the board frame, mm (z < 0: above the support)."""
-        return -self.rotation().T @ self.translation()
+        return np.asarray(-self.rotation().T @ self.translation(), dtype=np.float64)
 
 
 class Station(BaseModel):
@@ -112,7 +112,9 @@ def board_pose(view: BoardView, camera: CameraModel) -> PlanePose:
     )
 
 
-def _intrinsics(views: Sequence[tuple[str, BoardView]], size: tuple[int, int]) -> tuple[CameraModel, dict]:
+def _intrinsics(
+    views: Sequence[tuple[str, BoardView]], size: tuple[int, int]
+) -> tuple[CameraModel, dict[str, object]]:
     used = [(n, v) for n, v in views if len(v) >= MIN_VIEW_CORNERS]
     if len(used) < MIN_VIEWS:
         raise InputError(

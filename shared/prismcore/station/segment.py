@@ -7,6 +7,7 @@ Everything here works in the undistorted (pinhole) image of the station's camera
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -73,7 +74,7 @@ class Registration:
 
 def _plane_h(K: np.ndarray, pose: PlanePose) -> np.ndarray:
     R, t = pose.rotation(), pose.translation()
-    return K @ np.column_stack([R[:, 0], R[:, 1], t])
+    return cast("np.ndarray", K @ np.column_stack([R[:, 0], R[:, 1], t]))
 
 
 def _shift(H: np.ndarray, size: tuple[int, int]) -> float:
@@ -148,14 +149,14 @@ def register(
     (dx, dy), _ = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_32F))
     # ECC on the support alone: what changed (the part, its shadow) is left out.
     shifted = cv2.warpAffine(
-        a, np.float32([[1, 0, dx], [0, 1, dy]]), a.shape[::-1], borderMode=cv2.BORDER_REPLICATE
+        a, np.array([[1, 0, dx], [0, 1, dy]], np.float32), a.shape[::-1], borderMode=cv2.BORDER_REPLICATE
     )
     ratio = float(np.median(b)) / max(float(np.median(shifted)), 1.0)
-    changed = np.abs(b - ratio * shifted) > 12
+    changed: np.ndarray = np.abs(b - ratio * shifted) > 12
     changed = cv2.dilate(changed.astype(np.uint8), np.ones((9, 9), np.uint8))
     valid = (changed == 0).astype(np.uint8)
     # ECC's warp maps photo coordinates to plate coordinates.
-    warp = np.array([[1, 0, -dx], [0, 1, -dy], [0, 0, 1]], np.float32)
+    warp: np.ndarray = np.array([[1, 0, -dx], [0, 1, -dy], [0, 0, 1]], np.float32)
     try:
         cc, warp = cv2.findTransformECC(
             a,
@@ -179,7 +180,7 @@ def register(
             cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY), None, fx=half, fy=half, interpolation=cv2.INTER_AREA
         ).astype(np.float32)
         up = np.diag([2.0, 2.0, 1.0])
-        warp2 = (up @ warp.astype(np.float64) @ np.linalg.inv(up)).astype(np.float32)
+        warp2: np.ndarray = (up @ warp.astype(np.float64) @ np.linalg.inv(up)).astype(np.float32)
         valid2 = cv2.resize(valid, a2.shape[::-1], interpolation=cv2.INTER_NEAREST)
         try:
             cc2, warp2 = cv2.findTransformECC(
@@ -233,7 +234,7 @@ def _difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     dot = np.einsum("ijc,ijc->ij", P, bg)
     nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
     s = np.clip(dot / nb, *_SHADOW_RANGE)
-    return np.linalg.norm(P - s[..., None] * bg, axis=2)
+    return cast("np.ndarray", np.linalg.norm(P - s[..., None] * bg, axis=2))
 
 
 def _gain(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
@@ -257,8 +258,12 @@ def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
     """Hysteresis: a face barely apart from a dark square is kept where it joins the part."""
     k = max(3, round(5 * scale) | 1)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
-    strong = cv2.morphologyEx((resid > max(14.0, 4.0 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel)
-    weak = cv2.morphologyEx((resid > max(6.0, 2.5 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel)
+    strong: np.ndarray = cv2.morphologyEx(
+        (resid > max(14.0, 4.0 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel
+    )
+    weak: np.ndarray = cv2.morphologyEx(
+        (resid > max(6.0, 2.5 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel
+    )
     n_weak, weak_labels = cv2.connectedComponents(weak | strong, connectivity=8)
     keep = np.zeros(n_weak, np.uint8)
     keep[np.unique(weak_labels[strong > 0])] = 1

@@ -1,0 +1,57 @@
+"""Boards: board.json's fields, the picture's exact size, and its corners found where they are."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from prismcore.errors import InputError
+from prismcore.station.board import BoardSpec, board_image, default_board, find_board_corners
+
+
+@pytest.mark.parametrize(("paper", "squares"), [("A4", (7, 5)), ("A3", (9, 6)), ("letter", (5, 4))])
+def test_the_default_board_fits_its_paper_with_whole_mm_squares(paper, squares) -> None:
+    board = default_board(paper, squares)
+    w, h = board.size_mm
+    long, short = {"A4": (297, 210), "A3": (420, 297), "letter": (279.4, 215.9)}[paper]
+    assert w <= long - 30 and h <= short - 30
+    assert board.square_mm == int(board.square_mm) and board.marker_mm < board.square_mm
+
+
+@pytest.mark.parametrize("px_per_mm", [2.0, 5.0, 10.0])
+def test_the_png_is_the_boards_area_exactly_and_its_corners_are_found_at_their_mm(px_per_mm) -> None:
+    board = default_board("A4", (7, 5))
+    image = board_image(board, px_per_mm)
+    w, h = board.size_mm
+    assert image.shape == (round(h * px_per_mm), round(w * px_per_mm))
+    # A white margin around it, as on paper: the corners' pixels are their mm times px_per_mm.
+    pad = 40
+    framed = np.pad(image, pad, constant_values=255)
+    view = find_board_corners(framed, board)
+    assert view is not None and len(view) == 6 * 4
+    expected = view.object_points[:, :2] * px_per_mm - 0.5 + pad  # pixel centres at integers
+    assert np.abs(view.image_points - expected).max() < 0.2
+
+
+def test_a_chessboard_is_described_by_its_inner_corners() -> None:
+    board = BoardSpec.model_validate({"type": "chessboard", "inner_corners": [9, 6], "square_mm": 25})
+    assert (board.squares_x, board.squares_y) == (10, 7) and board.inner_corners == (9, 6)
+    assert board.corner_points().shape == (54, 3)
+
+
+@pytest.mark.parametrize(("fields", "says"), [
+    ({"dictionary": "DICT_NOPE", "squares_x": 5, "squares_y": 4, "square_mm": 30, "marker_mm": 20},
+     "dictionary"),
+    ({"squares_x": 5, "squares_y": 4, "square_mm": 30, "marker_mm": 30}, "smaller"),
+    ({"dictionary": "DICT_4X4_50", "squares_x": 20, "squares_y": 20, "square_mm": 10, "marker_mm": 7},
+     "markers"),
+])
+def test_a_board_json_that_cannot_be_is_refused_naming_why(fields, says) -> None:
+    with pytest.raises(ValidationError, match=says):
+        BoardSpec.model_validate(fields)
+
+
+def test_squares_too_small_for_the_paper_are_refused() -> None:
+    with pytest.raises(InputError, match="under 5 mm"):
+        default_board("A4", (32, 32))
