@@ -1,0 +1,73 @@
+"""A part on a station, measured with no click and no known edge, over many rendered scenes:
+bounds with a margin, not one seed's outcome. benchmarks/station.py prints the full figures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from prismcore.errors import InputError
+from prismcore.station import measure_on_station
+from prismsynth.station import station_scene, station_setup
+
+from .conftest import scene, station_for
+
+SEEDS = range(12)
+
+
+def _errors(seed: int) -> tuple[bool, list[tuple[float, float, float, bool]]]:
+    sc = scene(seed)
+    try:
+        m = measure_on_station(sc.photo, station_for(sc))
+    except InputError:
+        return False, []
+    assert sc.box is not None
+    true = sc.box.dimensions
+    return True, [(m.dimensions[k] - true[k], true[k], m.uncertainty[k], bool(m.warnings)) for k in true]
+
+
+@pytest.fixture(scope="module")
+def outcomes() -> dict[int, tuple[bool, list]]:
+    return {seed: _errors(seed) for seed in SEEDS}
+
+
+def test_most_parts_are_found_and_measured_within_1_percent_or_1_mm(outcomes) -> None:
+    found = [s for s, (ok, _) in outcomes.items() if ok]
+    assert len(found) >= 9, f"found {len(found)} of {len(outcomes)}"
+    dims = [d for s in found for d in outcomes[s][1]]
+    within = [abs(err) <= max(0.01 * true, 1.0) for err, true, _, _ in dims]
+    assert np.mean(within) >= 0.8, f"{np.mean(within):.0%} of {len(dims)} dimensions within max(1 %, 1 mm)"
+
+
+def test_no_dimension_is_off_by_more_than_5_percent_without_a_warning(outcomes) -> None:
+    silent = [(s, err / true) for s, (ok, dims) in outcomes.items() if ok
+              for err, true, _, warned in dims if abs(err) > 0.05 * true and not warned]
+    assert not silent
+
+
+def test_width_is_the_longer_footprint_side_and_the_sigma_is_positive() -> None:
+    sc = scene(4)
+    m = measure_on_station(sc.photo, station_for(sc))
+    assert m.dimensions["width"] >= m.dimensions["depth"]
+    assert all(0 < v < 5 for v in m.uncertainty.values())
+    assert m.points.shape == (7, 2) and m.side_face in ("right", "left", "top")
+
+
+def test_an_empty_support_is_refused_as_no_part_found() -> None:
+    sc = station_scene(40, parts=0)
+    with pytest.raises(InputError, match="no part found"):
+        measure_on_station(sc.photo, station_for(sc))
+
+
+def test_two_parts_are_refused_one_part_per_photo() -> None:
+    setup = station_setup(41, distance_mm=1100)
+    sc = station_scene(41, setup, parts=2, max_size_mm=90)
+    with pytest.raises(InputError, match="2 parts found: one part per photo"):
+        measure_on_station(sc.photo, station_for(sc))
+
+
+def test_a_camera_moved_far_since_calibration_is_refused() -> None:
+    sc = scene(4)
+    other = station_scene(4, station_setup(5))  # another camera position over another table
+    with pytest.raises(InputError, match="camera"):
+        measure_on_station(sc.photo, station_for(other).model_copy(update={"camera": station_for(sc).camera}))
