@@ -159,7 +159,7 @@ def http_api_page() -> str:
             for media, content in body.items():
                 out += [f"Body (`{media}`): {_type(content.get('schema', {}), 'schema-')}", ""]
             out += ["| status | meaning |", "|---|---|"]
-            for code, answer in op.get("responses", {}).items():
+            for code, answer in sorted(op.get("responses", {}).items()):
                 schemas = [_type(c.get("schema", {}), "schema-") for c in answer.get("content", {}).values()
                            if c.get("schema")]
                 what = answer.get("description", "") + (f" ({', '.join(schemas)})" if schemas else "")

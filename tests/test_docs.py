@@ -79,9 +79,10 @@ def _bash(script: str, *, cwd: Path, env: dict[str, str], timeout: float) -> sub
 
 
 def _table_fields(page: Path, heading: str) -> set[str]:
-    """The `field` names of the table under `## heading` in `page`."""
+    """The names in the first column of the table under `## heading` in `page`."""
     section = page.read_text().split(f"\n## {heading}\n", 1)[1].split("\n## ", 1)[0]
-    return set(re.findall(r"^\| `(\w+)` \|", section, re.M))
+    cells = re.findall(r"^\| (`[^|]*`) \|", section, re.M)
+    return {name for cell in cells for name in re.findall(r"`(\w+)`", cell)}
 
 
 OUTPUTS = ROOT / "docs" / "reference" / "outputs.md"
@@ -440,7 +441,8 @@ def test_curl_block_uploads_submits_polls_and_downloads(served, user_dir: Path):
                                   "results.csv"], run.stdout
     dims = json.loads((got / "report.json").read_text())["dimensions"]
     assert dims["unit"] == "mm" and dims["width"] == pytest.approx(120, rel=1e-6)
-    assert (got / "results.csv").read_text().startswith("job_id,")
+    header = (got / "results.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "job_id" and set(header) == _table_fields(OUTPUTS, "results.csv"), header
 
 
 def test_the_guide_is_served_at_guide_and_linked_from_the_page(served):
