@@ -259,6 +259,8 @@ def test_docs_block_builds_the_site_strictly_offline():
         text = page.read_text()
         assert not elsewhere.search(text), page
         assert "fonts.googleapis" not in text, page
+        # The generated pages too (help texts, the API's descriptions) name no issue.
+        assert not re.search(r"\bissues? \d+", text, re.I), page
 
 
 def test_k8s_render_block_finds_the_manifest_current():

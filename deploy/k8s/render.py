@@ -25,7 +25,7 @@ OUT = Path(__file__).with_name("prismcloud.yaml")
 
 # -- the values a site changes ---------------------------------------------------------------
 IMAGE = "prismcloud:latest"  # built from the repository's Dockerfile
-REDIS_HOST = "redis.internal.example"  # outside the cluster (or a Sentinel set: see the README)
+REDIS_HOST = "redis.internal.example"  # outside the cluster (or a Sentinel set: docs/how-to/sentinel.md)
 S3_HOST = "s3.internal.example"
 S3_PUBLIC_URL = "https://s3.example.com"  # where clients fetch their presigned downloads from
 WORKER_CONCURRENCY = 2  # processes per worker pod (one per core requested)
@@ -74,7 +74,7 @@ def config() -> dict[str, Any]:
 
 
 def secrets() -> dict[str, Any]:
-    """Placeholders: create the real Secret with kubectl (README) and leave this one out."""
+    """Placeholders: create the real Secret with kubectl (docs/how-to/kubernetes.md), leave this out."""
     return {"apiVersion": "v1", "kind": "Secret", "metadata": _meta("prism-secrets", "secrets"),
             "type": "Opaque",
             "stringData": {"PRISM_API_KEYS": '{"tenant": "replace-me"}',
