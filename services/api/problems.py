@@ -225,11 +225,32 @@ async def _invalid(request: Request, exc: RequestValidationError) -> JSONRespons
         reason = next(str((e.get("ctx") or {}).get("error", e.get("msg"))) for e in raw
                       if e.get("type") == "json_invalid")
         return problem_response(400, f"the body is not valid JSON ({reason})", instance=_instance(request))
+    sent_as = _not_json(request)
+    if sent_as is not None and any(tuple(e.get("loc", ()))[:1] == ("body",) and e.get("type") != "missing"
+                                   for e in raw):
+        # FastAPI reads a body as JSON only when its Content-Type says it is: any other type (or
+        # none) reached the model as text, which "should be a valid dictionary" at "" explained
+        # to nobody.
+        detail = (f"the body is sent {sent_as}, which this route does not read: send the JSON with "
+                  "Content-Type: application/json")
+        return problem_response(415, detail, instance=_instance(request), kind="unsupported-media-type",
+                                errors=[{"header": "Content-Type", "detail": detail}])
     body = exc.body if exc.body is not None else _MISSING
     errors = validation_errors(raw, body)
     if not errors:
         errors = [{"pointer": "", "detail": "invalid request"}]
     return problem_response(422, _summary(errors), instance=_instance(request), errors=errors)
+
+
+def _not_json(request: Request) -> str | None:
+    """How the request's body is typed ("as Content-Type 'text/plain'", "without a Content-Type")
+    when not as JSON (application/json or application/*+json, which FastAPI parses), else None."""
+    sent = request.headers.get("content-type", "").strip()
+    if not sent:
+        return "without a Content-Type"
+    kind = sent.split(";", 1)[0].strip().lower()
+    json = kind == "application/json" or (kind.startswith("application/") and kind.endswith("+json"))
+    return None if json else f"as Content-Type {sent!r}"
 
 
 async def _backend_down(request: Request, exc: Exception) -> JSONResponse:
@@ -288,6 +309,7 @@ PROBLEM_ERROR_SCHEMA: dict[str, Any] = {
 }
 _REF = {"$ref": "#/components/schemas/Problem"}
 _DEFAULT_DESCRIPTIONS = {400: "The body cannot be read (not JSON, cut multipart)",
+                         415: "The body is not sent as application/json",
                          404: "Not found", 405: "Method not allowed",
                          422: "Invalid input: `errors` locates each bad value",
                          500: "Internal error (nothing of it is disclosed)"}
@@ -297,7 +319,8 @@ def declare_problems(schema: dict[str, Any]) -> dict[str, Any]:
     """Make every error response of every operation in an OpenAPI document a Problem.
 
     Adds the components, replaces FastAPI's HTTPValidationError answers, and adds 500 (any
-    operation can fail) and 422 (operations with parameters or a body) where not declared.
+    operation can fail), 422 (operations with parameters or a body) and 415 (a JSON body sent
+    as another type) where not declared.
     """
     components = schema.setdefault("components", {}).setdefault("schemas", {})
     components["Problem"] = PROBLEM_SCHEMA
@@ -308,7 +331,8 @@ def declare_problems(schema: dict[str, Any]) -> dict[str, Any]:
                 continue
             responses = op.setdefault("responses", {})
             takes_input = bool(op.get("parameters") or op.get("requestBody"))
-            wanted = [500] + ([422] if takes_input else [])
+            takes_json = "application/json" in op.get("requestBody", {}).get("content", {})
+            wanted = [500] + ([422] if takes_input else []) + ([415] if takes_json else [])
             for code in wanted:
                 responses.setdefault(str(code), {"description": _DEFAULT_DESCRIPTIONS[code]})
             for code, response in responses.items():

@@ -1,0 +1,37 @@
+"""Rough edges a newcomer hit with the HTTP API (issue 30), in process on the real Redis and
+SeaweedFS of the fixtures: a JSON body sent as text/plain, a point no float holds, an upload
+reference of the right form naming no upload, HEAD probes."""
+
+# ruff: noqa: F811 - `client` is test_api's fixture, imported to be used as such
+from __future__ import annotations
+
+import json
+
+from .test_api import ACME, client, make_client, photo  # noqa: F401 (fixtures)
+
+POINTS = {"p1": [10, 10], "p2": [110, 12], "p3": [108, 80], "p4": [110, 12], "p5": [200, 8]}
+
+
+def _ref(client) -> str:
+    r = client.post("/v1/uploads", files={"file": ("p.png", photo())}, headers=ACME)
+    assert r.status_code == 201, r.text
+    return r.json()["reference"]
+
+
+def test_json_sent_as_text_is_refused_naming_its_content_type(client):
+    body = json.dumps({"items": [{"image": _ref(client), "points": POINTS}]})
+    r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": "text/plain"})
+    assert r.status_code == 415 and r.headers["content-type"] == "application/problem+json", r.text
+    problem = r.json()
+    assert problem["type"] == "https://prismcloud.dev/problems/unsupported-media-type"
+    assert problem["detail"].startswith("the body is sent as Content-Type 'text/plain'"), problem
+    assert "application/json" in problem["detail"] and "valid dictionary" not in r.text
+    assert problem["errors"] == [{"header": "Content-Type", "detail": problem["detail"]}]
+    untyped = client.post("/v1/jobs", content=body, headers=ACME)
+    assert untyped.status_code == 415, untyped.text
+    assert untyped.json()["detail"].startswith("the body is sent without a Content-Type"), untyped.text
+    # Sent as JSON, the same body is taken.
+    for kind in ("application/json", "application/json; charset=utf-8"):
+        r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": kind})
+        assert r.status_code == 202, (kind, r.text)
+    assert "415" in client.get("/openapi.json").json()["paths"]["/v1/jobs"]["post"]["responses"]
