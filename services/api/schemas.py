@@ -43,15 +43,16 @@ class JobCreate(BaseModel):
                                                 "Webhooks spec. https (http only where the "
                                                 "service allows it), on an allow-listed host.")
 
-    @field_validator("items", mode="before")
+    @field_validator("items")
     @classmethod
-    def _finite_numbers(cls, items: Any) -> Any:
-        # Python's JSON parser accepts NaN/Infinity, and a few spec fields (principal_point) do not
-        # check finiteness; stored, they would come back as null and break the record for good.
-        if isinstance(items, list):
-            for i, item in enumerate(items):
-                if (where := _first_non_finite(item)) is not None:
-                    raise ValueError(f"item {i}: {where} is not a finite number")
+    def _finite_numbers(cls, items: list[ScanSpec]) -> list[ScanSpec]:
+        # Python's JSON parser accepts NaN/Infinity (and 1e400 as Infinity), and a few spec fields
+        # (principal_point) do not check finiteness; stored, they would come back as null and
+        # break the record for good. After the items' own validation, so that a field that does
+        # check (a point) is pointed at itself, not at /items.
+        for i, item in enumerate(items):
+            if (where := _first_non_finite(item.model_dump())) is not None:
+                raise ValueError(f"item {i}: {where} is not a finite number")
         return items
 
 

@@ -50,6 +50,10 @@ def parse_reference(text: str) -> Reference:
         if parts.username or parts.password:
             raise ReferenceError(f"credentials in URLs are not accepted: {parts.hostname!r}")
         return Reference("https", url=text, host=parts.hostname.lower())
+    if text.startswith("upload:"):  # the form named, its id not: say what an id is
+        raise ReferenceError(
+            f"{text[:200]!r} is not an upload id: an upload's id is the 32 lowercase hex digits "
+            "POST /v1/uploads answered (its reference, upload:ID)")
     raise ReferenceError(
         f"{text[:200]!r} is not a reference: use upload:ID, s3://bucket/key or an https URL")
 

@@ -35,3 +35,37 @@ def test_json_sent_as_text_is_refused_naming_its_content_type(client):
         r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": kind})
         assert r.status_code == 202, (kind, r.text)
     assert "415" in client.get("/openapi.json").json()["paths"]["/v1/jobs"]["post"]["responses"]
+
+
+def test_a_point_no_float_holds_is_pointed_at(client):
+    ref = _ref(client)
+    body = json.dumps({"items": [{"image": ref, "points": POINTS}]}).replace("[10, 10]", "[1e400, 10]")
+    r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/points/p1/0" and "finite" in error["detail"], error
+
+
+def test_other_non_finite_numbers_are_pointed_at_too(client):
+    ref = _ref(client)
+    body = json.dumps({"items": [{"image": ref, "points": POINTS, "principal_point": [5, 1e400]}]})
+    r = client.post("/v1/jobs", content=body, headers={**ACME, "Content-Type": "application/json"})
+    assert r.status_code == 422, r.text
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/principal_point/1" and "finite" in error["detail"], error
+
+
+def test_an_upload_reference_says_what_is_wrong_with_it(client):
+    def refused(image: str) -> dict:
+        r = client.post("/v1/jobs", json={"items": [{"image": image, "points": POINTS}]}, headers=ACME)
+        assert r.status_code == 422, r.text
+        [error] = r.json()["errors"]
+        assert error["pointer"] == "/items/0/image", error
+        return error
+    # The id's form is wrong: said so, and what an id is; not "use upload:ID", which it did.
+    detail = refused("upload:0000")["detail"]
+    assert detail.startswith("item 0 image: 'upload:0000' is not an upload id: an upload's id is the 32 "
+                             "lowercase hex digits"), detail
+    assert "use upload:ID" not in detail
+    # The form is right, there is no such upload.
+    assert refused("upload:" + "0" * 32)["detail"] == f"item 0 image: no upload {'0' * 32!r}"
