@@ -301,7 +301,9 @@ def _random_box(
 ) -> StationBox:
     bw, bh = setup.board.size_mm
     size = float(np.exp(rng.uniform(np.log(20), np.log(max_size_mm))))
-    dims = sorted([size, size * rng.uniform(0.35, 1.0), size * rng.uniform(0.25, 1.0)], reverse=True)
+    # every side 20 mm at least: the parts a station is for
+    dims = sorted([size, max(20.0, size * rng.uniform(0.35, 1.0)), max(20.0, size * rng.uniform(0.25, 1.0))],
+                  reverse=True)
     rng.shuffle(dims)
     length, width, height = dims
     reach = max(length, width) / 2
@@ -357,7 +359,7 @@ def station_scene(
             if _in_view(setup, box, 40) and far_apart:
                 boxes.append(box)
                 break
-            max_size_mm = max(20.0, max_size_mm * 0.97)
+            max_size_mm = max(25.0, max_size_mm * 0.97)
         else:
             raise RuntimeError(f"seed {seed}: no box fits in view")
     az = rng.uniform(0, 2 * np.pi)

@@ -19,6 +19,10 @@ __all__ = ["BoxFit", "box_corners", "fit_box", "project"]
 _CORRELATION = 4.0  # outline pixels within this many share their error (the JPEG block, the blur)
 _MIN_SIGMA_PX = 0.35  # an outline is not known better than this, however smooth it looks
 _EDGE_BIAS_PX = 0.5  # the outline's pixel centres lie half a pixel inside the true edge
+_COARSE_POINTS = 60  # outline points while choosing among the starts
+_DENSE_POINTS = 200
+_FITTED_STARTS = 5
+_ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 
 
 def box_corners(params: np.ndarray) -> np.ndarray:
@@ -45,16 +49,16 @@ def _hull(pts: np.ndarray) -> np.ndarray:
 
 def _signed_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Distance of each point (N, 2) to a convex polygon's outline (M, 2), negative inside."""
-    a = poly
-    b = np.roll(poly, -1, axis=0)
-    ab = b - a
-    ap = points[:, None, :] - a[None, :, :]
-    t = np.clip(np.einsum("nmk,mk->nm", ap, ab) / np.maximum(np.einsum("mk,mk->m", ab, ab), 1e-12), 0, 1)
-    closest = a[None] + t[..., None] * ab[None]
-    dist = np.linalg.norm(points[:, None, :] - closest, axis=2).min(axis=1)
-    cross = ab[None, :, 0] * ap[..., 1] - ab[None, :, 1] * ap[..., 0]
-    orient = np.sign(np.sum(a[:, 0] * np.roll(a[:, 1], -1) - np.roll(a[:, 0], -1) * a[:, 1]))
-    inside = np.all(cross * orient >= 0, axis=1)
+    ax, ay = poly[:, 0], poly[:, 1]
+    bx, by = np.roll(ax, -1), np.roll(ay, -1)
+    ex, ey = bx - ax, by - ay
+    px, py = points[:, 0:1] - ax, points[:, 1:2] - ay  # (N, M)
+    t = np.clip((px * ex + py * ey) / np.maximum(ex * ex + ey * ey, 1e-12), 0.0, 1.0)
+    dx, dy = px - t * ex, py - t * ey
+    dist = np.sqrt((dx * dx + dy * dy).min(axis=1))
+    cross = ex * py - ey * px
+    orient = 1.0 if float(np.sum(ax * by - bx * ay)) >= 0 else -1.0
+    inside = (cross * orient >= 0).all(axis=1)
     return cast("np.ndarray", np.where(inside, -dist, dist))
 
 
@@ -71,6 +75,7 @@ class BoxFit:
     cov: np.ndarray
     residual_px: float
     outline_px: int
+    missing_fraction: float = 0.0  # of the outline lying well inside the box: a stretch not found
 
     @property
     def length_mm(self) -> float:
@@ -113,10 +118,42 @@ def visible_folds(corners: np.ndarray, camera_centre: np.ndarray) -> list[tuple[
     return [(i, j) for i, j in _EDGES if sum({i, j} <= f for f in seen) == 2]
 
 
+# The side faces s0..s3 as (their top fold, the vertical fold shared with the next side).
+_SIDE_FOLDS = (((4, 5), (1, 5)), ((5, 6), (2, 6)), ((6, 7), (3, 7)), ((7, 4), (0, 4)))
+
+
+def _folds(params: np.ndarray, camera_centre: np.ndarray) -> list[tuple[int, int]]:
+    """:func:`visible_folds` from the box's parameters directly (it runs at every step of the fit)."""
+    x, y, yaw, a, b, c = params
+    hl, hw = np.exp(a) / 2, np.exp(b) / 2
+    dx, dy = camera_centre[0] - x, camera_centre[1] - y
+    co, si = np.cos(yaw), np.sin(yaw)
+    u, v = dx * co + dy * si, -dx * si + dy * co  # the camera in the box's own axes
+    sides = (-v > hw, u > hl, v > hw, -u > hl)  # s0 (y = -hw), s1 (x = +hl), s2, s3
+    top = -camera_centre[2] > np.exp(c)
+    folds = []
+    for k in range(4):
+        if sides[k] and top:
+            folds.append(_SIDE_FOLDS[k][0])
+        if sides[k] and sides[(k + 1) % 4]:
+            folds.append(_SIDE_FOLDS[k][1])
+    return folds
+
+
+def _signed_map(outline: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Signed distance (px, float32) to the outline: negative inside, positive outside."""
+    inside = np.zeros(shape, np.uint8)
+    cv2.fillPoly(inside, [np.round(outline).astype(np.int32).reshape(-1, 1, 2)], 1)
+    d_out = cv2.distanceTransform(1 - inside, cv2.DIST_L2, 5)
+    d_in = cv2.distanceTransform(inside, cv2.DIST_L2, 5)
+    return cast("np.ndarray", (d_out - d_in).astype(np.float32))
+
+
 @dataclass(frozen=True)
 class _Problem:
     outline: np.ndarray
-    outline_poly: np.ndarray
+    signed: np.ndarray  # _signed_map of the outline, in a window whose origin is `origin`
+    origin: np.ndarray
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
@@ -142,21 +179,120 @@ def _lookup(dt: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
     X = box_corners(params)
+    depth = X @ p.R[2] + p.t[2]
+    n = len(p.outline) + 8 + 3 * len(_FOLD_SAMPLES)
+    if not (np.all(np.isfinite(X)) and np.all(depth > 1.0)):
+        return np.full(n, 1e3)  # a box reaching behind the camera: as far off as can be
     pts = project(X, p.K, p.R, p.t)
     hull = _hull(pts)
     r1 = _signed_distance(p.outline, pts[hull]) - p.edge_bias
     # Each hull vertex on the outline too, so the hull cannot outgrow it where no outline lies.
     r2 = np.zeros(8)
-    for i in hull:
-        r2[i] = (
-            -cv2.pointPolygonTest(p.outline_poly, (float(pts[i, 0]), float(pts[i, 1])), True) - _EDGE_BIAS_PX
-        )
+    r2[hull] = _lookup(p.signed, pts[hull] - p.origin) - _EDGE_BIAS_PX
     r3 = np.zeros(3 * len(_FOLD_SAMPLES))
     if p.fold_dt is not None:
-        for k, (i, j) in enumerate(visible_folds(X, p.centre)[:3]):
+        for k, (i, j) in enumerate(_folds(params, p.centre)[:3]):
             seg = pts[i] + _FOLD_SAMPLES[:, None] * (pts[j] - pts[i])
             r3[k * len(_FOLD_SAMPLES) : (k + 1) * len(_FOLD_SAMPLES)] = _lookup(p.fold_dt, seg)
     return np.concatenate([r1, p.vertex_weight * r2, p.fold_weight * r3])
+
+
+def _lookup_grad(dt: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear value and gradient (d/dx, d/dy) of `dt` at `pts` (N, 2)."""
+    h, w = dt.shape
+    x = np.clip(pts[:, 0], 0, w - 1.001)
+    y = np.clip(pts[:, 1], 0, h - 1.001)
+    x0, y0 = x.astype(int), y.astype(int)
+    fx, fy = x - x0, y - y0
+    v00, v01, v10, v11 = dt[y0, x0], dt[y0, x0 + 1], dt[y0 + 1, x0], dt[y0 + 1, x0 + 1]
+    top, bottom = v00 + (v01 - v00) * fx, v10 + (v11 - v10) * fx
+    value = top + (bottom - top) * fy
+    gx = (v01 - v00) * (1 - fy) + (v11 - v10) * fy
+    gy = bottom - top
+    return value, np.column_stack([gx, gy])
+
+
+def _corner_jacobian(params: np.ndarray, p: _Problem) -> tuple[np.ndarray, np.ndarray]:
+    """The 8 projected corners (8, 2) and their derivative by the parameters (8, 2, 6)."""
+    x, y, yaw, a, b, c = params
+    hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
+    co, si = np.cos(yaw), np.sin(yaw)
+    sx = np.array([-1.0, 1.0, 1.0, -1.0])
+    sy = np.array([-1.0, -1.0, 1.0, 1.0])
+    lx, ly = np.tile(sx * hl, 2), np.tile(sy * hw, 2)
+    X = np.column_stack([lx * co - ly * si + x, lx * si + ly * co + y, np.r_[np.zeros(4), np.full(4, -hh)]])
+    dX = np.zeros((8, 3, 6))
+    dX[:, 0, 0] = 1.0
+    dX[:, 1, 1] = 1.0
+    dX[:, 0, 2], dX[:, 1, 2] = -lx * si - ly * co, lx * co - ly * si
+    dX[:, 0, 3], dX[:, 1, 3] = lx * co, lx * si  # d/d log L: lx scales with hl
+    dX[:, 0, 4], dX[:, 1, 4] = -ly * si, ly * co
+    dX[4:, 2, 5] = -hh
+    cam = X @ p.R.T + p.t
+    dcam = np.einsum("ij,njk->nik", p.R, dX)
+    z = cam[:, 2]
+    fx, fy = p.K[0, 0], p.K[1, 1]
+    pts = np.column_stack([fx * cam[:, 0] / z + p.K[0, 2], fy * cam[:, 1] / z + p.K[1, 2]])
+    dpts = np.empty((8, 2, 6))
+    dpts[:, 0] = fx * (dcam[:, 0] / z[:, None] - cam[:, 0:1] * dcam[:, 2] / (z * z)[:, None])
+    dpts[:, 1] = fy * (dcam[:, 1] / z[:, None] - cam[:, 1:2] * dcam[:, 2] / (z * z)[:, None])
+    return pts, dpts
+
+
+def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
+    """d(_residuals)/d(params), analytic: each residual's derivative by the corners' pixels (the
+    hull's vertices, the folds' ends) chained with the corners' by the parameters."""
+    pts, dpts = _corner_jacobian(params, p)
+    n = len(p.outline)
+    n_fold = 3 * len(_FOLD_SAMPLES)
+    J = np.zeros((n + 8 + n_fold, 6))
+    if not (np.all(np.isfinite(pts))):
+        return J
+    hull = _hull(pts)
+    poly = pts[hull]
+    ax, ay = poly[:, 0], poly[:, 1]
+    ex, ey = np.roll(ax, -1) - ax, np.roll(ay, -1) - ay
+    px, py = p.outline[:, 0:1] - ax, p.outline[:, 1:2] - ay
+    length2 = np.maximum(ex * ex + ey * ey, 1e-12)
+    t = np.clip((px * ex + py * ey) / length2, 0.0, 1.0)
+    dx, dy = px - t * ex, py - t * ey
+    k = np.argmin(dx * dx + dy * dy, axis=1)
+    rows = np.arange(n)
+    orient = 1.0 if float(np.sum(ax * np.roll(ay, -1) - np.roll(ax, -1) * ay)) >= 0 else -1.0
+    tk = t[rows, k]
+    ek = np.column_stack([ex[k], ey[k]])
+    el = np.sqrt(length2[k])
+    # the outward normal of a counter-clockwise (orient > 0, y down) edge is (ey, -ex) / |e|
+    nrm = -orient * np.column_stack([-ek[:, 1], ek[:, 0]]) / el[:, None]
+    pa = np.column_stack([px[rows, k], py[rows, k]])
+    d_s = np.sum(nrm * pa, axis=1)
+    # d n / d e = (Jr - n ê^T) / |e| with Jr the rotation n = Jr e / |e|
+    jr = -orient * np.array([[0.0, -1.0], [1.0, 0.0]])
+    e_hat = ek / el[:, None]
+    g_e = (pa @ jr) - d_s[:, None] * e_hat  # (p - a)^T (Jr - n ê^T), per point
+    g_e /= el[:, None]
+    d_a = -nrm - g_e
+    d_b = g_e
+    interior = (tk > 0) & (tk < 1)
+    # in a vertex's region the distance is to the vertex itself (outside: positive)
+    at_b = ~interior & (tk >= 1)
+    dist = np.linalg.norm(pa - tk[:, None] * ek, axis=1)
+    away = (pa - tk[:, None] * ek) / np.maximum(dist, 1e-9)[:, None]
+    d_a = np.where((~interior & ~at_b)[:, None], -away, d_a)
+    d_b = np.where(at_b[:, None], -away, np.where(interior[:, None], d_b, 0.0))
+    ia = hull[k]
+    ib = hull[(k + 1) % len(hull)]
+    J[:n] = np.einsum("nk,nkp->np", d_a, dpts[ia]) + np.einsum("nk,nkp->np", d_b, dpts[ib])
+    _, g = _lookup_grad(p.signed, pts[hull] - p.origin)
+    J[n + hull] = p.vertex_weight * np.einsum("nk,nkp->np", g, dpts[hull])
+    if p.fold_dt is not None:
+        for f, (i, j) in enumerate(_folds(params, p.centre)[:3]):
+            s = _FOLD_SAMPLES[:, None]
+            seg = pts[i] + s * (pts[j] - pts[i])
+            _, g = _lookup_grad(p.fold_dt, seg)
+            block = np.einsum("nk,kp->np", g * (1 - s), dpts[i]) + np.einsum("nk,kp->np", g * s, dpts[j])
+            J[n + 8 + f * len(_FOLD_SAMPLES): n + 8 + (f + 1) * len(_FOLD_SAMPLES)] = p.fold_weight * block
+    return J
 
 
 def _start(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> list[np.ndarray]:
@@ -254,53 +390,49 @@ def fit_box(
     fold_dt : ndarray, shape (H, W), float32, optional
         :func:`fold_distance` of the photo: the folds between visible faces are drawn to its edges.
     """
-    step = max(1, len(outline) // 200)
-    pts = outline[::step]
     centre = -R.T @ t
-    simple = cv2.approxPolyDP(outline.astype(np.float32).reshape(-1, 1, 2), 0.7, True)
-    problem = _Problem(
-        pts,
-        simple,
-        K,
-        R,
-        t,
-        centre,
-        fold_dt,
-        vertex_weight=float(np.sqrt(len(pts) / 8) * 0.5),
-        fold_weight=float(np.sqrt(len(pts) / 24) * 0.5),
-    )
+    lo = np.floor(outline.min(axis=0)) - 20
+    hi = np.ceil(outline.max(axis=0)) + 20
+    signed = _signed_map(outline - lo, (int(hi[1] - lo[1]), int(hi[0] - lo[0])))
+
+    def problem(n_points: int, pts: np.ndarray | None = None, edge_bias: float = _EDGE_BIAS_PX) -> _Problem:
+        if pts is None:
+            pts = outline[:: max(1, len(outline) // n_points)]
+        return _Problem(pts, signed, lo, K, R, t, centre, fold_dt,
+                        vertex_weight=float(np.sqrt(len(pts) / 8) * 0.5),
+                        fold_weight=float(np.sqrt(len(pts) / 24) * 0.5), edge_bias=edge_bias)
+
+    # Every start scored, the best few fitted on a sparse outline, the best of those on a dense one:
+    # the silhouette alone has local minima (the box turned a quarter with its sides swapped).
+    coarse = problem(_COARSE_POINTS)
     starts = _start(outline, K, R, t)
-    costs = [float(np.sum(np.square(_residuals(s, problem)))) for s in starts]
-    best = None
-    for i in np.argsort(costs)[:2]:
-        sol = least_squares(_residuals, starts[i], args=(problem,), method="lm", x_scale="jac", max_nfev=150)
-        if best is None or sol.cost < best.cost:
-            best = sol
-    assert best is not None
+    costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
+    fits = [least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm", x_scale="jac",
+                          max_nfev=60)
+            for i in np.argsort(costs)[:_FITTED_STARTS]]
+    best_x = min(fits, key=lambda f: f.cost).x
+    dense = problem(_DENSE_POINTS)
+    best = least_squares(_residuals, best_x, jac=_jacobian, args=(dense,), method="lm", x_scale="jac",
+                         max_nfev=60)
+    pts = dense.outline
+    step = max(1, len(outline) // _DENSE_POINTS)
     if difference is not None:
         hull_pts = project(box_corners(best.x), K, R, t)
         fine = refine_outline(pts, hull_pts[_hull(hull_pts)], difference)
         if len(fine) >= 0.5 * len(pts):
             pts = fine
-            problem = _Problem(
-                pts,
-                simple,
-                K,
-                R,
-                t,
-                centre,
-                fold_dt,
-                problem.vertex_weight,
-                problem.fold_weight,
-                edge_bias=0.0,
-            )
-            best = least_squares(
-                _residuals, best.x, args=(problem,), method="lm", x_scale="jac", max_nfev=100
-            )
+            dense = problem(0, fine, 0.0)
+    # Robustly at the end: where the part's colour meets the support's, a stretch of its outline
+    # is missing or dented, and those points should not pull the box in.
+    best = least_squares(_residuals, best.x, jac=_jacobian, args=(dense,), method="trf", loss="soft_l1",
+                         f_scale=_ROBUST_PX, x_scale="jac", max_nfev=80)
     r1 = best.fun[: len(pts)]
     robust = 1.4826 * float(np.median(np.abs(r1 - np.median(r1))))
     sigma = max(_MIN_SIGMA_PX, robust)
-    J = np.asarray(best.jac, dtype=np.float64)  # dense: method="lm"
+    J = np.asarray(best.jac, dtype=np.float64)  # dense: method="trf" without a sparsity pattern
+    keep = np.ones(len(best.fun), bool)
+    keep[: len(pts)] = np.abs(r1) <= 3 * sigma  # the outline's outliers carry no weight at the end
+    J = J[keep]
     inflation = max(1.0, _CORRELATION / step)
     try:
         cov = np.linalg.inv(J.T @ J) * sigma**2 * inflation
@@ -311,7 +443,9 @@ def fit_box(
     # The outline's RMS distance from the box, its worst tenth left out (a shadow's notch, a
     # label's corner): what says whether the part is a box at all.
     trimmed = np.sort(np.abs(r1))[: max(1, int(0.9 * len(r1)))]
+    missing = float(np.mean(r1 < -3 * sigma))
     return BoxFit(
+        missing_fraction=missing,
         params=params,
         cov=cov,
         residual_px=float(np.sqrt(np.mean(np.square(trimmed)))),
