@@ -45,6 +45,7 @@ def main() -> None:
 
     found = refused = 0
     reasons: Counter[str] = Counter()
+    refused_seeds: list[int] = []
     within = in3 = total = silent_big = 0
     worst: list[tuple[float, str]] = []
     cpu_ms: list[float] = []
@@ -61,6 +62,7 @@ def main() -> None:
             except InputError as exc:
                 refused += 1
                 reasons[str(exc).split(":")[0][:70]] += 1
+                refused_seeds.append(seed)
                 continue
             cpu_ms.append((time.process_time() - started) * 1000)
             for k, v in m.timings_ms.items():
@@ -82,6 +84,8 @@ def main() -> None:
     print(f"found                          {found / n:7.1%}   target >= 95 %")
     for reason, count in reasons.most_common():
         print(f"  refused x{count}: {reason}")
+    if refused_seeds:
+        print(f"  refused seeds: {refused_seeds}")
     print(f"within max(1 %, 1 mm)          {within / max(total, 1):7.1%}   target >= 90 % "
           f"({total} dimensions)")
     print(f"within 3 sigma                 {in3 / max(total, 1):7.1%}   target >= 98 %")

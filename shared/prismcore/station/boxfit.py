@@ -19,9 +19,9 @@ __all__ = ["BoxFit", "box_corners", "fit_box", "project"]
 _CORRELATION = 4.0  # outline pixels within this many share their error (the JPEG block, the blur)
 _MIN_SIGMA_PX = 0.35  # an outline is not known better than this, however smooth it looks
 _EDGE_BIAS_PX = 0.5  # the outline's pixel centres lie half a pixel inside the true edge
-_COARSE_POINTS = 60  # outline points while choosing among the starts
+_COARSE_POINTS = 40  # outline points while choosing among the starts
 _DENSE_POINTS = 200
-_FITTED_STARTS = 5
+_FITTED_STARTS = 8
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 
 
@@ -306,7 +306,7 @@ def _start(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> 
     (cx, cy), (w, h), ang = cv2.minAreaRect(ground.astype(np.float32))
     starts = []
     for shrink, height, turn in (
-        (a, b, c) for a in (0.85, 0.6) for b in (0.3, 0.7, 1.4) for c in (0, 30, 60)
+        (a, b, c) for a in (0.85, 0.6) for b in (0.3, 0.7, 1.4) for c in (0, 15, 30, 45, 60, 75)
     ):
         if True:
             L, W = max(w * shrink, 1.0), max(h * shrink, 1.0)
@@ -408,7 +408,7 @@ def fit_box(
     starts = _start(outline, K, R, t)
     costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
     fits = [least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm", x_scale="jac",
-                          max_nfev=60)
+                          max_nfev=25)
             for i in np.argsort(costs)[:_FITTED_STARTS]]
     best_x = min(fits, key=lambda f: f.cost).x
     dense = problem(_DENSE_POINTS)

@@ -155,8 +155,8 @@ def register(
     changed: np.ndarray = np.abs(b - ratio * shifted) > 12
     changed = cv2.dilate(changed.astype(np.uint8), np.ones((9, 9), np.uint8))
     valid = (changed == 0).astype(np.uint8)
-    # ECC's warp maps photo coordinates to plate coordinates.
-    warp: np.ndarray = np.array([[1, 0, -dx], [0, 1, -dy], [0, 0, 1]], np.float32)
+    # ECC's warp maps the template's (the plate's) coordinates to the input's (the photo's).
+    warp: np.ndarray = np.array([[1, 0, dx], [0, 1, dy], [0, 0, 1]], np.float32)
     try:
         cc, warp = cv2.findTransformECC(
             a,
@@ -202,8 +202,7 @@ def register(
             "it moved since calibration, or the support changed; calibrate again"
         )
     S = np.diag([small, small, 1.0])
-    # Invert for plate -> photo.
-    H = np.linalg.inv(np.linalg.inv(S) @ warp.astype(np.float64) @ S)
+    H = np.linalg.inv(S) @ warp.astype(np.float64) @ S  # plate -> photo, full size
     shift = _shift(H, size)
     if shift > MAX_SHIFT_PX:
         raise InputError(
@@ -234,13 +233,14 @@ def _difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     dot = np.einsum("ijc,ijc->ij", P, bg)
     nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
     s = np.clip(dot / nb, *_SHADOW_RANGE)
-    return cast("np.ndarray", np.linalg.norm(P - s[..., None] * bg, axis=2))
+    # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
+    return cast("np.ndarray", np.linalg.norm(P - np.minimum(s[..., None] * bg, 255.0), axis=2))
 
 
 def _gain(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     """The light's change: one gain per channel, the median ratio (the part is a minority)."""
     bs, ps = bg.reshape(-1, 3), P.reshape(-1, 3)
-    ok = bs.min(axis=1) > 30
+    ok = (bs.min(axis=1) > 30) & (bs.max(axis=1) < 245) & (ps.max(axis=1) < 245)  # no clipped channel
     return np.median(ps[ok] / bs[ok], axis=0) if ok.sum() > 100 else np.ones(3)
 
 
@@ -254,16 +254,24 @@ def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     return resid
 
 
-def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
-    """Hysteresis: a face barely apart from a dark square is kept where it joins the part."""
+def _texture(bg: np.ndarray) -> np.ndarray:
+    """The support's local contrast (RGB levels a pixel, smoothed): where JPEG's ringing and the
+    last fraction of a pixel of registration make a difference without a part."""
+    gray = cv2.cvtColor(bg, cv2.COLOR_RGB2GRAY)
+    grad = np.abs(cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)) + np.abs(cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3))
+    return cast("np.ndarray", cv2.GaussianBlur(grad / 8, (0, 0), 2.0))
+
+
+def _mask(resid: np.ndarray, noise: float, scale: float, texture: np.ndarray | None = None) -> np.ndarray:
+    """Hysteresis: a face barely apart from a dark square is kept where it joins the part, but on
+    a textured support the weak threshold rises with the texture (its ringing is not a part)."""
     k = max(3, round(5 * scale) | 1)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
     strong: np.ndarray = cv2.morphologyEx(
         (resid > max(14.0, 4.0 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel
     )
-    weak: np.ndarray = cv2.morphologyEx(
-        (resid > max(6.0, 2.5 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel
-    )
+    low = max(6.0, 2.5 * noise) + (0.0 if texture is None else _TEXTURE_WEIGHT * texture)
+    weak: np.ndarray = cv2.morphologyEx((resid > low).astype(np.uint8), cv2.MORPH_OPEN, kernel)
     n_weak, weak_labels = cv2.connectedComponents(weak | strong, connectivity=8)
     keep = np.zeros(n_weak, np.uint8)
     keep[np.unique(weak_labels[strong > 0])] = 1
@@ -274,6 +282,7 @@ def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
     )
 
 
+_TEXTURE_WEIGHT = 0.5
 _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
@@ -325,7 +334,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
     noise = float(np.median(outside)) * 1.4826 + 1.0 if outside.size > 100 else noise_s
-    mask = _mask(resid, noise, 1.0)
+    mask = _mask(resid, noise, 1.0, _texture(bg))
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise InputError("no part found on the support (nothing differs from the plate)")
