@@ -66,7 +66,8 @@ def _sizes(result: ResultPublic) -> str:
     """'120.00 ± 0.59 x 79.99 ± 0.59 x 59.98 ± 0.90 mm': each dimension with its 1-sigma
     uncertainty when the result has one (a video's median has none)."""
     d, sigma = result.dimensions, result.uncertainty or {}
-    return " x ".join(f"{getattr(d, k):.2f}" + (f" ± {sigma[k]:.2f}" if k in sigma else "")
+    return " x ".join(f"{getattr(d, k):.2f}" + (" (given)" if k == result.given_dimension else
+                                               f" ± {sigma[k]:.2f}" if k in sigma else "")
                       for k in ("width", "height", "depth")) + f" {d.unit}"
 
 

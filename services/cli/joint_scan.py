@@ -103,8 +103,10 @@ def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: P
     (out / "joint.json").write_text(json.dumps(result_json(result), indent=2) + "\n")
     d = result.dimensions
     assert d.uncertainty is not None
-    sizes = " x ".join(f"{v:.2f} ± {s:.2f}" for v, s in zip((d.width, d.height, d.depth), d.uncertainty,
-                                                          strict=True))
+    # The known edge is its length, given: "120.00 (given)", not a measurement "± 0.00".
+    sizes = " x ".join(f"{v:.2f} (given)" if name == scale.edge else f"{v:.2f} ± {s:.2f}"
+                       for name, v, s in zip(("width", "height", "depth"), (d.width, d.height, d.depth),
+                                             d.uncertainty, strict=True))
     focal = (f"focal {result.focal_px:.0f} ± {result.focal_std_px:.0f} px (fitted)"
              if result.focal_std_px is not None else f"focal {result.focal_px:.0f} px (given)")
     console.print(f"[bold]{len(result.views)} of {len(views)} views as one box[/]  {sizes} mm  {focal}",

@@ -19,6 +19,7 @@ from prismcore.camera import CameraModel
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
 from prismcore.locate import resolve_points
+from prismcore.overlay import given_dimension, points_found
 from prismcore.spec import error_message
 from prismcore.video import DEFAULT_MAX_FRAMES, is_video
 
@@ -145,15 +146,19 @@ def _auto_points(points: str, hint: str | None, roi: str | None) -> dict[str, ob
 
 def summary_line(report: dict) -> str:
     """'640,268 points  120.00 ± 0.14 x 79.99 ± 0.09 x 59.99 ± 0.51 mm  focal 1400 px (fitted)
-    point loss 0.1%'."""
+    point loss 0.1%'; a known edge's dimension as '120.00 (given)'; points the search found
+    as '  points found (confidence 0.99)' at the end."""
     dims, sigma = report["dimensions"], report.get("uncertainty") or {}
-    sizes = " x ".join(f"{dims[k]:.2f}" + (f" ± {sigma[k]:.2f}" if k in sigma else "")
+    given = given_dimension(report)
+    sizes = " x ".join(f"{dims[k]:.2f}" + (" (given)" if k == given else
+                                           f" ± {sigma[k]:.2f}" if k in sigma else "")
                        for k in ("width", "height", "depth"))
     camera = report.get("camera") or {}
     focal = (f"  focal {camera['focal_px']:.0f} px ({camera['focal_source']})"
              if camera.get("focal_px") else "")
+    found = points_found(report)
     return (f"[bold]{report['points']:,} points[/]  {sizes} {dims['unit']}{focal}"
-            f"  point loss {report['point_loss']:.1%}")
+            f"  point loss {report['point_loss']:.1%}" + (f"  {found}" if found else ""))
 
 
 

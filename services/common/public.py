@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from datetime import datetime
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
@@ -115,6 +115,10 @@ class ResultPublic(BaseModel):
                                   "0-1 (below the search's threshold the item is refused; an "
                                   "accepted low one comes with a warning to check the points). "
                                   "Null for clicked points.")
+    given_dimension: Literal["width", "height", "depth"] | None = Field(
+        default=None, description="The dimension the scale gave rather than measured (a known "
+                                  "edge, scale kind edge): its value is the length given, its "
+                                  "uncertainty 0. Null otherwise.")
     reference_points: dict[str, list[float] | None] | None = Field(
         default=None, description="The reference points p1..p7 the scan used, (x, y) px.")
     joint: JointPublic | None = Field(

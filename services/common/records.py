@@ -48,6 +48,7 @@ class ItemResult(BaseModel):
     quality: dict[str, Any] | None = None
     points_source: str | None = None  # clicked, or auto (found by the zero-click search)
     points_confidence: float | None = None  # auto: the search's confidence, 0-1
+    given_dimension: str | None = None  # the dimension a known edge gave (not measured)
     reference_points: dict[str, list[float] | None] | None = None  # p1..p7 (x, y) the scan used, px
     joint: dict[str, Any] | None = None  # a joint fit: views used, left out, camera (JointPublic)
 

@@ -48,7 +48,7 @@ from prismcore.edges import EdgeFit
 from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.images import load_image
 from prismcore.measure import Dimensions
-from prismcore.overlay import overlay_from_report
+from prismcore.overlay import given_dimension, overlay_from_report
 from prismcore.pipeline import prepare_images
 from prismcore.scan import FacePlan, row_tiles
 from prismcore.spec import frame_folder
@@ -242,6 +242,7 @@ def item_result(report: dict[str, Any]) -> ItemResult:
                       side_face=report.get("side_face"), quality=report.get("quality"),
                       points_source=report.get("points_source", "clicked"),
                       points_confidence=(report.get("auto_points") or {}).get("confidence"),
+                      given_dimension=given_dimension(report),
                       reference_points=(report.get("inputs") or {}).get("points"))
 
 

@@ -79,6 +79,7 @@ def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[
         warnings=left + report["warnings"], focal_px=camera["focal_px"],
         focal_source="given" if spec.focal_px is not None else "fitted",
         quality=dict(quality) if quality is not None else None,
+        given_dimension=spec.scale.edge if spec.scale is not None and spec.scale.kind == "edge" else None,
         joint={"views": report["views"], "left_out": report["left_out"],
                "focal_std_px": camera["focal_std_px"], "distortion_kappa": camera["distortion_kappa"]},
     ), {"joint": key}

@@ -45,8 +45,10 @@ __all__ = [
     "SECOND_FACE_CORNERS",
     "SIDE_OVERLAY_NAME",
     "draw_overlay",
+    "given_dimension",
     "overlay_from_report",
     "photo_points",
+    "points_found",
     "report_notes",
 ]
 
@@ -306,6 +308,7 @@ def draw_overlay(
     title: str = "",
     warn_px: float = 3.0,
     side_face: str = "right",
+    points_key: str = "click",
 ) -> np.ndarray:
     """Draw the clicks and the fitted faces on a copy of `image`.
 
@@ -333,6 +336,8 @@ def draw_overlay(
         the click's label.
     side_face : {"right", "left", "top"}
         The second face P4, P5 and P7 mark (``SECOND_FACE_CORNERS``), named so in the key.
+    points_key : str
+        What the key calls the crosses: "click", or "found point" for points the search found.
 
     Returns
     -------
@@ -440,7 +445,7 @@ def draw_overlay(
     key: list[tuple[str, Color, str]] = [(f"{face_names[n]} face", FACE_COLORS[n], "line")
                                          for n in FACE_COLORS if n in quads]
     if pts:
-        key.append(("click", CLICK_COLOR, "cross"))
+        key.append((points_key, CLICK_COLOR, "cross"))
     if moved & fitted.keys():
         key.append((f"> {warn_px:g} px from fit", RESIDUAL_COLOR, "line"))
     swatches: list[tuple[Color, np.ndarray, str]] | None = []
@@ -492,19 +497,43 @@ def _sigma(uncertainty: object, name: str) -> float | None:
     return _number(value)
 
 
+def given_dimension(report: Mapping[str, Any]) -> str | None:
+    """The dimension the scale gave rather than measured: a known edge's (``inputs.scale`` of
+    kind ``edge``), shown as "120.00 mm (given)", never as a measurement "± 0.00"."""
+    inputs = report.get("inputs")
+    scale = inputs.get("scale") if isinstance(inputs, Mapping) else None
+    if isinstance(scale, Mapping) and scale.get("kind") == "edge" and scale.get("edge") in _DIMENSIONS:
+        return str(scale["edge"])
+    return None
+
+
+def points_found(report: Mapping[str, Any]) -> str | None:
+    """'points found (confidence 0.99)' when the zero-click search placed the points, else None."""
+    if report.get("points_source") != "auto":
+        return None
+    found = report.get("auto_points")
+    confidence = _number(found.get("confidence")) if isinstance(found, Mapping) else None
+    return "points found" + (f" (confidence {confidence:.2f})" if confidence is not None else "")
+
+
 def report_notes(report: Mapping[str, Any]) -> list[str]:
     """The legend's lines for a report: dimensions (± one standard deviation when the report
-    has `uncertainty`), focal length (`camera`), fit RMS (`fit`), method and video frame.
+    has `uncertainty`; a known edge's "(given)"), focal length (`camera`), fit RMS (`fit`),
+    method, video frame and points found by the search.
 
     Fields the report lacks are left out; nothing here fails on a report of an older engine.
     """
     notes: list[str] = []
     dims = report.get("dimensions")
+    given = given_dimension(report)
     if isinstance(dims, Mapping):
         unit = dims.get("unit", "")
         for name in _DIMENSIONS:
             value = _number(dims.get(name))
             if value is None:
+                continue
+            if name == given:
+                notes.append(f"{name} {value:.2f} {unit} (given)")
                 continue
             sigma = _sigma(report.get("uncertainty"), name)
             spread = f" ± {sigma:.2f}" if sigma is not None else ""
@@ -522,6 +551,8 @@ def report_notes(report: Mapping[str, Any]) -> list[str]:
     if isinstance(frame, Mapping) and _number(frame.get("index")) is not None:
         time_s = _number(frame.get("time_s"))
         notes.append(f"frame {int(frame['index'])}" + (f" at {time_s:.2f} s" if time_s is not None else ""))
+    if (found := points_found(report)) is not None:
+        notes.append(found)
     return notes
 
 
@@ -651,4 +682,5 @@ def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: 
     if side_face not in SECOND_FACE_CORNERS:
         side_face = "right"  # a report from before the choice existed, or a side photo's
     return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
-                        title=title, warn_px=warn_px, side_face=side_face)
+                        title=title, warn_px=warn_px, side_face=side_face,
+                        points_key="found point" if points_found(report) else "click")

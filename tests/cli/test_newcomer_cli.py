@@ -10,11 +10,13 @@ import sys
 from pathlib import Path
 
 import click
+import numpy as np
 import pytest
 from typer.main import get_command
 from typer.testing import CliRunner
 
 from prism_cli.main import cli
+from prismcore import overlay
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 # P1..P5 of samples/job.json: measured with the paper's colour scan, the front face's colour
@@ -68,3 +70,22 @@ def test_bracketed_help_is_shown_not_eaten_as_markup(path, name, text):
     # The help is rich markup: "[x6,y6 x7,y7]" unescaped is a tag, and vanished from --help.
     shown = CliRunner().invoke(cli, [*path, "--help"], env={"COLUMNS": "2000"}, terminal_width=2000).output
     assert text.lstrip("\\") in " ".join(shown.split()), shown
+
+
+def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, monkeypatch):
+    run = prism("scan", str(SAMPLE), "--points", "auto", "--width-mm", "120", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    line = run.stdout.splitlines()[0]
+    # The known edge is the length given, not a measurement "± 0.00".
+    assert " 120.00 (given) x 79.99 ± " in line and "± 0.00" not in line, line
+    assert line.endswith("points found (confidence 0.99)"), line
+    report = json.loads((tmp_path / "report.json").read_text())
+    notes = overlay.report_notes(report)
+    assert "width 120.00 mm (given)" in notes and "points found (confidence 0.99)" in notes, notes
+    # The overlay's key calls the crosses found points, not clicks.
+    keys = []
+    monkeypatch.setattr(overlay, "draw_overlay", lambda *a, **k: keys.append(k["points_key"]))
+    image = np.zeros((1024, 1280, 3), np.uint8)
+    overlay.overlay_from_report(image, report)
+    overlay.overlay_from_report(image, {**report, "points_source": "clicked"})
+    assert keys == ["found point", "click"]

@@ -5,6 +5,7 @@ joint.json written; bad input is one line and exit 2."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -57,6 +58,7 @@ def test_three_photos_measured_as_one_box(shots, tmp_path) -> None:
     assert run.returncode == 0, run.stderr
     assert "3 of 3 views as one box" in run.stdout
     assert "±" in run.stdout and "left out" not in run.stdout
+    assert re.search(r"views as one box  [\d.]+ \(given\) x [\d.]+ ± ", run.stdout), run.stdout  # the edge
     result = json.loads((out / "joint.json").read_text())
     for name in ("width", "height", "depth"):
         assert result["dimensions"][name] == pytest.approx(getattr(box, f"{name}_mm"), rel=0.01)

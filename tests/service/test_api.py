@@ -557,7 +557,7 @@ def test_results_and_presigned_downloads(client, store, objects):
                                "point_loss": 0.01, "warnings": ["low contrast"], "summary": None,
                                "uncertainty": None, "focal_px": None, "focal_source": None,
                                "fit_rms_px": None, "side_face": None, "quality": None,
-                               "points_source": None, "points_confidence": None,
+                               "points_source": None, "points_confidence": None, "given_dimension": None,
                                "reference_points": None, "joint": None}
     assert set(first["downloads"]) == {"csv", "report"}  # only what the item has
     csv = httpx.get(first["downloads"]["csv"])

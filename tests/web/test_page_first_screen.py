@@ -114,7 +114,9 @@ def test_result_warnings_and_3d_view_on_the_first_screen(page, tmp_path):
         assert not dim["clipped"], dim
         assert dim["value"]["lines"] == 1, dim
         assert dim["value"]["right"] <= dim["box"]["right"] + 0.5, dim
-        assert re.fullmatch(r"\d+\.\d\d ± \d+\.\d\d mm", dim["text"].strip()), dim
+        given = dim["dim"] == "width"  # the known edge: its length, given
+        shown = r"\d+\.\d\d mm \(given\)" if given else r"\d+\.\d\d ± \d+\.\d\d mm"
+        assert re.fullmatch(shown, dim["text"].strip()), dim
         assert _apart(dim["value"], got["overlay"]) and _apart(dim["box"], got["overlay"]), (dim, got)
         assert dim["value"]["right"] <= got["body"]["right"] + 0.5, (dim, got["body"])
     for w in warnings:

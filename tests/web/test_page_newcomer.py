@@ -4,9 +4,11 @@ about a large point loss, the number of points the page starts with, a given fig
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
-from page_driver import PageDriver
+import httpx
+from page_driver import KEY, PageDriver
 from playwright.sync_api import expect
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
@@ -90,3 +92,20 @@ def test_the_page_starts_with_seven_points(page, stack):
         d.click_photo(POINTS[name])
     expect(page.locator("#next-point")).to_contain_text("Click P6")
     expect(page.locator("#point-table tbody tr")).to_have_count(7)
+
+
+def test_a_known_edge_is_shown_as_given_not_as_a_measurement(page, stack):
+    d = PageDriver(page)
+    _sample(d, seven=True)
+    page.get_by_label("Scale", exact=True).select_option(label="One known edge")
+    page.get_by_label("Known edge").select_option(label="Width (P1 to P2)")
+    page.get_by_label("Its length (mm)").fill("120")
+    assert "Done" in d.submit_and_wait()
+    width = page.locator("#dimensions dd[data-field=width]")
+    expect(width).to_have_text("120.00 mm (given)")
+    measured = re.compile(r"^\d+\.\d\d ± \d+\.\d\d mm$")
+    expect(page.locator("#dimensions dd[data-field=height]")).to_have_text(measured)
+    assert width.evaluate("e => getComputedStyle(e).fontWeight") == "400"  # not bold as a result
+    expect(page.locator("#viewer .dim-label[data-dim=width]")).to_contain_text("120.00 mm (given)")
+    job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]
+    assert job["items"][0]["result"]["given_dimension"] == "width"

@@ -61,8 +61,9 @@ def _shown(page: Page) -> dict[str, tuple[float, float]]:
     out = {}
     for name in DIMENSIONS:
         text = page.locator(f"#dimensions dd[data-field={name}]").text_content()
-        value, sigma = re.fullmatch(r"([\d.]+) ± ([\d.]+) mm", text.strip()).groups()
-        out[name] = (float(value), float(sigma))
+        # The known edge is shown as given ("120.00 mm (given)"): its ± is 0.
+        value, sigma = re.fullmatch(r"([\d.]+) (?:± ([\d.]+) mm|mm \(given\))", text.strip()).groups()
+        out[name] = (float(value), float(sigma or 0.0))
     return out
 
 

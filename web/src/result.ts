@@ -8,7 +8,7 @@ import { call, message } from "./api";
 import type { ColourMode } from "./colours";
 import { jointFocal, jointLine, jointOf, jointTable } from "./joint-result";
 import { ResultsTableView } from "./results-table";
-import type { Frame, Item, Job, Result } from "./types";
+import type { Dimension, Frame, Item, Job, Result } from "./types";
 import { badge, deviationText } from "./verdicts";
 import { isVideoItem, videoResult } from "./video-result";
 import { type BoxAnnotation, Viewer } from "./viewer";
@@ -174,6 +174,12 @@ export class ResultPanel {
 }
 
 /** "120.00 ± 0.15 mm", or without ± when the uncertainty is unknown. */
+/** A dimension as shown: "79.99 ± 0.59 mm", or "120.00 mm (given)" for the known edge's. */
+function shownAs(r: Result, dim: Dimension): string {
+  if (r.given_dimension === dim) return `${r.dimensions[dim].toFixed(2)} ${r.dimensions.unit} (given)`;
+  return withSigma(r.dimensions[dim], r.uncertainty?.[dim], r.dimensions.unit);
+}
+
 export function withSigma(value: number, sigma: number | undefined, unit: string): string {
   return sigma === undefined || !Number.isFinite(sigma)
     ? `${value.toFixed(2)} ${unit}` : `${value.toFixed(2)} ± ${sigma.toFixed(2)} ${unit}`;
@@ -201,7 +207,6 @@ function summary(item: Item): Summary {
   }
   const r = item.result;
   const unit = r.dimensions.unit;
-  const sigma = r.uncertainty ?? undefined;
   const quality = r.quality ?? null;
   const out: HTMLElement[] = [];
   const warned = warningList(r.warnings, true);
@@ -232,8 +237,10 @@ function summary(item: Item): Summary {
   };
   for (const dim of DIMS) {
     const name = dim.charAt(0).toUpperCase() + dim.slice(1);
-    const dd = add(name, withSigma(r.dimensions[dim], sigma?.[dim], unit), "dim", dl);
+    const dd = add(name, shownAs(r, dim), "dim", dl);
     (dd.previousElementSibling as HTMLElement).className = "big";
+    // The known edge's length was given, not measured: plain, never bold as a result.
+    if (r.given_dimension === dim) dd.classList.add("given");
     // A figure a warning qualifies is drawn plain, flagged, and described by the warning.
     const refs = warned.of[dim];
     if (refs.length) {
@@ -284,14 +291,13 @@ function summary(item: Item): Summary {
 /** The fitted box and its dimension labels for the 3D view, from a scan's result. */
 function annotation(r: Result | null): BoxAnnotation | undefined {
   if (!r) return undefined;
-  const sigma = r.uncertainty ?? undefined;
   const unit = r.dimensions.unit;
   const warned = warningList(r.warnings, true).of;
   const labels = Object.fromEntries(DIMS.map((d) => {
     const name = d.charAt(0).toUpperCase() + d.slice(1);
     const verdict = r.quality?.dimensions[d]?.verdict;
     const flagged = warned[d].length > 0; // a warning qualifies it: "⚠" on the label too
-    return [d, { text: `${name} ${withSigma(r.dimensions[d], sigma?.[d], unit)}${flagged ? " ⚠" : ""}`, verdict,
+    return [d, { text: `${name} ${shownAs(r, d)}${flagged ? " ⚠" : ""}`, verdict,
       warned: flagged }];
   })) as BoxAnnotation["labels"];
   return { size: [r.dimensions.width, r.dimensions.height, r.dimensions.depth], unit, labels };

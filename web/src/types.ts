@@ -94,6 +94,8 @@ export interface Result {
   /** "clicked" (given in the spec) or "auto" (found by the service's search). */
   points_source?: string | null;
   points_confidence?: number | null;
+  /** The dimension a known edge gave (its length, not a measurement): shown "(given)". */
+  given_dimension?: Dimension | null;
   /** Several views measured as one box: those used and those left out (null otherwise). */
   joint?: Joint | null;
 }
