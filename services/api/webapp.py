@@ -66,7 +66,7 @@ def _not_built() -> PlainTextResponse:
 
 def mount_web(app: FastAPI, directory: Path = STATIC_DIR) -> None:
     """Serve the built page from `directory` at /app/; without a build, /app/ says how to make one."""
-    app.add_api_route("/", _home, methods=["GET"], include_in_schema=False)
+    app.add_api_route("/", _home, methods=["GET", "HEAD"], include_in_schema=False)  # HEAD: monitors
     if (directory / "index.html").is_file():
         app.mount("/app", _Page(directory=directory, html=True), name="app")
     else:

@@ -69,3 +69,13 @@ def test_an_upload_reference_says_what_is_wrong_with_it(client):
     assert "use upload:ID" not in detail
     # The form is right, there is no such upload.
     assert refused("upload:" + "0" * 32)["detail"] == f"item 0 image: no upload {'0' * 32!r}"
+
+
+def test_monitors_probe_with_head(client):
+    for path, code in (("/healthz", 200), ("/readyz", 200), ("/", 307)):
+        get = client.get(path, follow_redirects=False)
+        head = client.head(path, follow_redirects=False)
+        assert (get.status_code, head.status_code) == (code, code), (path, head.status_code, head.text)
+        assert head.content == b"" and head.headers.get("location") == get.headers.get("location")
+    paths = client.get("/openapi.json").json()["paths"]
+    assert set(paths["/healthz"]) == {"get"} and set(paths["/readyz"]) == {"get"}  # HEAD undocumented

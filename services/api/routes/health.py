@@ -85,3 +85,9 @@ async def readyz(request: Request, settings: SettingsDep, objects: ObjectsDep) -
 def metrics(store: StoreDep, client: RedisDep) -> Response:
     """Prometheus text: jobs by state, queue depth, task duration histograms."""
     return Response(render_metrics(store, client), media_type=CONTENT_TYPE_LATEST)
+
+
+# Monitors probe with HEAD: the same answers without a body (its own routes, left out of the
+# OpenAPI document, where a second method on one route would repeat the operation's id).
+router.add_api_route("/healthz", healthz, methods=["HEAD"], include_in_schema=False)
+router.add_api_route("/readyz", readyz, methods=["HEAD"], include_in_schema=False)
