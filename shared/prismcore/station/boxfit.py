@@ -146,7 +146,7 @@ def _signed_map(outline: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     cv2.fillPoly(inside, [np.round(outline).astype(np.int32).reshape(-1, 1, 2)], 1)
     d_out = cv2.distanceTransform(1 - inside, cv2.DIST_L2, 5)
     d_in = cv2.distanceTransform(inside, cv2.DIST_L2, 5)
-    return cast("np.ndarray", (d_out - d_in).astype(np.float32))
+    return (d_out - d_in).astype(np.float32)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,22 @@ WARN_RESIDUAL_PX = 1.5
 _WARN_RELATIVE_SIGMA = 0.02
 _SYSTEMATIC_PX = 0.6  # the outline's placement, px, common to a whole side
 _WARN_MISSING = 0.08
-_TOP_ONLY_SIGMA = 0.05  # relative: a footprint side read on the top face alone
+_TOP_ONLY_SIGMA = 0.05
+_SIDE_SEEN = 0.15  # relative: a footprint side read on the top face alone
+
+
+def _sides_seen(corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.ndarray) -> int:
+    """How many side faces the camera sees at _SIDE_SEEN of the largest one's area or more."""
+    mid = corners.mean(axis=0)
+    areas = []
+    for name, idx in _FACES.items():
+        F = corners[list(idx)]
+        n = np.cross(F[1] - F[0], F[2] - F[0])
+        if n @ (F.mean(axis=0) - mid) < 0:
+            n = -n
+        if name != "top" and n @ (camera_centre - F.mean(axis=0)) > 0:
+            areas.append(abs(cv2.contourArea(image_pts[list(idx)].astype(np.float32))))
+    return sum(a >= _SIDE_SEEN * max(areas) for a in areas) if areas else 0
 
 
 def _corner_at(point: np.ndarray, image_pts: np.ndarray) -> int:
@@ -95,8 +110,8 @@ def reference_points(
     """P1..P7 of the fitted box as a person would click them.
 
     corners : (8, 3) board-frame corners (footprint, then top). image_pts : (8, 2) their pixels.
-    The front face is the side face the camera sees largest; the second face the other side it
-    sees (right or left), else the top.
+    The front face is the side face the camera sees largest; the second face the larger, as
+    seen, of the other side it sees (right or left) and the top.
     """
     mid = corners.mean(axis=0)
     sides = []
@@ -122,7 +137,10 @@ def reference_points(
     tl, tr = bl + 4, br + 4
     p1, p2, p3, p6 = image_pts[tl], image_pts[tr], image_pts[br], image_pts[bl]
     assert set(top) == {tl, tr}
-    if len(sides) > 1 and sides[1][0] > 0.05 * sides[0][0]:
+    top_area = abs(cv2.contourArea(image_pts[list(_FACES["top"])].astype(np.float32)))
+    # The second face: the larger of the other side face and the top, as seen (a sliver of a
+    # side, seen almost edge on, is no face to measure a depth on).
+    if len(sides) > 1 and sides[1][0] > max(0.05 * sides[0][0], top_area):
         other = sides[1][1]
         shared = set(other) & set(front)
         if br in shared:
@@ -219,7 +237,7 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
     # the points in the photo as taken: the same corners through the lens
     lookup = {tuple(np.round(p, 6)): i for i, p in enumerate(project(corners, K, R, t))}
     points = np.array([image_pts[lookup[tuple(np.round(p, 6))]] for p in points])
-    if side == "top":
+    if _sides_seen(corners, project(corners, K, R, t), -R.T @ t) < 2:
         # One side face towards the camera: the footprint's other side is read on the top face
         # alone, foreshortened (seen 13 % off on renders with a sigma of 0.3 mm): say so, and
         # widen its sigma to what such views are seen to miss by.

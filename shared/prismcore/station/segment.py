@@ -254,23 +254,16 @@ def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     return resid
 
 
-def _texture(bg: np.ndarray) -> np.ndarray:
-    """The support's local contrast (RGB levels a pixel, smoothed): where JPEG's ringing and the
-    last fraction of a pixel of registration make a difference without a part."""
-    gray = cv2.cvtColor(bg, cv2.COLOR_RGB2GRAY)
-    grad = np.abs(cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)) + np.abs(cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3))
-    return cast("np.ndarray", cv2.GaussianBlur(grad / 8, (0, 0), 2.0))
-
-
-def _mask(resid: np.ndarray, noise: float, scale: float, texture: np.ndarray | None = None) -> np.ndarray:
-    """Hysteresis: a face barely apart from a dark square is kept where it joins the part, but on
-    a textured support the weak threshold rises with the texture (its ringing is not a part)."""
+def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
+    """Hysteresis: a face barely apart from a dark square is kept where it joins the part. (A weak
+    threshold raised with the support's texture was tried: it broke a dark face on the board's
+    dark squares, where the texture is the board's hidden pattern.)"""
     k = max(3, round(5 * scale) | 1)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
     strong: np.ndarray = cv2.morphologyEx(
         (resid > max(14.0, 4.0 * noise)).astype(np.uint8), cv2.MORPH_OPEN, kernel
     )
-    low = max(6.0, 2.5 * noise) + (0.0 if texture is None else _TEXTURE_WEIGHT * texture)
+    low = max(6.0, 2.5 * noise)
     weak: np.ndarray = cv2.morphologyEx((resid > low).astype(np.uint8), cv2.MORPH_OPEN, kernel)
     n_weak, weak_labels = cv2.connectedComponents(weak | strong, connectivity=8)
     keep = np.zeros(n_weak, np.uint8)
@@ -282,7 +275,6 @@ def _mask(resid: np.ndarray, noise: float, scale: float, texture: np.ndarray | N
     )
 
 
-_TEXTURE_WEIGHT = 0.5
 _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
@@ -334,7 +326,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
     noise = float(np.median(outside)) * 1.4826 + 1.0 if outside.size > 100 else noise_s
-    mask = _mask(resid, noise, 1.0, _texture(bg))
+    mask = _mask(resid, noise, 1.0)
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise InputError("no part found on the support (nothing differs from the plate)")
