@@ -22,6 +22,7 @@ _EDGE_BIAS_PX = 0.5  # the outline's pixel centres lie half a pixel inside the t
 _COARSE_POINTS = 40  # outline points while choosing among the starts
 _DENSE_POINTS = 200
 _FITTED_STARTS = 8
+_WEAK_STEP = 20.0  # RGB levels
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 
 
@@ -76,6 +77,7 @@ class BoxFit:
     residual_px: float
     outline_px: int
     missing_fraction: float = 0.0  # of the outline lying well inside the box: a stretch not found
+    weak_fraction: float = 0.0  # of the fitted silhouette where the photo barely differs across it
 
     @property
     def length_mm(self) -> float:
@@ -372,6 +374,19 @@ def refine_outline(outline: np.ndarray, hull: np.ndarray, difference: np.ndarray
     return cast("np.ndarray", (outline + offset[:, None] * normal)[ok])
 
 
+def _weak_fraction(corners_px: np.ndarray, difference: np.ndarray) -> float:
+    """The share of the fitted silhouette's outline across which the photo's difference from the
+    support steps by less than _WEAK_STEP levels (3 px in against 3 px out): where a part's
+    colour meets the support's, its edge may have been found short of where it is."""
+    hull = corners_px[_hull(corners_px)]
+    centre = hull.mean(axis=0)
+    s = np.linspace(0.05, 0.95, 20)[:, None]
+    pts = np.concatenate([a + s * (b - a) for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
+    inward = (centre - pts) / np.maximum(np.linalg.norm(centre - pts, axis=1), 1e-9)[:, None]
+    step = _lookup(difference, pts + 3 * inward) - _lookup(difference, pts - 3 * inward)
+    return float(np.mean(step < _WEAK_STEP))
+
+
 def fit_box(
     outline: np.ndarray,
     K: np.ndarray,
@@ -444,8 +459,10 @@ def fit_box(
     # label's corner): what says whether the part is a box at all.
     trimmed = np.sort(np.abs(r1))[: max(1, int(0.9 * len(r1)))]
     missing = float(np.mean(r1 < -3 * sigma))
+    weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t), difference)
     return BoxFit(
         missing_fraction=missing,
+        weak_fraction=weak,
         params=params,
         cov=cov,
         residual_px=float(np.sqrt(np.mean(np.square(trimmed)))),

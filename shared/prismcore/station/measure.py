@@ -24,6 +24,7 @@ WARN_RESIDUAL_PX = 1.5
 _WARN_RELATIVE_SIGMA = 0.02
 _SYSTEMATIC_PX = 0.6  # the outline's placement, px, common to a whole side
 _WARN_MISSING = 0.08
+_WARN_WEAK = 0.15
 _TOP_ONLY_SIGMA = 0.05
 _SIDE_SEEN = 0.15  # relative: a footprint side read on the top face alone
 
@@ -222,6 +223,10 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
     mm_per_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], -H / 2]) + t)) / K[0, 0]
     sig = {k: float(np.sqrt(sig[k] ** 2 + (_SYSTEMATIC_PX * mm_per_px) ** 2 + (0.002 * dims[k]) ** 2))
            for k in dims}
+    if fit.weak_fraction > _WARN_WEAK:
+        warnings.append(f"{fit.weak_fraction:.0%} of the part's outline barely differs from the support "
+                        "(colours alike there): its edge may have been found short; the dimensions may "
+                        "be small")
     if fit.missing_fraction > _WARN_MISSING:
         warnings.append(f"{fit.missing_fraction:.0%} of the part's outline was not found where the box's "
                         "edge lies (low contrast against the support there): the dimensions may be short")

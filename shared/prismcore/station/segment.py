@@ -275,6 +275,8 @@ def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
     )
 
 
+_SPLIT_GAP_PX = 3.0  # coarse px
+_SPLIT_GAP = 0.3  # of the part's size (the square root of its area)
 _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
@@ -308,9 +310,18 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
         raise InputError("no part found on the support (nothing differs from the plate)")
     first = big[0]
     others = [i for i in big[1:] if areas[i - 1] >= _SECOND_PART * areas[first - 1]]
+    # A blob within a small gap of the part is the part split by a band of its colour meeting the
+    # support's (one face alike the table behind it): joined. Farther, it is a second part.
+    gap = cv2.distanceTransform((labels != first).astype(np.uint8), cv2.DIST_L2, 3)
+    reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(areas[first - 1])))
+    joined = [i for i in others if float(gap[labels == i].min()) <= reach]
+    others = [i for i in others if i not in joined]
     if others:
         raise InputError(f"{1 + len(others)} parts found: one part per photo")
-    x0, y0, bw, bh = (int(v) for v in stats[first, :4])
+    pieces = [first, *joined]
+    x0, y0 = (int(min(stats[i, k] for i in pieces)) for k in (0, 1))
+    bw = int(max(stats[i, 0] + stats[i, 2] for i in pieces)) - x0
+    bh = int(max(stats[i, 1] + stats[i, 3] for i in pieces)) - y0
     if x0 <= 0 or y0 <= 0 or x0 + bw >= small[0] or y0 + bh >= small[1]:
         raise InputError("the part is cut by the photo's edge: move it into view")
     # The part's window at full size, with a margin of support around it.
@@ -320,7 +331,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     P = photo_u[Y0:Y1, X0:X1].astype(np.float32)
     bg = bg_full[Y0:Y1, X0:X1].astype(np.float32) * gain
     resid = _residual(P, bg)
-    near = cv2.resize((labels == first).astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)[
+    near = cv2.resize(np.isin(labels, pieces).astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)[
         Y0:Y1, X0:X1
     ]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
@@ -330,14 +341,28 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise InputError("no part found on the support (nothing differs from the plate)")
-    part = (lab == 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))).astype(np.uint8)
+    warnings = []
+    largest = int(np.max(st[1:, cv2.CC_STAT_AREA]))
+    in_part = [j for j in range(1, count) if st[j, cv2.CC_STAT_AREA] >= _SECOND_PART * largest
+               and near[lab == j].any()]
+    part = np.isin(lab, in_part).astype(np.uint8)
     contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    contour = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
+    if len(in_part) > 1:
+        # Its pieces joined by their convex hull (a box's silhouette is convex), the hull's sides
+        # sampled every pixel as an outline.
+        every = np.vstack([c.reshape(-1, 2) for c in contours])
+        hull = cv2.convexHull(every).reshape(-1, 2).astype(np.float64)
+        contour = np.vstack([
+            a + np.linspace(0, 1, max(2, int(np.linalg.norm(b - a))), endpoint=False)[:, None] * (b - a)
+            for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
+        warnings.append(f"the part's outline was found in {len(in_part)} pieces (a face's colour close to "
+                        "the support's between them): joined as one box; the dimensions may be off")
+    else:
+        contour = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
     filled = np.zeros_like(part)
     cv2.drawContours(filled, [contour.astype(np.int32).reshape(-1, 1, 2)], -1, 1, thickness=-1)
     inside_roi = filled.astype(bool)
     contrast = float(np.median(np.linalg.norm(P[inside_roi] - bg[inside_roi], axis=1)))
-    warnings = []
     if contrast < _LOW_CONTRAST:
         warnings.append(
             f"the part's colour is close to the support's (contrast {contrast:.0f} RGB levels, "
