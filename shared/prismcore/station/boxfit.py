@@ -284,7 +284,8 @@ def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
     d_b = np.where(at_b[:, None], -away, np.where(interior[:, None], d_b, 0.0))
     ia = hull[k]
     ib = hull[(k + 1) % len(hull)]
-    J[:n] = np.einsum("nk,nkp->np", d_a, dpts[ia]) + np.einsum("nk,nkp->np", d_b, dpts[ib])
+    da, db = dpts[ia], dpts[ib]
+    J[:n] = d_a[:, 0:1] * da[:, 0] + d_a[:, 1:2] * da[:, 1] + d_b[:, 0:1] * db[:, 0] + d_b[:, 1:2] * db[:, 1]
     _, g = _lookup_grad(p.signed, pts[hull] - p.origin)
     J[n + hull] = p.vertex_weight * np.einsum("nk,nkp->np", g, dpts[hull])
     if p.fold_dt is not None:

@@ -43,6 +43,23 @@ def _sides_seen(corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.nd
     return sum(a >= _SIDE_SEEN * max(areas) for a in areas) if areas else 0
 
 
+_PLATES: dict[tuple[str, str], np.ndarray] = {}
+
+
+def _undistorted_plate(station: Station) -> np.ndarray | None:
+    """The station's plate decoded and undistorted once for a batch of photos (the last station's
+    kept: a worker measures one station's photos in a row)."""
+    if station.plate_png is None:
+        return None
+    key = (station.camera.model_dump_json(), f"{len(station.plate_png)}:{hash(station.plate_png)}")
+    if key not in _PLATES:
+        plate = station.plate()
+        assert plate is not None
+        _PLATES.clear()
+        _PLATES[key] = undistorter(station.camera).image(plate)
+    return _PLATES[key]
+
+
 def _corner_at(point: np.ndarray, image_pts: np.ndarray) -> int:
     """The corner index whose photo pixel is `point`."""
     return int(np.argmin(np.linalg.norm(image_pts - point, axis=1)))
@@ -175,11 +192,11 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
         raise InputError(
             f"the photo is {w}x{h} px, the station's camera {cam.image_width}x{cam.image_height}"
         )
-    plate = station.plate()
-    if plate is None:
+    plate_u = _undistorted_plate(station)
+    if plate_u is None:
         raise InputError("the station has no plate (a photo of the empty support): calibrate it with --plate")
     und = undistorter(cam)
-    photo_u, plate_u = und.image(photo), und.image(plate)
+    photo_u = und.image(photo)
     t1 = time.perf_counter()
     reg = register(photo_u, plate_u, photo, station.board, cam, station.plane)
     t2 = time.perf_counter()
