@@ -17,7 +17,7 @@ from prism_common.settings import get_settings
 from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
-from .routes import health, jobs, previews, results, upload_points, upload_video, uploads
+from .routes import health, jobs, previews, results, stations, upload_points, upload_video, uploads
 from .webapp import mount_docs, mount_guide, mount_web
 
 __all__ = ["app", "create_app"]
@@ -56,6 +56,7 @@ def create_app() -> FastAPI:
     v1.include_router(jobs.router)
     v1.include_router(previews.router)
     v1.include_router(results.router)
+    v1.include_router(stations.router)
     app.include_router(v1)
     app.include_router(health.router)
     mount_web(app)

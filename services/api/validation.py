@@ -17,6 +17,7 @@ from fastapi.exceptions import RequestValidationError
 from prism_common.outbound import check_webhook_url
 from prism_common.references import ReferenceError, check_reference, parse_reference
 from prism_common.settings import Settings
+from prism_common.stations import StationPublic
 from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
@@ -133,11 +134,25 @@ def _check_views(item: ScanSpec, i: int, shapes: dict[str, tuple[int, int] | Non
                  f"item {i} views.{k}: {message}")
 
 
+def _check_station(station_id: str, station: StationPublic | None, i: int, size: tuple[int, int] | None,
+                   fail: Callable[[tuple, str], None]) -> None:
+    """A station item: the tenant's station, and a photo of its camera's size when known."""
+    if station is None:
+        fail(("items", i, "station"), f"item {i} station: no station {station_id!r} (POST /v1/stations "
+             "stores one; GET /v1/stations lists yours)")
+        return
+    if size is not None and size != (station.image_height, station.image_width):
+        (h, w), (sh, sw) = size, (station.image_height, station.image_width)
+        fail(("items", i, "image"), f"item {i} image: the photo is {w}x{h} px, station {station_id}'s "
+             f"camera {sw}x{sh} px: a station measures photos of its own camera at its image size")
+
+
 def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
-              raw: bytes | None = None) -> set[str]:
+              raw: bytes | None = None,
+              stations: Callable[[str], StationPublic | None] | None = None) -> set[str]:
     """Raise RequestValidationError naming every item (and field) the service will not run;
     else return the ids of the uploads the job reads. `raw` is the body as sent, for pointers
-    that name its own keys or indices."""
+    that name its own keys or indices. `stations` looks up the tenant's station of an id."""
     errors: list[dict[str, Any]] = []
 
     def fail(loc: tuple, msg: str) -> None:
@@ -158,6 +173,7 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
     sizes: dict[str, tuple[int, int] | None] = {}
     probes: dict[str, dict[str, Any] | None] = {}
+    known_stations: dict[str, StationPublic | None] = {}  # a batch names one station: read it once
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
@@ -190,6 +206,11 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                 shapes[key] = None
         if item.views is not None:
             _check_views(item, i, shapes, fail)
+            continue
+        if item.station is not None:
+            if item.station not in known_stations:
+                known_stations[item.station] = stations(item.station) if stations else None
+            _check_station(item.station, known_stations[item.station], i, shapes.get("image"), fail)
             continue
         front = shapes.get("image")
         side = shapes.get("side_image") if item.two_photo else front

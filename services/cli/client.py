@@ -10,6 +10,11 @@ For integrators::
         job = api.wait(job.id, timeout=600, on_update=lambda j: print(j.progress))
         api.download(job, Path("out"))
 
+        # A station (prism station calibrate's station.json): photos with no points, no scale.
+        station = api.create_station(Path("station.json"))
+        refs = [api.upload(p) for p in sorted(Path("photos").glob("*.jpg"))]
+        job = api.submit({"items": [{"image": r} for r in refs]}, station=station.id)
+
 Answers are the API's own pydantic models (`JobPublic`, `JobList`). A 429 or 503 is retried
 after the `Retry-After` the API gives (a few times); a submit always carries an
 Idempotency-Key (one is made when none is given), so retrying it cannot make a second job.
@@ -18,6 +23,7 @@ Idempotency-Key (one is made when none is given), so retrying it cannot make a s
 from __future__ import annotations
 
 import email.utils
+import json
 import math
 import time
 import uuid
@@ -28,11 +34,12 @@ from typing import Any
 
 import httpx
 from prism_common.public import JobList, JobPublic, ResultsTable
+from prism_common.stations import StationList, StationPublic
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
-__all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "WaitTimeoutError", "format_eta",
-           "remaining_s"]
+__all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "StationPublic", "WaitTimeoutError",
+           "format_eta", "remaining_s"]
 
 FINAL_STATES = frozenset({"succeeded", "failed", "cancelled"})
 _RETRY_STATUSES = frozenset({429, 503})
@@ -163,9 +170,38 @@ class ApiClient:
             self._uploaded[key] = response.json()["reference"]
         return self._uploaded[key]
 
+    # -- stations -----------------------------------------------------------------------------
+    def create_station(self, station: Path | dict[str, Any], *, name: str | None = None) -> StationPublic:
+        """Store a station (station.json's path, or its parsed document) as one of the key's
+        stations; its summary (`.id` names it in items)."""
+        content = station.read_bytes() if isinstance(station, Path) else json.dumps(station).encode()
+        response = self._call("POST", "/v1/stations", content=content, params={"name": name} if name else {},
+                              headers={"Content-Type": "application/json"})
+        return StationPublic.model_validate(response.json())
+
+    def station(self, station_id: str) -> StationPublic:
+        return StationPublic.model_validate(self._call("GET", f"/v1/stations/{station_id}").json())
+
+    def stations(self) -> list[StationPublic]:
+        """The key's stations, newest first."""
+        return StationList.model_validate(self._call("GET", "/v1/stations").json()).stations
+
+    def station_document(self, station_id: str) -> dict[str, Any]:
+        """The stored station.json (its plate included), as `prism scan --station` reads it."""
+        found: dict[str, Any] = self._call("GET", f"/v1/stations/{station_id}/station.json").json()
+        return found
+
+    def delete_station(self, station_id: str) -> None:
+        self._call("DELETE", f"/v1/stations/{station_id}")
+
     # -- jobs ---------------------------------------------------------------------------------
-    def submit(self, body: dict[str, Any], *, idempotency_key: str | None = None) -> JobPublic:
-        """Submit a job (`JobCreate`'s shape); 202's job. Retried safely: the same key each time."""
+    def submit(self, body: dict[str, Any], *, idempotency_key: str | None = None,
+               station: str | None = None) -> JobPublic:
+        """Submit a job (`JobCreate`'s shape); 202's job. Retried safely: the same key each time.
+        `station`: every item that names none is measured on this station (no points, no scale)."""
+        if station is not None:
+            body = {**body, "items": [item if "station" in item else {**item, "station": station}
+                                      for item in body["items"]]}
         key = idempotency_key or f"prism-client-{uuid.uuid4().hex}"
         response = self._call("POST", "/v1/jobs", json=body, headers={"Idempotency-Key": key})
         return JobPublic.model_validate(response.json())

@@ -18,7 +18,8 @@ from .client import ApiClient, format_eta, remaining_s
 from .results_command import render_results
 from .scan_command import one_line, read_spec_json, spec_from_flags
 
-__all__ = ["cancel", "download", "jobs", "results", "status", "submit", "wait"]
+__all__ = ["cancel", "download", "jobs", "results", "station_delete", "station_list", "station_upload",
+           "status", "submit", "wait"]
 
 console = Console()
 ApiUrl = Annotated[str, typer.Option("--api", envvar="PRISM_API_URL", help="API base URL.")]
@@ -111,7 +112,12 @@ def _job_document(spec_file: Path) -> dict[str, Any]:
 def submit(
     api: ApiUrl = "http://127.0.0.1:8000",
     key: ApiKey = "",
-    image: Annotated[Path | None, typer.Argument(help="Photo (or give --spec).")] = None,
+    images: Annotated[list[Path] | None, typer.Argument(
+        help="Photo (or give --spec); with --station, any number of photos, one item each.",
+        metavar="IMAGE")] = None,
+    station: Annotated[str | None, typer.Option(
+        help="A stored station's id (prism station upload): each photo is measured on it, with no "
+        "points and no scale.")] = None,
     points: Annotated[str | None, typer.Option(help="Reference points, as for prism scan.")] = None,
     spec_file: Annotated[Path | None, typer.Option("--spec", help="A scan spec or {items: [...]}.")] = None,
     side: Annotated[Path | None, typer.Option(help="Side photo.")] = None,
@@ -139,7 +145,15 @@ def submit(
     client = _client(api, key)
     if spec_file is not None:
         document, base = _job_document(spec_file), spec_file.parent
+        if station is not None:
+            document["items"] = [{"station": station, **item} for item in document["items"]]
+    elif station is not None:
+        document, base = _station_document(images or [], station, formats), Path(".")
     else:
+        if images and len(images) > 1:
+            raise InputError(f"{len(images)} photos given: one photo per job without --station (give "
+                             "several items in a --spec file)")
+        image = images[0] if images else None
         try:
             spec = spec_from_flags(image, points, side=side, mm_per_px=mm_per_px,
                                    distance_mm=distance_mm, focal_px=focal_px, width_mm=width_mm,
@@ -165,6 +179,43 @@ def submit(
     console.print(job.id)
     if then_wait:
         _wait(client, job.id, timeout=3600)
+
+
+def _station_document(images: list[Path], station: str, formats: str | None) -> dict[str, Any]:
+    """One item per photo, each measured on `station` (the service's default formats unless given)."""
+    if not images:
+        raise InputError("--station: give the photos to measure on it")
+    extra = {"formats": [f.strip() for f in formats.split(",") if f.strip()]} if formats else {}
+    return {"items": [{"image": str(path), "station": station, **extra} for path in images]}
+
+
+def station_upload(
+    station_file: Annotated[Path, typer.Argument(help="station.json (prism station calibrate).")],
+    name: Annotated[str | None, typer.Option(help="Your own name for it.")] = None,
+    api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
+) -> None:
+    """Store a station on the service; prints its id (for prism submit --station ID)."""
+    if not station_file.is_file():
+        raise InputError(f"{station_file}: no such file")
+    with _client(api, key) as client:
+        found = client.create_station(station_file, name=name)
+    console.print(found.id, soft_wrap=True)
+
+
+def station_list(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
+    """List your stations on the service, newest first: id, image size, plane RMS, plate, name."""
+    with _client(api, key) as client:
+        for s in client.stations():
+            console.print(f"{s.id}  {s.image_width}x{s.image_height} px  plane RMS {s.plane_rms_px:.2f} px  "
+                          f"{'plate' if s.has_plate else 'no plate'}  {s.created_at:%Y-%m-%d %H:%M:%S}  "
+                          f"{s.name or ''}", soft_wrap=True, markup=False)
+
+
+def station_delete(station_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
+    """Delete one of your stations from the service."""
+    with _client(api, key) as client:
+        client.delete_station(station_id)
+    console.print(f"deleted station {station_id}", soft_wrap=True)
 
 
 def status(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",

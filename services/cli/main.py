@@ -18,7 +18,18 @@ from prismcore import InputError
 
 from .calibrate_command import calibrate
 from .client import ApiError, WaitTimeoutError
-from .client_commands import cancel, download, jobs, results, status, submit, wait
+from .client_commands import (
+    cancel,
+    download,
+    jobs,
+    results,
+    station_delete,
+    station_list,
+    station_upload,
+    status,
+    submit,
+    wait,
+)
 from .sample_command import sample
 from .scan_command import scan
 from .schema_command import schema
@@ -42,6 +53,9 @@ cli.command()(jobs)
 cli.command()(cancel)
 cli.command()(serve)
 cli.command()(board)
+station_app.command("upload")(station_upload)
+station_app.command("list")(station_list)
+station_app.command("delete")(station_delete)
 cli.add_typer(station_app, name="station")
 
 

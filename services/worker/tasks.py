@@ -7,6 +7,7 @@ the logic, which lives in one place each:
 * `steps`: an item of a photo job: plan, scan a tile, finish; or scanned whole;
 * `joint_item`: several views of one part (an item's views, a video's frames with fit
   "joint") measured as ONE box, whole in one task;
+* `station_item`: a photo measured on a stored station (no points, no scale), whole in one task;
 * `video`: a video item split into frames, a frame measured, the item summarised; an uploaded
   video's frame extracted for the web page;
 * `upload_points`: the box and its points found in an upload, for the web page;
@@ -58,7 +59,7 @@ from prism_common.references import ReferenceError
 
 from prismcore import InputError
 
-from . import joint_item, lifecycle, steps, upload_points, video, webhooks
+from . import joint_item, lifecycle, station_item, steps, upload_points, video, webhooks
 from .app import app, worker_context
 from .artifacts import tile_id
 from .context import WorkerContext
@@ -183,6 +184,8 @@ def plan_item(self: AnyTask, job_id: str, item: int) -> None:
     lifecycle.mark_running(ctx, view, repeat=repeat)
     if joint_item.is_joint(view.item.spec):
         _scan_whole(ctx, view, repeat, joint_item.measure_joint)
+    elif station_item.is_station(view.item.spec):
+        _scan_whole(ctx, view, repeat, station_item.measure_station)
     elif view.item.spec.is_video:
         _split_video(ctx, view, repeat)
     elif steps.tiles_per_face(ctx, view.n_items) == 1:

@@ -500,6 +500,8 @@ def _sigma(uncertainty: object, name: str) -> float | None:
 def given_dimension(report: Mapping[str, Any]) -> str | None:
     """The dimension the scale gave rather than measured: a known edge's (``inputs.scale`` of
     kind ``edge``), shown as "120.00 mm (given)", never as a measurement "± 0.00"."""
+    if report.get("scale_source") in ("station", "board"):
+        return None  # measured on a station (board): its height is only the derived points' scale
     inputs = report.get("inputs")
     scale = inputs.get("scale") if isinstance(inputs, Mapping) else None
     if isinstance(scale, Mapping) and scale.get("kind") == "edge" and scale.get("edge") in _DIMENSIONS:

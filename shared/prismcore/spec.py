@@ -354,6 +354,10 @@ class ScanSpec(_Strict):
         "(the default) measures each frame as a photo and summarises the medians; \"joint\" "
         f"measures the frames of frame_points (2 to {JOINT_MAX_VIEWS}, seven points each, a known "
         "edge as the scale) as ONE box, as views are. Items with views are always joint.")
+    station: str | None = Field(
+        default=None, description="The service: a stored station's id (POST /v1/stations): the part "
+        "resting on its support is found and measured in mm from the photo alone (prismcore.station), "
+        "with no points and no scale; the photo must come from the station's camera at its image size.")
     tolerance: float = Field(default=12.0, ge=0.0, le=128.0, description="RGB tolerance per channel.")
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None
@@ -441,8 +445,18 @@ class ScanSpec(_Strict):
                 return {**data, "frames": {"indices": indices}}
         return data
 
+    @field_validator("station")
+    @classmethod
+    def _station_id(cls, value: str | None) -> str | None:
+        if value is not None and not _STATION_ID.match(value):
+            raise ValueError(f"station {value[:64]!r} is not a station id (32 lowercase hex digits, "
+                             "as POST /v1/stations answers)")
+        return value
+
     @model_validator(mode="after")
     def _consistent(self) -> ScanSpec:
+        if self.station is not None:
+            self._station_consistent()
         if self.views is not None or self.fit is not None:
             self._joint_consistent()
         if isinstance(self.scale, Pinhole) and self.focal_px is None and self.camera is None \
@@ -468,7 +482,7 @@ class ScanSpec(_Strict):
             if self.side_face != "auto":
                 raise ValueError(f"side_face {self.side_face!r} goes with clicked points: with points "
                                  "\"auto\" the search tells the face itself; drop side_face")
-        elif self.points is None and self.views is None:
+        elif self.points is None and self.views is None and self.station is None:
             raise ValueError("points: the reference points are missing (give points, \"auto\" "
                              "to have them found in the photo, or frame_points for a video)")
         if self.side_image is not None and self.side_face in ("left", "top"):
@@ -482,13 +496,22 @@ class ScanSpec(_Strict):
                              "allowed deviation from it)")
         metric = [f"{n}" for n in ("nominal", "spacing_mm") if getattr(self, n) is not None]
         metric += [f"format {f!r}" for f in self.formats if f in ("las", "laz", "glb")]
-        if metric and self.scale is None:
+        if metric and self.scale is None and self.station is None:
             raise ValueError(f"{metric[0]} is in mm or metres, but without a scale the dimensions "
                              "are in pixels: give a scale (mm_per_px, a pinhole distance or a known edge)")
         if self.frames is not None and self.side_image is not None:
             raise ValueError(f"a video is measured in single-photo mode: side_image "
                              f"{self.side_image!r} cannot be used with frames")
         return self
+
+    def _station_consistent(self) -> None:
+        """A station item: the photo alone, measured on the station (no points, no scale)."""
+        for name in _STATION_ASIDE:
+            given = self.auto_points is not None if name == "points" and self.points is None \
+                else self._changed(name)
+            if given:
+                raise _field_error((name,), f"{name} does not go with a station: {_STATION_ASIDE[name]}",
+                                   getattr(self, name))
 
     def _joint_consistent(self) -> None:
         """The rules of `views` and `fit`, each error at the field at fault."""
@@ -593,6 +616,23 @@ class ScanSpec(_Strict):
         """True when `image` names a video (the spec has a frame selection)."""
         return self.frames is not None
 
+
+_STATION_ID = re.compile(r"^[0-9a-f]{32}$")
+_STATION_FOUND = "the station finds the part and fits the box itself"
+_STATION_ASIDE = {
+    "points": _STATION_FOUND + " (its seven points are derived from the fit); drop points",
+    "frame_points": _STATION_FOUND + " in one photo; drop frame_points",
+    "frames": "a station measures photos, not videos; drop frames",
+    "views": "a station measures each photo alone; give one item per photo",
+    "fit": "a station measures each photo alone; drop fit",
+    "side_image": "a station measures one photo; drop side_image",
+    "side_face": _STATION_FOUND + "; drop side_face",
+    "method": _STATION_FOUND + "; drop method",
+    "scale": "the station's calibrated support plane gives the millimetres; drop scale",
+    "focal_px": "the station's calibrated camera is used; drop focal_px",
+    "principal_point": "the station's calibrated camera is used; drop principal_point",
+    "camera": "the station's calibrated camera is used; drop camera",
+}
 
 _CLOUD_ONLY = ("tolerance", "csv", "ply_ascii", "max_points")
 """Options of the cloud a photo's scan makes, which a joint fit (no cloud) would silently ignore."""

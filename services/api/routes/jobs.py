@@ -20,12 +20,13 @@ from kombu.exceptions import OperationalError
 from prism_common import public
 from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.stations import get_summary
 from prism_common.store import IdempotencyConflictError, JobStore
 
 from prismcore.spec import OutputFormat, ScanSpec
 
 from ..backpressure import check_queue_depth
-from ..deps import CeleryDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
+from ..deps import CeleryDep, ObjectsDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
 from ..presign import Presigner
 from ..schemas import JobCreate, JobList, JobPublic
 from ..validation import check_job
@@ -67,7 +68,7 @@ async def _raw_body(request: Request) -> bytes:
              responses={409: {"description": "Idempotency-Key reused with another body"}})
 def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, settings: SettingsDep,
                store: StoreDep, presigner: PresignerDep, celery: CeleryDep, client: RedisDep,
-               body: Annotated[bytes, Depends(_raw_body)],
+               objects: ObjectsDep, body: Annotated[bytes, Depends(_raw_body)],
                idempotency_key: Annotated[str | None, Header(max_length=200)] = None) -> JobPublic:
     """Queue a batch of scans. Repeating a request with the same Idempotency-Key returns its job."""
     try:
@@ -77,7 +78,8 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
             return to_public(job, presigner)
     except IdempotencyConflictError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
-    uploads = check_job(job_in, settings, store, tenant, raw=body)
+    uploads = check_job(job_in, settings, store, tenant, raw=body,
+                        stations=lambda station_id: get_summary(objects, tenant, station_id))
     check_queue_depth(client, settings)
     items = [ItemRecord(index=i, spec=spec.model_copy(
         update={"max_pixels": min(spec.max_pixels, settings.max_pixels),
@@ -112,7 +114,8 @@ def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]
     joint = getattr(spec, "views", None) is not None or getattr(spec, "fit", None) == "joint"
     if "formats" in spec.model_fields_set or joint:
         return spec.formats
-    usable = [f for f in defaults if spec.scale is not None or f not in ("las", "laz", "glb")]
+    scaled = spec.scale is not None or spec.station is not None  # a station's plane gives the mm
+    usable = [f for f in defaults if scaled or f not in ("las", "laz", "glb")]
     return usable or ["csv", "ply"]
 
 

@@ -1,0 +1,241 @@
+"""Stations through the whole service (API under uvicorn, a Celery worker, redis-server and
+SeaweedFS): a station.json stored as a tenant's resource (summary, list, its document, delete;
+another tenant's is 404; a bad document is 422 at its field), items naming it refused at submit
+with points, a scale, an unknown or foreign id, or a photo of another size; and a batch of photos
+of one station with nothing else given, each part measured in mm with no click and no known edge
+(the issue asks for 500 photos; 24 here keep the run short), a photo of the empty support failing
+with the engine's "no part found". The Python client and `prism submit --station` likewise.
+
+The photos are renders of ONE station setup (`prismsynth.station`: one camera, one support) with
+a different part each, their truth the rendered box; the station is calibrated with the true
+camera from one plate, as a station is set up once before its parts come.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import httpx
+import numpy as np
+import pytest
+import redis
+
+from prism_cli.client import ApiClient
+from prism_cli.stack import start_api, start_worker
+from prismcore.camera import CameraModel
+from prismcore.station import calibrate_station
+from prismsynth.station import StationScene, StationSetup, station_scene, station_setup
+
+from .conftest import API_KEYS
+from .servers import service_env
+
+DB = 5
+BUCKET = "t-stations"
+SIZE = (1280, 1024)
+SETUP_SEED = 3
+PART_SEEDS = range(101, 125)  # 24 parts on the one station
+ACME = {"X-API-Key": API_KEYS["acme"]}
+GLOBEX = {"X-API-Key": API_KEYS["globex"]}
+PRISM = str(Path(sys.executable).with_name("prism"))
+
+
+def _jpeg(image: np.ndarray) -> bytes:
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    assert ok
+    return data.tobytes()
+
+
+def _within(measured: dict, truth: dict[str, float]) -> bool:
+    return all(abs(float(measured[k]) - v) <= max(0.02 * v, 1.5) for k, v in truth.items())
+
+
+class Stack:
+    def __init__(self, port: int) -> None:
+        self.base = f"http://127.0.0.1:{port}"
+        self.http = httpx.Client(base_url=self.base, timeout=60, headers=ACME)
+
+    def upload(self, data: bytes, name: str) -> str:
+        r = self.http.post("/v1/uploads", files={"file": (name, data)})
+        assert r.status_code in (200, 201), r.text
+        return str(r.json()["reference"])
+
+    def wait(self, job_id: str, timeout: float = 600) -> dict:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            job = self.http.get(f"/v1/jobs/{job_id}").json()
+            if job["state"] in ("succeeded", "failed", "cancelled"):
+                return dict(job)
+            time.sleep(0.5)
+        raise AssertionError(f"job {job_id} not final: {job}")
+
+
+@pytest.fixture(scope="module")
+def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
+    redis.Redis(port=redis_server.port, db=DB).flushdb()
+    tmp = tmp_path_factory.mktemp("stations")
+    env = service_env(redis_server.port, s3_server.port, db=DB, bucket=BUCKET)
+    api = start_api(tmp / "api", env)
+    worker = start_worker(tmp / "worker", env, concurrency=2)
+    made = Stack(api.port)
+    yield made
+    made.http.close()
+    worker.stop()
+    api.stop()
+
+
+@pytest.fixture(scope="module")
+def setup() -> StationSetup:
+    return station_setup(SETUP_SEED, image_size=SIZE)
+
+
+@pytest.fixture(scope="module")
+def station_doc(setup) -> dict:
+    """station.json as `prism station calibrate --camera ... --plate ...` writes it."""
+    plate = station_scene(100, setup).plate
+    w, h = setup.image_size
+    camera = CameraModel(fx=setup.K[0, 0], fy=setup.K[1, 1], cx=setup.K[0, 2], cy=setup.K[1, 2],
+                         dist=[float(v) for v in setup.dist], image_width=w, image_height=h)
+    station = calibrate_station(setup.board, plate, camera=camera, plate=plate)
+    return dict(json.loads(station.model_dump_json()))
+
+
+@pytest.fixture(scope="module")
+def parts(setup) -> list[StationScene]:
+    return [station_scene(seed, setup) for seed in PART_SEEDS]
+
+
+@pytest.fixture(scope="module")
+def station_id(stack, station_doc) -> str:
+    r = stack.http.post("/v1/stations", json=station_doc, params={"name": "line 1"})
+    assert r.status_code == 201, r.text
+    return str(r.json()["id"])
+
+
+def test_a_station_is_a_tenants_resource(stack, station_doc, station_id):
+    summary = stack.http.get(f"/v1/stations/{station_id}").json()
+    assert summary["id"] == station_id and summary["name"] == "line 1"
+    assert (summary["image_width"], summary["image_height"]) == SIZE
+    assert summary["has_plate"] is True
+    assert summary["plane_rms_px"] == pytest.approx(station_doc["plane"]["rms_px"])
+    assert summary["camera"]["fx"] == pytest.approx(station_doc["camera"]["fx"])
+    assert summary["board"]["squares_x"] == station_doc["board"]["squares_x"]
+    assert "plate_png" not in json.dumps(summary)  # never the plate inline
+    listed = stack.http.get("/v1/stations").json()["stations"]
+    assert station_id in [s["id"] for s in listed]
+    document = stack.http.get(f"/v1/stations/{station_id}/station.json").json()
+    assert document["plate_png"] == station_doc["plate_png"] and document["plane"] == station_doc["plane"]
+    # Another tenant sees nothing of it.
+    for path in (f"/v1/stations/{station_id}", f"/v1/stations/{station_id}/station.json"):
+        r = stack.http.get(path, headers=GLOBEX)
+        assert r.status_code == 404 and r.json()["type"].endswith("/not-found"), r.text
+    assert stack.http.delete(f"/v1/stations/{station_id}", headers=GLOBEX).status_code == 404
+    theirs = stack.http.get("/v1/stations", headers=GLOBEX).json()["stations"]
+    assert station_id not in [s["id"] for s in theirs]
+    # One made to be deleted.
+    r = stack.http.post("/v1/stations", json=station_doc)
+    assert r.status_code == 201
+    gone = r.json()["id"]
+    assert stack.http.delete(f"/v1/stations/{gone}").status_code == 204
+    assert stack.http.get(f"/v1/stations/{gone}").status_code == 404
+    assert stack.http.delete(f"/v1/stations/{gone}").status_code == 404
+    assert gone not in [s["id"] for s in stack.http.get("/v1/stations").json()["stations"]]
+
+
+def test_a_bad_station_json_is_refused_at_its_field(stack, station_doc):
+    bad_fx = {**station_doc, "camera": {**station_doc["camera"], "fx": -5}}
+    no_plane = {k: v for k, v in station_doc.items() if k != "plane"}
+    extra = {**station_doc, "extra": 1}
+    for body, where in ((bad_fx, "/camera/fx"), (no_plane, "/plane"), (extra, "/extra")):
+        r = stack.http.post("/v1/stations", json=body)
+        assert r.status_code == 422, r.text
+        problem = r.json()
+        assert problem["type"].endswith("/validation")
+        assert [e["pointer"] for e in problem["errors"]] == [where], problem
+    r = stack.http.post("/v1/stations", content=b"{not json", headers={"Content-Type": "application/json"})
+    assert r.status_code == 400, r.text
+    r = stack.http.post("/v1/stations", content=json.dumps(station_doc),
+                        headers={"Content-Type": "text/plain"})
+    assert r.status_code == 415 and r.json()["errors"][0]["header"] == "Content-Type", r.text
+
+
+def test_a_station_item_is_checked_at_submit(stack, station_doc, station_id, parts):
+    photo = stack.upload(_jpeg(parts[0].photo), "part.jpg")
+    small = stack.upload(_jpeg(cv2.resize(parts[0].photo, (640, 512))), "small.jpg")
+    foreign = stack.http.post("/v1/stations", json=station_doc, headers=GLOBEX).json()["id"]
+    item = {"image": photo, "station": station_id}
+    cases = [
+        ({**item, "points": "auto"}, "/items/0/points", "points does not go with a station"),
+        ({**item, "scale": {"kind": "edge", "edge": "width", "length_mm": 100}}, "/items/0/scale",
+         "scale does not go with a station"),
+        ({**item, "station": "0" * 32}, "/items/0/station", "no station '" + "0" * 32 + "'"),
+        ({**item, "station": foreign}, "/items/0/station", f"no station '{foreign}'"),
+        ({**item, "station": "line-1"}, "/items/0/station", "is not a station id"),
+        ({**item, "image": small}, "/items/0/image", "the photo is 640x512 px"),
+    ]
+    for body, where, words in cases:
+        r = stack.http.post("/v1/jobs", json={"items": [body]})
+        assert r.status_code == 422, (body, r.text)
+        errors = r.json()["errors"]
+        assert errors[0]["pointer"] == where and words in errors[0]["detail"], (body, errors)
+
+
+def test_a_batch_of_photos_on_one_station_with_nothing_else(stack, station_id, parts, setup):
+    refs = [stack.upload(_jpeg(p.photo), f"part-{i:02d}.jpg") for i, p in enumerate(parts)]
+    empty = stack.upload(_jpeg(station_scene(200, setup, parts=0).photo), "empty.jpg")
+    items = [{"image": ref, "station": station_id} for ref in [*refs, empty]]
+    started = time.monotonic()
+    r = stack.http.post("/v1/jobs", json={"items": items})
+    assert r.status_code == 202, r.text
+    job = stack.wait(r.json()["id"])
+    took = time.monotonic() - started
+    assert job["state"] == "succeeded", job
+    *measured, refused = job["items"]
+    assert refused["state"] == "failed" and "no part found" in refused["error"], refused
+    done = [(item, p) for item, p in zip(measured, parts, strict=True) if item["state"] == "succeeded"]
+    assert len(done) >= len(parts) - 1, [i.get("error") for i in measured]
+    good = [item for item, p in done if _within(item["result"]["dimensions"], p.box.dimensions)]
+    assert len(good) >= 0.9 * len(parts), [(i["result"]["dimensions"], p.box.dimensions) for i, p in done]
+    for item, _ in done:
+        result = item["result"]
+        assert result["dimensions"]["unit"] == "mm"
+        assert result["points_source"] == "station" and result["given_dimension"] is None
+        assert set(result["uncertainty"]) == {"width", "height", "depth"}
+        assert {"csv", "ply", "report", "overlay", "preview"} <= set(item["downloads"]), item["downloads"]
+    report = httpx.get(done[0][0]["downloads"]["report"], timeout=30).json()
+    assert report["scale_source"] == "station" and report["station"]["position_mm"]
+    print(f"{len(items)} station items in {took:.1f} s")
+
+
+def test_the_python_client_and_prism_submit_station(stack, station_doc, parts, tmp_path):
+    (tmp_path / "station.json").write_text(json.dumps(station_doc))
+    photos = []
+    for i, part in enumerate(parts[:2]):
+        photos.append(tmp_path / f"p{i}.jpg")
+        photos[-1].write_bytes(_jpeg(part.photo))
+    with ApiClient(stack.base, API_KEYS["acme"]) as client:
+        made = client.create_station(tmp_path / "station.json", name="client")
+        assert made.id in [s.id for s in client.stations()] and client.station(made.id).name == "client"
+        job = client.submit({"items": [{"image": client.upload(photos[0])}]}, station=made.id)
+        job = client.wait(job.id, timeout=300)
+        assert job.state == "succeeded" and job.items[0].result is not None, job
+        assert _within(job.items[0].result.dimensions.model_dump(), parts[0].box.dimensions)
+    env = {"PRISM_API_URL": stack.base, "PRISM_API_KEY": API_KEYS["acme"], "PATH": "/usr/bin:/bin",
+           "HOME": str(tmp_path)}
+    run = subprocess.run([PRISM, "station", "upload", str(tmp_path / "station.json")], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    uploaded = run.stdout.strip()
+    run = subprocess.run([PRISM, "submit", "--station", uploaded, *map(str, photos), "--wait"], env=env,
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "item 0: succeeded" in run.stdout and "item 1: succeeded" in run.stdout, run.stdout
+    # A station id that is nobody's: exit 2, the API's words in one line.
+    run = subprocess.run([PRISM, "submit", "--station", "f" * 32, str(photos[0])], env=env,
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert run.returncode == 2 and "no station" in run.stderr + run.stdout, run.stdout + run.stderr
