@@ -26,7 +26,7 @@ from prismcore import InputError
 
 from .stack import ManagedProcess, free_port, port_is_free, start_api, start_redis, start_s3, start_worker
 
-__all__ = ["serve", "try_line"]
+__all__ = ["ready_line", "serve", "try_line"]
 
 DEFAULT_PORT = 8000  # the client commands' default API URL is on this port
 # The sample photo's seven points (prism scan's README example): with P6 and P7 the perspective
@@ -76,6 +76,14 @@ def _sample_photo() -> Path | None:
     """samples/box.jpg of the source tree prism runs from (absent from a plain install)."""
     photo = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
     return photo if photo.is_file() else None
+
+
+def ready_line(port: int) -> str:
+    """The banner's first line (rich markup): the API and its docs, and the page a person opens
+    (tests/test_docs.py waits for its "ready: API")."""
+    base = f"http://127.0.0.1:{port}"
+    return (f"[bold green]ready[/]: API {base} (docs at /docs); the page: {base}/app/ "
+            "(log in with the API key below)")
 
 
 def try_line(port: int, key: str | None, *, prism: str | None = None,
@@ -139,7 +147,7 @@ def serve(
         own_key = "PRISM_API_KEYS" not in os.environ
         key = creds["api_key"] if own_key else "(from PRISM_API_KEYS)"
         hint = try_line(port, creds["api_key"] if own_key else None, photo=_sample_photo())
-        console.print(f"[bold green]ready[/]: API http://127.0.0.1:{port} (docs at /docs)", soft_wrap=True)
+        console.print(ready_line(port), soft_wrap=True)
         # As printed, with no markup read into it: a path may hold brackets.
         console.print(f"  API key: {key}\n  try: {hint}\n"
                       + ("" if own_key else "       (with PRISM_API_KEY set to one of PRISM_API_KEYS)\n")

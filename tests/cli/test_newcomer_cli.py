@@ -89,3 +89,12 @@ def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, m
     overlay.overlay_from_report(image, report)
     overlay.overlay_from_report(image, {**report, "points_source": "clicked"})
     assert keys == ["found point", "click"]
+
+
+def test_the_serve_banner_names_the_page():
+    from rich.text import Text
+
+    from prism_cli.serve_command import ready_line
+    line = Text.from_markup(ready_line(8123)).plain
+    assert line == ("ready: API http://127.0.0.1:8123 (docs at /docs); the page: http://127.0.0.1:8123/app/ "
+                    "(log in with the API key below)"), line

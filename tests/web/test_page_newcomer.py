@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import httpx
+import pytest
 from page_driver import KEY, PageDriver
 from playwright.sync_api import expect
 
@@ -109,3 +110,53 @@ def test_a_known_edge_is_shown_as_given_not_as_a_measurement(page, stack):
     expect(page.locator("#viewer .dim-label[data-dim=width]")).to_contain_text("120.00 mm (given)")
     job = httpx.get(f"{stack.url}/v1/jobs?limit=1", headers={"X-API-Key": KEY}).json()["jobs"][0]
     assert job["items"][0]["result"]["given_dimension"] == "width"
+
+
+def test_the_login_screen_says_what_this_is_and_where_the_key_comes_from(page, stack):
+    intro = page.locator("#intro")
+    expect(intro).to_be_visible()
+    expect(intro).to_contain_text("measures a box-shaped object from one photo")
+    expect(intro).to_contain_text("The key comes from whoever runs this service")
+    expect(intro).to_contain_text("prism serve prints one when it starts")
+    PageDriver(page).log_in()
+    expect(intro).to_be_hidden()
+
+
+SCREENS = [{"width": 1366, "height": 768}, {"width": 1920, "height": 1080}]
+
+
+@pytest.mark.parametrize("screen", SCREENS, ids=["1366x768", "1920x1080"])
+def test_the_photo_to_mark_owns_the_screen(page, stack, screen):
+    page.set_viewport_size(screen)
+    d = PageDriver(page)
+    d.log_in()
+    d.add_photos(SAMPLE)
+    page.wait_for_function("document.getElementById('marker').dataset.view")
+    inside = lambda b: (b["x"] >= 0 and b["y"] >= 0 and b["x"] + b["width"] <= screen["width"]  # noqa: E731
+                        and b["y"] + b["height"] <= screen["height"])
+    assert page.evaluate("window.scrollY") == 0
+    canvas = page.locator("#marker").bounding_box()
+    assert inside(canvas), canvas
+    # The whole photo is drawn inside the canvas, and large: most of the window.
+    scale, ox, oy = d.view()
+    shown = (1280 * scale, 1024 * scale)
+    assert ox >= -0.5 and oy >= -0.5, (ox, oy)
+    assert ox + shown[0] <= canvas["width"] + 0.5 and oy + shown[1] <= canvas["height"] + 0.5, (shown, canvas)
+    assert shown[0] * shown[1] >= 0.45 * screen["width"] * screen["height"], (shown, screen)
+    # The steps beside it, the prompt and every point to place on the same screen.
+    steps = page.locator("section[aria-labelledby=h-photos]").bounding_box()
+    assert steps["x"] >= canvas["x"] + canvas["width"], (steps, canvas)
+    for heading in ("1. Photos", "2. Reference points"):
+        assert inside(page.get_by_role("heading", name=heading).bounding_box()), heading
+    assert inside(page.locator("#next-point").bounding_box())
+    rows = page.locator("#point-table tbody tr")
+    expect(rows).to_have_count(7)
+    for i in range(7):
+        assert inside(rows.nth(i).bounding_box()), (i, rows.nth(i).bounding_box())
+    # Marking all seven needs no scrolling either.
+    for name in ("p1", "p2", "p3", "p4", "p5", "p6", "p7"):
+        page.mouse.click(canvas["x"] + ox + (POINTS[name][0] + 0.5) * scale,
+                         canvas["y"] + oy + (POINTS[name][1] + 0.5) * scale)
+    expect(page.locator("#next-point")).to_contain_text("Every point is placed")
+    assert page.evaluate("window.scrollY") == 0
+    assert abs(float(d.mark("p3")[0]) - POINTS["p3"][0]) <= 1.5 / scale

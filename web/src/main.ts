@@ -81,6 +81,7 @@ async function logIn(key: string): Promise<boolean> {
   }
   saveKey(key);
   $("login-form").hidden = true;
+  $("intro").hidden = true;
   $("session").hidden = false;
   $("main").hidden = false;
   settings.render();

@@ -9,6 +9,8 @@ let built = "";
 
 export function renderPointTable(set: (name: PointName, p: Point) => void): void {
   const body = document.querySelector<HTMLTableSectionElement>("#point-table tbody")!;
+  // One photo: every point is on it, and the Photo column says nothing (hidden, narrower rows).
+  document.getElementById("point-table")!.classList.toggle("one-photo", !state.twoPhoto);
   const names = sequence(state.extra, state.twoPhoto);
   const key = `${names.join()}|${state.twoPhoto}|${faceChoice()}`;
   if (key !== built) {
@@ -35,6 +37,7 @@ function row(name: PointName, set: (name: PointName, p: Point) => void): HTMLTab
     const cell = document.createElement(i === 0 ? "th" : "td");
     if (i === 0) cell.scope = "row";
     cell.textContent = text;
+    if (i === 1) cell.title = text; // the whole place, where a narrow column cuts it short
     tr.append(cell);
   }
   const inputs = (["x", "y"] as const).map((axis) => {
