@@ -179,6 +179,18 @@ class ApiClient:
                               headers={"Content-Type": "application/json"})
         return StationPublic.model_validate(response.json())
 
+    def calibrate_station(self, board: Path, plane: Path, photos: list[Path] | None = None, *,
+                          camera: Path | None = None, plate: Path | None = None,
+                          name: str | None = None) -> StationPublic:
+        """Have the service calibrate a station from its photos (as `prism station calibrate`
+        takes them: board.json, the plane photo, the board in several poses unless `camera` is
+        given, the empty support) and store it; its summary."""
+        named = [("board", board), ("plane", plane), *(("calibration", p) for p in photos or []),
+                 *([("camera", camera)] if camera else []), *([("plate", plate)] if plate else [])]
+        files = [(field, (path.name, path.read_bytes())) for field, path in named]
+        response = self._call("POST", "/v1/stations", files=files, params={"name": name} if name else {})
+        return StationPublic.model_validate(response.json())
+
     def station(self, station_id: str) -> StationPublic:
         return StationPublic.model_validate(self._call("GET", f"/v1/stations/{station_id}").json())
 

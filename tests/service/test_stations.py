@@ -164,6 +164,41 @@ def test_a_bad_station_json_is_refused_at_its_field(stack, station_doc):
     assert r.status_code == 415 and r.json()["errors"][0]["header"] == "Content-Type", r.text
 
 
+def test_a_station_is_calibrated_from_its_photos(stack, setup, tmp_path):
+    """Multipart: board.json, the plane photo, the board in poses and the plate, calibrated by the
+    API (prismcore.station.calibrate_station) and stored; a bad board.json or a plane photo
+    without the board is refused at its field."""
+    from prismsynth.station import calibration_views
+
+    plate = station_scene(100, setup).plate
+    (tmp_path / "board.json").write_text(json.dumps(setup.board.describe()))
+    for name, image in [("plane.jpg", plate), *((f"pose{k}.jpg", v) for k, v in
+                                                 enumerate(calibration_views(setup, 8, seed=5)))]:
+        (tmp_path / name).write_bytes(_jpeg(image))
+    poses = sorted(tmp_path.glob("pose*.jpg"))
+    with ApiClient(stack.base, API_KEYS["acme"]) as client:
+        made = client.calibrate_station(tmp_path / "board.json", tmp_path / "plane.jpg", poses,
+                                        plate=tmp_path / "plane.jpg", name="calibrated")
+        assert made.calibration["source"] == "photos" and made.calibration["rms_px"] < 1, made
+        assert made.camera["fx"] == pytest.approx(setup.K[0, 0], rel=0.02), made.camera
+        assert made.has_plate and (made.image_width, made.image_height) == SIZE
+        assert client.station(made.id).name == "calibrated"
+    board = {"board": ("board.json", json.dumps({**setup.board.describe(), "square_mm": -1}))}
+    photos = {"plane": ("plane.jpg", (tmp_path / "pose0.jpg").read_bytes()),
+              "calibration": ("pose1.jpg", (tmp_path / "pose1.jpg").read_bytes())}
+    r = stack.http.post("/v1/stations", files={**board, **photos})
+    assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/board/square_mm", r.text
+    empty = _jpeg(np.full((SIZE[1], SIZE[0], 3), 128, np.uint8))
+    r = stack.http.post("/v1/stations", files={"board": ("board.json", json.dumps(setup.board.describe())),
+                                               "plane": ("empty.jpg", empty),
+                                               "calibration": ("pose1.jpg", photos["calibration"][1])})
+    assert r.status_code == 422, r.text
+    error = r.json()["errors"][0]
+    assert error["pointer"] == "/plane" and "board corners found" in error["detail"], error
+    r = stack.http.post("/v1/stations", files={"plane": ("plane.jpg", photos["plane"][1])})
+    assert r.status_code == 422 and r.json()["errors"][0]["pointer"] == "/board", r.text
+
+
 def test_a_station_item_is_checked_at_submit(stack, station_doc, station_id, parts):
     photo = stack.upload(_jpeg(parts[0].photo), "part.jpg")
     small = stack.upload(_jpeg(cv2.resize(parts[0].photo, (640, 512))), "small.jpg")

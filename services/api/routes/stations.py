@@ -2,9 +2,13 @@
 by job items as ``"station": ID`` so that a photo is measured with no points and no scale.
 
 ``POST /v1/stations`` takes a station.json (`prism station calibrate`'s output, validated by
-`prismcore.station.Station`); GET one (its summary, without the plate), GET its station.json
-(the plate included), list them, DELETE one. Another tenant's station answers 404, as an
-unknown one does. Storage: `prism_common.stations` (the object store alone).
+`prismcore.station.Station`), or the photos to calibrate one from as multipart/form-data (board
+and plane, the calibration photos unless a camera is given, the plate), calibrated here by
+`prismcore.station.calibrate_station` in a worker thread (a dozen photos take a second or two of
+CPU; the answer is the stored station, so a client needs no second round trip); GET one (its
+summary, without the plate), GET its station.json (the plate included), list them, DELETE one.
+Another tenant's station answers 404, as an unknown one does. Storage: `prism_common.stations`
+(the object store alone).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from prism_common.stations import (
 )
 from pydantic import ValidationError
 
-from ..deps import ObjectsDep, TenantDep
+from ..deps import ObjectsDep, SettingsDep, TenantDep
 from ..problems import Problem
 
 if TYPE_CHECKING:
@@ -38,9 +42,24 @@ if TYPE_CHECKING:
 router = APIRouter(prefix="/stations", tags=["stations"])
 
 # The body is read by hand (its model imports the engine lazily), so its shape is declared here.
-_BODY: dict[str, Any] = {"requestBody": {"required": True, "content": {"application/json": {
-    "schema": {"type": "object", "description": "station.json, as `prism station calibrate` writes it: "
-               "version, board, camera, plane, calibration, plate_png (base64 PNG of the empty support)."}}}}}
+_FILE = {"type": "string", "format": "binary"}
+_BODY: dict[str, Any] = {"requestBody": {"required": True, "content": {
+    "application/json": {"schema": {
+        "type": "object", "description": "station.json, as `prism station calibrate` writes it: version, "
+        "board, camera, plane, calibration, plate_png (base64 PNG of the empty support)."}},
+    "multipart/form-data": {"schema": {
+        "type": "object", "required": ["board", "plane"], "description": "The photos to calibrate a "
+        "station from, as `prism station calibrate` takes them.",
+        "properties": {
+            "board": {**_FILE, "description": "board.json (prism board, or any ChArUco board or "
+                      "chessboard described so)."},
+            "plane": {**_FILE, "description": "The board flat on the support, camera in its working "
+                      "position: the station's frame."},
+            "calibration": {"type": "array", "items": _FILE, "description": "The board in several "
+                            "poses (the camera's intrinsics and lens), unless `camera` is given."},
+            "camera": {**_FILE, "description": "camera.json (prism calibrate): known intrinsics."},
+            "plate": {**_FILE, "description": "The empty support from the working position."}}}}}}}
+_MAX_PHOTOS = 40
 
 
 def _not_found(station_id: str) -> Problem:
@@ -62,21 +81,94 @@ def _parse(raw: bytes) -> Station:
                                      body=document) from None
 
 
+def _invalid(field: str, detail: str) -> Problem:
+    return Problem("validation", f"{field}: {detail}", errors=[{"pointer": f"/{field}", "detail": detail}])
+
+
+async def _calibrated(request: Request, max_pixels: int) -> Station:
+    """The station the multipart photos calibrate (InputError's reason as a 422 at its field)."""
+    form = await request.form(max_files=_MAX_PHOTOS + 4, max_fields=8)
+    try:
+        files: dict[str, list[tuple[str, bytes]]] = {}
+        for field, value in form.multi_items():
+            if field not in ("board", "plane", "calibration", "camera", "plate"):
+                raise _invalid(field, "not a field of a station's calibration (board, plane, calibration, "
+                               "camera, plate)")
+            if isinstance(value, str):
+                files.setdefault(field, []).append((field, value.encode()))
+            else:
+                files.setdefault(field, []).append((value.filename or field, await value.read()))
+    finally:
+        await form.close()
+    for field in ("board", "plane"):
+        if field not in files:
+            raise _invalid(field, f"missing: give {field}")
+    for field in ("board", "plane", "camera", "plate"):
+        if len(files.get(field, [])) > 1:
+            raise _invalid(field, f"given {len(files[field])} times: give one")
+    if "camera" not in files and not files.get("calibration"):
+        raise _invalid("calibration", "give photos of the board in several poses, or a camera (camera.json)")
+    return await anyio.to_thread.run_sync(_calibrate, files, max_pixels)
+
+
+def _calibrate(files: dict[str, list[tuple[str, bytes]]], max_pixels: int) -> Station:
+    from prismcore import InputError
+    from prismcore.camera import CameraModel
+    from prismcore.images import load_image
+    from prismcore.station import BoardSpec, calibrate_station
+
+    def model(field: str, cls: type[BoardSpec] | type[CameraModel]) -> Any:
+        text = files[field][0][1]
+        try:
+            return cls.model_validate_json(text)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = "/".join(str(p) for p in first["loc"])
+            raise Problem("validation", f"{field}: {first['msg']}", errors=[
+                {"pointer": f"/{field}" + (f"/{where}" if where else ""),
+                 "detail": str(first["msg"]).removeprefix("Value error, ")}]) from None
+
+    def photo(field: str, k: int = 0) -> Any:
+        name, data = files[field][k]
+        try:
+            return load_image(data, max_pixels=max_pixels, name=name)
+        except InputError as exc:
+            raise _invalid(field if field != "calibration" else f"calibration/{k}", str(exc)) from None
+
+    board = model("board", BoardSpec)
+    camera = model("camera", CameraModel) if "camera" in files else None
+    plane_name = files["plane"][0][0]
+    try:
+        return calibrate_station(
+            board, photo("plane"),
+            [(files["calibration"][k][0], photo("calibration", k))
+             for k in range(len(files.get("calibration", [])))],
+            camera=camera, plate=photo("plate") if "plate" in files else None, plane_name=plane_name)
+    except InputError as exc:
+        text = str(exc)
+        field = "plane" if text.startswith(plane_name) else "plate" if "plate" in text else "calibration"
+        raise _invalid(field, text) from None
+
+
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=StationPublic, openapi_extra=_BODY,
              responses={400: {"description": "Not JSON"},
                         415: {"description": "Not sent as application/json"},
                         422: {"description": "Not a station.json: `errors` points at the field"}})
 async def create_station(request: Request, response: Response, tenant: TenantDep, objects: ObjectsDep,
+                         settings: SettingsDep,
                          name: Annotated[str | None, Query(max_length=200)] = None) -> StationPublic:
-    """Store a station.json (`prism station calibrate`'s output) as one of your stations."""
+    """Store a station: a station.json (`prism station calibrate`'s output), or one calibrated
+    here from its photos (multipart: board, plane, calibration..., camera, plate)."""
     sent = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
-    if sent != "application/json":
-        detail = (f"the body is sent as Content-Type {sent!r}, not application/json: send "
-                  "station.json with Content-Type: application/json") if sent else \
+    if sent == "multipart/form-data":
+        station = await _calibrated(request, settings.max_pixels)
+    elif sent == "application/json":
+        station = await anyio.to_thread.run_sync(_parse, await request.body())
+    else:
+        detail = (f"the body is sent as Content-Type {sent!r}: send station.json as application/json, "
+                  "or the photos to calibrate as multipart/form-data") if sent else \
             "the body is sent without a Content-Type: send station.json as application/json"
         raise Problem("unsupported-media-type", detail, errors=[{"header": "Content-Type", "detail": detail}])
-    raw = await request.body()
-    station = await anyio.to_thread.run_sync(_parse, raw)
     # Stored as validated (a canonical document), so the worker reads what the API checked.
     data = station.model_dump_json().encode()
     station_id = uuid4().hex
