@@ -26,7 +26,9 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
+from prismcore.pipeline import run_scan
 from prismcore.station import calibrate_station, measure_on_station
+from prismcore.station.scan import station_spec
 from prismsynth.station import StationSetup, station_scene, station_setup
 
 
@@ -49,6 +51,8 @@ def main() -> None:
     within = in3 = total = silent_big = 0
     worst: list[tuple[float, str]] = []
     cpu_ms: list[float] = []
+    engine_ms: list[float] = []
+    engine_refused = 0
     stage_ms: dict[str, list[float]] = {"undistort": [], "register": [], "segment": [], "fit": []}
     for s in range(args.stations):
         setup = station_setup(args.seed * 1000 + s)
@@ -65,6 +69,13 @@ def main() -> None:
                 refused_seeds.append(seed)
                 continue
             cpu_ms.append((time.process_time() - started) * 1000)
+            # The engine's own time on the same photo: the cloud from the derived points.
+            engine_start = time.process_time()
+            try:
+                run_scan(station_spec(m, "photo"), sc.photo, None)
+                engine_ms.append((time.process_time() - engine_start) * 1000)
+            except InputError:
+                engine_refused += 1
             for k, v in m.timings_ms.items():
                 stage_ms[k].append(v)
             found += 1
@@ -100,6 +111,35 @@ def main() -> None:
               f"p90 {np.percentile(seg_fit, 90):6.1f}   target <= 150 ms")
         for k in ("undistort", "register", "segment", "fit"):
             print(f"  {k:<12}                 median {statistics.median(stage_ms[k]):6.1f}")
+    if engine_ms:
+        print(f"engine (the derived points' cloud, CPU) median {statistics.median(engine_ms):6.1f} ms  "
+              f"p90 {np.percentile(engine_ms, 90):6.1f}; derived points refused by the engine: "
+              f"{engine_refused}")
+    _real_chessboard()
+
+
+def _real_chessboard() -> None:
+    """prism station calibrate's intrinsics on OpenCV's real chessboard photos beside prism calibrate's."""
+    from pathlib import Path
+
+    from prismcore.calibration import calibrate_images
+    from prismcore.images import load_image
+    from prismcore.station.board import BoardSpec
+
+    data = Path("/usr/share/doc/opencv-doc/examples/data")
+    names = [f"left{i:02d}.jpg" for i in (1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14)]
+    if not all((data / n).is_file() for n in names):
+        print("real chessboard: opencv-doc's left01-14.jpg not installed (scripts/setup installs them)")
+        return
+    photos = [(n, load_image(data / n)) for n in names]
+    board = BoardSpec.model_validate({"type": "chessboard", "inner_corners": [9, 6], "square_mm": 25})
+    station = calibrate_station(board, photos[0][1], photos[1:])
+    ref = calibrate_images(photos, (9, 6), 25.0).camera
+    c = station.camera
+    print(f"real chessboard (opencv-doc left01-14): station fx {c.fx:.2f} fy {c.fy:.2f} cx {c.cx:.2f} "
+          f"cy {c.cy:.2f} "
+          f"RMS {station.calibration['rms_px']:.3f} px; prism calibrate fx {ref.fx:.2f} fy {ref.fy:.2f} "
+          f"cx {ref.cx:.2f} cy {ref.cy:.2f} RMS {ref.rms_px:.3f} px; plane RMS {station.plane.rms_px:.3f} px")
 
 
 if __name__ == "__main__":

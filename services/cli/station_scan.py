@@ -1,7 +1,8 @@
-"""`prism scan PHOTO --station station.json`: a part measured on a station, no click, no known edge.
+"""`prism scan PHOTO --station station.json` (or `--board board.json`, hand-held): a part measured
+with no click and no known edge.
 
-The station's fit gives the dimensions; its seven derived points make the cloud, the overlay and
-the other outputs as clicked points do, with the camera of the station.
+The station's (or the board's) fit gives the dimensions; its seven derived points make the cloud,
+the overlay and the other outputs as clicked points do, with the camera measured with.
 """
 
 from __future__ import annotations
@@ -9,13 +10,23 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from rich.console import Console
 
-__all__ = ["scan_on_station"]
+if TYPE_CHECKING:
+    import numpy as np
+
+    from prismcore.camera import CameraModel
+    from prismcore.station.scan import StationScan
+
+__all__ = ["scan_on_board_photo", "scan_on_station"]
 
 console = Console()
+
+
+def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
+    return {"formats": [f.strip() for f in formats.split(",") if f.strip()], "max_pixels": max_pixels}
 
 
 def scan_on_station(
@@ -25,14 +36,34 @@ def scan_on_station(
     from prismcore.images import load_image
     from prismcore.station.scan import scan_on_station as scan
 
-    from .outputs import report_path, write_outputs, write_overlays
     from .station_command import load_station
 
     started = time.perf_counter()
     station = load_station(station_file)
     photo = load_image(image, max_pixels=max_pixels)
-    done = scan(photo, station, str(image), {
-        "formats": [f.strip() for f in formats.split(",") if f.strip()], "max_pixels": max_pixels})
+    return _write(scan(photo, station, str(image), _spec_extra(formats, max_pixels)), photo, out, started)
+
+
+def scan_on_board_photo(
+    image: Path, board_file: Path, out: Path, camera: CameraModel | None = None, formats: str = "csv,ply",
+    max_pixels: int = 50_000_000,
+) -> dict[str, Any]:
+    """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
+    from prismcore.images import load_image
+    from prismcore.station.scan import scan_on_board
+
+    from .station_command import load_board
+
+    started = time.perf_counter()
+    board = load_board(board_file)
+    photo = load_image(image, max_pixels=max_pixels)
+    return _write(scan_on_board(photo, board, camera, str(image), _spec_extra(formats, max_pixels)), photo,
+                  out, started)
+
+
+def _write(done: StationScan, photo: np.ndarray, out: Path, started: float) -> dict[str, Any]:
+    from .outputs import report_path, write_outputs, write_overlays
+
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
     report = done.report
@@ -44,14 +75,12 @@ def scan_on_station(
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(report, indent=2) + "\n")
     d, s = report["dimensions"], report["uncertainty"]
-    position = cast("list[float]", station_report["position_mm"])  # [x, y] mm, as report() writes it
-    console.print(
-        f"[bold]station[/]  width {d['width']:.2f} ± {s['width']:.2f}  height {d['height']:.2f} ± "
-        f"{s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  (position "
-        f"{position[0]:.1f}, {position[1]:.1f} mm, yaw "
-        f"{station_report['yaw_deg']:.1f} deg; outline {station_report['silhouette_residual_px']:.2f} px)",
-        soft_wrap=True,
-    )
+    position = cast("list[float]", station_report["position_mm"])
+    console.print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "
+                  f"{d['height']:.2f} ± {s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  "
+                  f"(position {position[0]:.1f}, {position[1]:.1f} mm, "
+                  f"yaw {station_report['yaw_deg']:.1f} deg; "
+                  f"outline {station_report['silhouette_residual_px']:.2f} px)", soft_wrap=True)
     for warning in report["warnings"]:
         console.print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))

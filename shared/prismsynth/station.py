@@ -335,12 +335,14 @@ def station_scene(
     near_table_colour: bool | None = None,
     max_size_mm: float = 400.0,
     quality: int = 85,
+    inside_board: bool = False,
 ) -> StationScene:
     """One station photo and its plate, with the truth (see the module's docstring).
 
     parts : 0 for an empty support, 2 for two parts (refusal tests).
     nudge : camera turned 1-3 px since the plate (default: every other seed).
     near_table_colour : the part's colour within 10 RGB levels of the table's mean (default: 10 %).
+    inside_board : the part's footprint on the board, 15 mm from its edges (hand-held photos).
     """
     rng = np.random.default_rng([seed, 31])
     setup = setup if setup is not None else station_setup(seed)
@@ -356,7 +358,10 @@ def station_scene(
                 > 0.6 * (max(box.length_mm, box.width_mm) + max(b.length_mm, b.width_mm))
                 for b in boxes
             )
-            if _in_view(setup, box, 40) and far_apart:
+            bw, bh = setup.board.size_mm
+            foot = box.corners()[:4, :2]
+            on_board = bool(np.all(foot > 15) and np.all(foot < (bw - 15, bh - 15)))
+            if _in_view(setup, box, 40) and far_apart and (on_board or not inside_board):
                 boxes.append(box)
                 break
             max_size_mm = max(25.0, max_size_mm * 0.97)

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ..camera import CameraModel
 from ..errors import InputError
 from .boxfit import _FACES, BoxFit, fit_box, fold_distance, project
 from .calibrate import Station
@@ -25,8 +26,9 @@ _WARN_RELATIVE_SIGMA = 0.02
 _SYSTEMATIC_PX = 0.6  # the outline's placement, px, common to a whole side
 _WARN_MISSING = 0.08
 _WARN_WEAK = 0.15
-_TOP_ONLY_SIGMA = 0.05
-_SIDE_SEEN = 0.15  # relative: a footprint side read on the top face alone
+_TOP_ONLY_SIGMA = 0.05  # relative: a footprint side read on the top face alone
+_SIDE_SEEN = 0.15
+_MIN_SIDE_PX = 4.0  # a fitted side shorter than this in the photo is no side
 
 
 def _sides_seen(corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.ndarray) -> int:
@@ -87,6 +89,7 @@ class StationMeasurement:
     side_face: str
     warnings: list[str] = field(default_factory=list)
     timings_ms: dict[str, float] = field(default_factory=dict)
+    camera: CameraModel | None = None  # the camera measured with (a hand-held photo's, found)
 
     def report(self) -> dict[str, object]:
         """The station's part of report.json."""
@@ -110,8 +113,7 @@ class StationMeasurement:
         }
 
 
-def _distorted(X: np.ndarray, station: Station, reg: Registration) -> np.ndarray:
-    cam = station.camera
+def _distorted(X: np.ndarray, cam: CameraModel, reg: Registration) -> np.ndarray:
     pts, _ = cv2.projectPoints(
         X.astype(np.float64),
         np.asarray(reg.pose.rvec),
@@ -199,16 +201,34 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
     photo_u = und.image(photo)
     t1 = time.perf_counter()
     reg = register(photo_u, plate_u, photo, station.board, cam, station.plane)
+    timings.update(undistort=(t1 - t0) * 1e3, register=(time.perf_counter() - t1) * 1e3)
+    return measure_registered(photo_u, plate_u, cam, reg, timings)
+
+
+def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraModel, reg: Registration,
+                       timings: dict[str, float] | None = None, *, region: np.ndarray | None = None
+                       ) -> StationMeasurement:
+    """The part measured in an undistorted photo whose support's pose is known (`reg`), against
+    `plate_u` (the support as it looks without the part, registered by `reg.homography`).
+
+    region : (H, W) bool, optional. Where the support is known (a hand-held board's area): a part
+    reaching out of it is refused.
+    """
+    timings = {} if timings is None else timings
     t2 = time.perf_counter()
     sil = segment_part(photo_u, plate_u, reg.homography)
+    if region is not None:
+        edge = sil.mask & ~cv2.erode(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+        if edge.sum() > 0.002 * sil.area_px:
+            raise InputError("the part's outline reaches past the board in the photo (only the board's "
+                             "area is known): lay the part on the board with the board all round it, and "
+                             "photograph from higher up or use a larger board")
     t3 = time.perf_counter()
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
     gray = cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY)
     fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask), sil.difference)
     t4 = time.perf_counter()
-    timings.update(
-        undistort=(t1 - t0) * 1e3, register=(t2 - t1) * 1e3, segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3
-    )
+    timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     if fit.residual_px > MAX_RESIDUAL_PX:
         raise InputError(
             f"the part is not a box resting flat on the support: its outline is "
@@ -221,6 +241,10 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
             "not quite a box, or resting tilted; the dimensions may be off"
         )
     L, W, H = fit.length_mm, fit.width_mm, fit.height_mm
+    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
+    if min(L, W, H) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite([L, W, H])):
+        raise InputError(f"the fitted box is degenerate ({L:.1f} x {W:.1f} x {H:.1f} mm, a side under "
+                         f"{_MIN_SIDE_PX:.0f} px): the outline found is not a box's; check the photo")
     sL, sW, sH = fit.sigma_mm()
     if L >= W:
         dims, sig, yaw = (
@@ -254,7 +278,7 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
                 "turn the part so two of its sides face the camera"
             )
     corners = fit.corners()
-    image_pts = _distorted(corners, station, reg)
+    image_pts = _distorted(corners, cam, reg)
     points, side = reference_points(corners, project(corners, K, R, t), -R.T @ t)
     # the points in the photo as taken: the same corners through the lens
     lookup = {tuple(np.round(p, 6)): i for i, p in enumerate(project(corners, K, R, t))}
@@ -281,6 +305,7 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
         fit=fit,
         points=points,
         side_face=side,
+        camera=cam,
         warnings=warnings,
         timings_ms=timings,
     )
