@@ -274,24 +274,34 @@ def scan(
     station: Annotated[Path | None, typer.Option(
         help="station.json (prism station calibrate): the part measured on the station, no points and "
              "no known edge needed.")] = None,
+    board: Annotated[Path | None, typer.Option(
+        help="board.json of the board the part lies on, hand-held (no station): the board in the photo "
+             "gives the scale, and the focal length unless --camera.")] = None,
 ) -> None:
     """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds;
     several photos of one part with --points-file: measured as one box."""
     started = time.perf_counter()
     images = image or []
-    if station is not None:
+    if station is not None or board is not None:
+        flag = "--station" if station is not None else "--board"
+        if station is not None and board is not None:
+            raise InputError("give --station (a calibrated station) or --board (hand-held), not both")
         if len(images) != 1 or spec_file is not None or points_file is not None or side is not None:
-            raise InputError("--station measures one photo: "
-                             "prism scan PHOTO --station station.json --out DIR")
+            raise InputError(f"{flag} measures one photo: prism scan PHOTO {flag} FILE --out DIR")
         if points not in (None, "auto"):
-            raise InputError("--station finds the points itself: drop --points (or give --points auto)")
-        scales = (mm_per_px, distance_mm, width_mm, height_mm, depth_mm, focal_px, camera)
-        if any(v is not None for v in scales):
-            raise InputError("--station gives the scale and the camera: drop --mm-per-px, --distance-mm, "
-                             "--width-mm/--height-mm/--depth-mm, --focal-px and --camera")
-        from .station_scan import scan_on_station
+            raise InputError(f"{flag} finds the points itself: drop --points (or give --points auto)")
+        scales = (mm_per_px, distance_mm, width_mm, height_mm, depth_mm, focal_px)
+        if any(v is not None for v in scales) or (station is not None and camera is not None):
+            raise InputError(f"{flag} gives the scale: drop --mm-per-px, --distance-mm, --width-mm/"
+                             "--height-mm/--depth-mm and --focal-px" + (" and --camera" if station else ""))
+        from .station_scan import scan_on_board_photo, scan_on_station
 
-        scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels)
+        if station is not None:
+            scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels)
+        else:
+            assert board is not None
+            scan_on_board_photo(images[0], board, out, camera=_camera_file(camera) if camera else None,
+                                formats=formats, max_pixels=max_pixels)
         return
     if points_file is not None or len(images) > 1:
         if points_file is None:
@@ -322,6 +332,10 @@ def scan(
                     raise InputError(f"{flag} {value!r} goes with IMAGE and --points; in a spec file, "
                                      f"set {flag[2:].replace('-', '_')}")
             spec, base = _spec_from_file(spec_file)
+            if spec.station is not None:
+                raise InputError(f"the spec names station {spec.station!r}, a station stored in the service: "
+                                 "submit it (prism submit), or here give the station's file: "
+                                 "prism scan PHOTO --station station.json --out DIR")
         else:
             if selection is None and one is not None and is_video(one):
                 selection = {}  # a video without frame flags: every frame, under --max-frames
