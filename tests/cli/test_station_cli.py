@@ -106,3 +106,21 @@ def test_station_calibrate_on_opencvs_real_chessboard_photos_agrees_with_prism_c
     assert abs(cam["fx"] / reference.fx - 1) < 0.005 and abs(cam["fy"] / reference.fy - 1) < 0.005
     assert abs(cam["cx"] - reference.cx) < 2 and abs(cam["cy"] - reference.cy) < 2
     assert station["calibration"]["rms_px"] < 0.5 and station["plane"]["rms_px"] < 0.5
+
+
+def test_prism_scan_board_measures_a_hand_held_photo_of_a_part_on_the_board(tmp_path) -> None:
+    from prismsynth.station import station_setup
+
+    sc = station_scene(5002, station_setup(5002), nudge=False, inside_board=True, max_size_mm=80)
+    _save(tmp_path / "photo.png", sc.photo)
+    (tmp_path / "board.json").write_text(json.dumps(sc.setup.board.describe()))
+    run = prism("scan", "photo.png", "--board", "board.json", "--out", "out", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    report = json.loads((tmp_path / "out/report.json").read_text())
+    assert report["scale_source"] == "board"
+    assert sc.box is not None
+    for key, true in sc.box.dimensions.items():
+        assert abs(report["dimensions"][key] - true) <= max(0.015 * true, 1.0), (key, report["dimensions"])
+    run = prism("scan", "photo.png", "--board", "board.json", "--station", "s.json", "--out", "o",
+                cwd=tmp_path)
+    assert run.returncode == 2 and "not both" in run.stderr
