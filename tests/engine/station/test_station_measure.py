@@ -71,3 +71,33 @@ def test_a_camera_moved_far_since_calibration_is_refused() -> None:
     other = station_scene(4, station_setup(5))  # another camera position over another table
     with pytest.raises(InputError, match="camera"):
         measure_on_station(sc.photo, station_for(other).model_copy(update={"camera": station_for(sc).camera}))
+
+
+def test_a_part_cut_by_the_photos_edge_is_refused() -> None:
+    sc = scene(4)
+    photo = sc.plate.copy()
+    # the part's corner of the photo laid at the photo's left edge: the outline leaves the frame
+    photo[300:700, :260] = sc.photo[300:700, 520:780]
+    with pytest.raises(InputError, match="cut by the photo's edge"):
+        measure_on_station(photo, station_for(sc))
+
+
+def test_a_part_that_is_not_a_box_is_refused_naming_its_outline() -> None:
+    import cv2
+
+    sc = scene(4)
+    photo = sc.plate.copy()
+    triangle = np.array([[520, 420], [760, 470], [600, 690]], np.int32)
+    cv2.fillPoly(photo, [triangle], (200, 40, 40))  # a flat triangle of red: no box has that outline
+    with pytest.raises(InputError, match=r"not a box resting flat|degenerate"):
+        measure_on_station(photo, station_for(sc))
+
+
+def test_a_part_close_to_the_supports_colour_is_flagged_with_the_contrast() -> None:
+    sc = station_scene(7, near_table_colour=True)
+    try:
+        m = measure_on_station(sc.photo, station_for(sc))
+    except InputError:
+        return  # refused, with the reason: also not a silent number
+    assert any("contrast" in w or "barely differs" in w or "pieces" in w for w in m.warnings) or all(
+        abs(m.dimensions[k] - v) <= max(0.01 * v, 1.0) for k, v in sc.box.dimensions.items())
