@@ -60,7 +60,7 @@ def test_camera_json_removes_the_distortion_and_gives_the_focal(distorted, tmp_p
     assert report["camera"]["focal_source"] == "camera" and report["camera"]["undistorted"] is True
     close(report, 0.01)
     # The summary line carries each dimension's uncertainty and where the focal length came from.
-    assert re.search(r"120\.\d\d ± \d+\.\d\d x \d+\.\d\d ± \d+\.\d\d x \d+\.\d\d ± \d+\.\d\d mm  focal "
+    assert re.search(r"120\.00 \(given\) x \d+\.\d\d ± \d+\.\d\d x \d+\.\d\d ± \d+\.\d\d mm  focal "
                      r"\d+ px \(camera\)", run.stdout), run.stdout
 
 

@@ -44,7 +44,16 @@ ROUTES = {("POST", "/v1/uploads"): 201, ("POST", "/v1/jobs"): 422, ("GET", "/v1/
           ("GET", "/v1/jobs/{job_id}/results.csv"): 404, ("GET", "/v1/jobs/{job_id}/results.json"): 404,
           ("GET", "/v1/uploads/{upload_id}/video"): 404,
           ("GET", "/v1/uploads/{upload_id}/frames/{frame}.png"): 404,
-          ("GET", "/v1/uploads/{upload_id}/points"): 404}
+          ("GET", "/v1/uploads/{upload_id}/points"): 404,
+          ("POST", "/v1/stations"): 422, ("GET", "/v1/stations"): 200,
+          ("GET", "/v1/stations/{station_id}"): 404, ("GET", "/v1/stations/{station_id}/station.json"): 404,
+          ("DELETE", "/v1/stations/{station_id}"): 404}
+# A station.json with no plate: its board, camera and plane are all the API checks.
+STATION = {"board": {"type": "charuco", "dictionary": "DICT_5X5_100", "squares_x": 7, "squares_y": 5,
+                     "square_mm": 30, "marker_mm": 22},
+           "camera": {"fx": 1400, "fy": 1400, "cx": 639.5, "cy": 511.5, "image_width": 1280,
+                      "image_height": 1024},
+           "plane": {"rvec": [0.0, 0.0, 0.0], "tvec": [-100.0, -75.0, 600.0], "rms_px": 0.1, "corners": 24}}
 
 
 @pytest.fixture
@@ -77,28 +86,34 @@ def test_every_route_that_reads_or_changes_a_job_is_guarded(make, figures):
               if path.startswith("/v1") for method in ops}
     assert routes == set(ROUTES), "a /v1 route was added: give it its row in ROUTES"
     job_id, ref = _acme_job(client)
+    made = client.post("/v1/stations", json=STATION, headers=ACME)
+    assert made.status_code == 201, made.text
+    station_id = made.json()["id"]
     for (method, path), theirs in ROUTES.items():
         upload_id = ref.removeprefix("upload:")
-        url = path.format(job_id=job_id, index=0, frame=0, upload_id=upload_id)
+        url = path.format(job_id=job_id, index=0, frame=0, upload_id=upload_id, station_id=station_id)
         kwargs = ({"json": {"items": [{"image": ref, "points": POINTS}]}} if path == "/v1/jobs" and
                   method == "POST" else {"files": {"file": ("b.png", photo())}}
-                  if path == "/v1/uploads" else {})
+                  if path == "/v1/uploads" else {"json": {}} if path == "/v1/stations" and method == "POST"
+                  else {})
         for headers in WRONG_KEYS:
             r = client.request(method, url, headers=headers, **kwargs)
             assert r.status_code == 401, (method, url, headers, r.text)
             figures["inputs tried"] += 1
         r = client.request(method, url, headers=GLOBEX, **kwargs)
         assert r.status_code == theirs, (method, url, r.text)
-        if theirs == 404:  # the answer an unknown id gets: nothing of the job or upload
-            unknown = f"no upload {upload_id!r}" if "{upload_id}" in path else f"no job {job_id!r}"
+        if theirs == 404:  # the answer an unknown id gets: nothing of the job, upload or station
+            unknown = (f"no upload {upload_id!r}" if "{upload_id}" in path else
+                       f"no station {station_id!r}" if "{station_id}" in path else f"no job {job_id!r}")
             assert r.json() == {"type": "https://prismcloud.dev/problems/not-found",
                                 "title": "No such resource", "status": 404, "detail": unknown,
                                 "instance": url}, r.text
         else:
-            assert job_id not in r.text, r.text
+            assert job_id not in r.text and station_id not in r.text, r.text
         if method == "GET" and path == "/v1/jobs":
             assert job_id not in [j["id"] for j in r.json()["jobs"]]
     assert client.get(f"/v1/jobs/{job_id}", headers=ACME).json()["state"] == "queued"  # untouched
+    assert client.get(f"/v1/stations/{station_id}", headers=ACME).status_code == 200  # not deleted
 
 
 def _download_in_time(client: TestClient, job_id: str) -> tuple[str, float, httpx.Response]:
