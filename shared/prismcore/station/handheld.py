@@ -13,7 +13,7 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..errors import InputError
-from .board import BoardSpec, board_image, find_board_corners
+from .board import BoardSpec, BoardView, board_image, find_board_corners
 from .calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from .measure import StationMeasurement, measure_registered
 from .segment import Registration, undistorter
@@ -24,7 +24,18 @@ _LEVEL_SQUARES = 0.7  # the light's level is smoothed over this many squares
 _PATTERN_PX = 3.0  # the pattern is drawn at this many of its pixels per photo pixel, then averaged
 
 
-def board_camera(photo: np.ndarray, board: BoardSpec) -> CameraModel:
+def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
+    view = find_board_corners(photo, board)
+    if view is None or len(view) < MIN_PLANE_CORNERS:
+        found = 0 if view is None else len(view)
+        raise InputError(
+            f"{found} board corners found, at least {MIN_PLANE_CORNERS} are needed: the board "
+            "must show around the part"
+        )
+    return view
+
+
+def board_camera(photo: np.ndarray, board: BoardSpec, view: BoardView | None = None) -> CameraModel:
     """The camera from one photo of the board: the focal length, the principal point at the
     image's centre and no lens distortion (a planar target fixes the focal length, not more).
 
@@ -34,13 +45,7 @@ def board_camera(photo: np.ndarray, board: BoardSpec) -> CameraModel:
         Too few corners, a board seen square-on (the focal length undetermined), a poor fit.
     """
     h, w = photo.shape[:2]
-    view = find_board_corners(photo, board)
-    if view is None or len(view) < MIN_PLANE_CORNERS:
-        found = 0 if view is None else len(view)
-        raise InputError(
-            f"{found} board corners found, at least {MIN_PLANE_CORNERS} are needed: the board "
-            "must show around the part"
-        )
+    view = _board_view(photo, board) if view is None else view
     K0 = np.array([[max(w, h), 0, (w - 1) / 2], [0, max(w, h), (h - 1) / 2], [0, 0, 1]], np.float64)
     flags = (
         cv2.CALIB_USE_INTRINSIC_GUESS
@@ -155,15 +160,9 @@ def measure_on_board(
     """
     t0 = time.perf_counter()
     h, w = photo.shape[:2]
-    cam = board_camera(photo, board) if camera is None else camera.for_size(w, h)
+    view = _board_view(photo, board)
+    cam = board_camera(photo, board, view) if camera is None else camera.for_size(w, h)
     photo_u = undistorter(cam).image(photo)
-    view = find_board_corners(photo, board)
-    if view is None or len(view) < MIN_PLANE_CORNERS:
-        found = 0 if view is None else len(view)
-        raise InputError(
-            f"{found} board corners found, at least {MIN_PLANE_CORNERS} are needed: the board "
-            "must show around the part"
-        )
     pose = board_pose(view, cam)
     K = cam.matrix()
     R, t = pose.rotation(), pose.translation()
