@@ -46,6 +46,32 @@ def measured_within_sigma(out: str, size: tuple[float, float, float] = SAMPLE_SI
     return len(found)
 
 
+def _serve_ready(argv: list[str], env: dict[str, str], log_path: Path, timeout: float = 240,
+                 ) -> tuple[subprocess.Popen[bytes], int]:
+    """Start `argv` (a `prism serve`, or a block that runs one) on env's PRISM_SERVE_PORT and wait
+    for its 'ready: API' line. A port free when picked can be taken by another process before the
+    API binds it (a fresh-clone run beside a CPU burner met it: 'process exited with 3 before port
+    ... opened'): then again on another free port, up to three times. Returns the process and its
+    API port."""
+    from prism_cli.stack import free_port
+
+    for _ in range(3):
+        port = int(env["PRISM_SERVE_PORT"])
+        with log_path.open("w") as sink:  # the child keeps its own copy
+            proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=sink, stderr=subprocess.STDOUT,
+                                    start_new_session=True)
+        deadline = time.monotonic() + timeout
+        while "ready: API" not in log_path.read_text() and proc.poll() is None:
+            assert time.monotonic() < deadline, log_path.read_text()
+            time.sleep(0.3)
+        if "ready: API" in log_path.read_text():
+            return proc, port
+        text = log_path.read_text()
+        assert f"before port {port} opened" in text, text  # any other exit fails the test
+        env["PRISM_SERVE_PORT"] = str(free_port())
+    raise AssertionError(f"no free API port in 3 tries: {log_path.read_text()}")
+
+
 def blocks(lang: str) -> list[tuple[Path, str]]:
     return [(page, body) for page in PAGES for kind, body in _BLOCK.findall(page.read_text()) if kind == lang]
 
@@ -314,14 +340,9 @@ def test_webhooks_blocks_deliver_a_signed_job_to_the_receiver(tmp_path: Path):
     received = (tmp_path / "received.out").open("w")
     receiver = subprocess.Popen([str(ROOT / ".venv" / "bin" / "python"), str(script)], env=env,
                                 stdout=received, stderr=subprocess.STDOUT, start_new_session=True)
-    log = (tmp_path / "serve.out").open("w")
-    serve = subprocess.Popen(["bash", "-euo", "pipefail", "-c", _block(MARKERS["webhooks serve"])], cwd=ROOT,
-                             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    serve, api_port = _serve_ready(["bash", "-euo", "pipefail", "-c", _block(MARKERS["webhooks serve"])],
+                                   env, tmp_path / "serve.out")
     try:
-        deadline = time.monotonic() + 240
-        while "ready: API" not in (tmp_path / "serve.out").read_text():
-            assert serve.poll() is None and time.monotonic() < deadline, (tmp_path / "serve.out").read_text()
-            time.sleep(0.5)
         key = json.loads((tmp_path / ".prism" / "credentials.json").read_text())["api_key"]
         client = {**env, "PRISM_API_URL": f"http://127.0.0.1:{api_port}", "PRISM_API_KEY": key}
         submit = _block(MARKERS["webhook submit"]).replace("8080", str(receiver_port))
@@ -343,7 +364,6 @@ def test_webhooks_blocks_deliver_a_signed_job_to_the_receiver(tmp_path: Path):
                 except subprocess.TimeoutExpired:
                     os.killpg(proc.pid, signal.SIGKILL)
                     proc.wait()
-        log.close()
         received.close()
 
 
@@ -371,15 +391,9 @@ def served(tmp_path_factory) -> Iterator[dict[str, str]]:
     env = {**os.environ, "PRISM_SERVE_PORT": str(port), "PRISM_SERVE_DATA_DIR": str(data / ".prism"),
            "COLUMNS": "300"}
     env.pop("PRISM_API_KEYS", None)
-    log = (data / "serve.out").open("w")
-    proc = subprocess.Popen(["bash", "-euo", "pipefail", "-c", _block(MARKERS["serve"])], cwd=ROOT,
-                            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    proc, port = _serve_ready(["bash", "-euo", "pipefail", "-c", _block(MARKERS["serve"])], env,
+                              data / "serve.out")
     try:
-        deadline = time.monotonic() + 240
-        while "ready: API" not in (data / "serve.out").read_text():
-            assert proc.poll() is None, (data / "serve.out").read_text()
-            assert time.monotonic() < deadline, (data / "serve.out").read_text()
-            time.sleep(0.5)
         key = json.loads((data / ".prism" / "credentials.json").read_text())["api_key"]
         yield {"port": str(port), "key": key, "log": str(data / "serve.out")}
     finally:
@@ -390,7 +404,6 @@ def served(tmp_path_factory) -> Iterator[dict[str, str]]:
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
-        log.close()
 
 
 def _client_env(served: dict[str, str]) -> dict[str, str]:
@@ -490,14 +503,9 @@ def test_serve_restarted_keeps_download_links_working_and_says_stopped(tmp_path:
     prism = str(ROOT / ".venv" / "bin" / "prism")
 
     def start() -> tuple[subprocess.Popen, Path]:
+        nonlocal port
         log = tmp_path / f"serve-{time.monotonic_ns()}.out"
-        with log.open("w") as sink:  # the child keeps its own copy
-            proc = subprocess.Popen([prism, "serve"], cwd=ROOT, env=env, stdout=sink,
-                                    stderr=subprocess.STDOUT, start_new_session=True)
-        deadline = time.monotonic() + 120
-        while "ready: API" not in log.read_text():
-            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
-            time.sleep(0.3)
+        proc, port = _serve_ready([prism, "serve"], env, log, timeout=120)
         return proc, log
 
     def stop(proc: subprocess.Popen, log: Path) -> str:
