@@ -24,6 +24,7 @@ import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -135,6 +136,7 @@ MARKERS = {
     "compose": "docker compose",
     "a test file": "-m pytest ",
     "cluster": "scripts/test-cluster",
+    "station": "prism station calibrate",
 }
 
 
@@ -259,6 +261,44 @@ def test_calibrate_block_calibrates_on_opencvs_photos(user_dir: Path):
     assert "views used     13 of 13" in run.stdout, run.stdout
     camera = json.loads((user_dir / "out" / "camera.json").read_text())
     assert camera["fx"] == pytest.approx(533.2, abs=1)
+
+
+def test_station_block_measures_parts_with_no_click(user_dir: Path):
+    """The station block on renders of the board it prints (prism board's default): the plane
+    photo, board photos in several poses, the empty support, a part on it, and a hand-held photo
+    of a part lying on the board; each measured within max(2 %, 1.5 mm) of its true size."""
+    import cv2
+
+    from prismcore.station.board import default_board
+    from prismsynth.station import calibration_views, station_scene, station_setup
+
+    def save(name: str, rgb: np.ndarray) -> None:
+        (user_dir / name).parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(user_dir / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
+                    [cv2.IMWRITE_JPEG_QUALITY, 95])
+
+    board = default_board()
+    setup = station_setup(STATION_SEED, board=board)
+    part = station_scene(STATION_SEED, setup)
+    save("plane.jpg", part.plate)
+    save("empty.jpg", part.plate)
+    save("part.jpg", part.photo)
+    for i, view in enumerate(calibration_views(setup, 8, 1)):
+        save(f"calib/{i}.jpg", view)
+    held = station_scene(HELD_SEED, station_setup(HELD_SEED, board=board), nudge=False, inside_board=True,
+                         max_size_mm=60)
+    save("handheld.jpg", held.photo)
+    for block in _blocks(MARKERS["station"]):
+        run = _bash(block, cwd=user_dir, env=dict(os.environ), timeout=600)
+        assert run.returncode == 0, run.stdout + run.stderr
+        for out, scene in (("part", part), ("handheld", held)):
+            report = json.loads((user_dir / "out" / out / "report.json").read_text())
+            assert scene.box is not None
+            for key, true in scene.box.dimensions.items():
+                assert abs(report["dimensions"][key] - true) <= max(0.02 * true, 1.5), (out, key, report)
+
+
+STATION_SEED, HELD_SEED = 11, 5002
 
 
 def test_docs_block_builds_the_site_strictly_offline():

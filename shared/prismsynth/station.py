@@ -130,9 +130,10 @@ def station_setup(
     image_size: tuple[int, int] = (1280, 1024),
     distance_mm: float | None = None,
     elevation_deg: float | None = None,
+    board: BoardSpec | None = None,
 ) -> StationSetup:
     rng = np.random.default_rng([seed, 7177])
-    board = station_board()
+    board = station_board() if board is None else board
     w, h = image_size
     d = float(distance_mm if distance_mm is not None else rng.uniform(400, 1200))
     # A station's lens frames its work area: the board spans 50-75 % of the photo's width.
