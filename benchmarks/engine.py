@@ -76,8 +76,8 @@ _MEMORY_CASE = """
 import json, resource, sys
 from pathlib import Path
 from prismcore import ScanSpec, run_scan
-from prismcore.images import load_image
-from prismcore.writers import write_csv, write_ply
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_csv, write_ply
 image, spec_json, out = sys.argv[1:4]
 before = int(open("/proc/self/statm").read().split()[1]) * resource.getpagesize() / 2**20
 result = run_scan(ScanSpec.model_validate_json(spec_json), load_image(image))

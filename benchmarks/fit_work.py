@@ -1,9 +1,9 @@
 """Box-fit work: every free-focal box fit made on the points the zero-click search finds.
 
 For each of N scenes (`prismsynth.scenes.clutter_scene`, as in benchmarks/zero_click.py)
-`prismcore.locate.find_points` runs (its corner fit plans the points twice), and the points it
+`prismcore.locate.search.find_points` runs (its corner fit plans the points twice), and the points it
 found, accepted or not, are planned once more as a scan with no focal length (`plan_scan`).
-Every box fit those make is recorded through a wrapper around `prismcore.measure.fit_box` (the
+Every box fit those make is recorded through a wrapper around `prismcore.scan.measure.fit_box` (the
 real one runs): its CPU and wall time and its solver evaluations (`BoxFit.nfev`). Points no box
 explains once made the fit's starts slide to the focal length's bound for minutes.
 
@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
-import prismcore.measure
+import prismcore.scan.measure
 from prismcore import InputError, ScanSpec, plan_scan
-from prismcore.locate import find_points
+from prismcore.locate.search import find_points
 from prismsynth.scenes import clutter_scene
 
 _fits: list[tuple[float, float, int]] = []
-_fit_box = prismcore.measure.fit_box
+_fit_box = prismcore.scan.measure.fit_box
 
 
 def _recorded(*args: Any, **kwargs: Any) -> Any:
@@ -49,7 +49,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     find_points(np.zeros((64, 64, 3), np.uint8))  # OpenCV's one-time set-up is no fit's cost
-    prismcore.measure.fit_box = _recorded
+    prismcore.scan.measure.fit_box = _recorded
     per_scene: list[tuple[float, int]] = []
     for seed in range(args.seed, args.seed + args.scenes):
         sc = clutter_scene(seed)

@@ -6,7 +6,7 @@ Run: .venv/bin/python benchmarks/joint_fit.py [--cases 20] [--seed 0] [--views 3
 Renders: `prismsynth.views.photo_like_views(seed)` for seeds S..S+N-1: one random box, one phone
 (focal 0.7-1.2 x width, unknown to the engine; distortion; rounded edges; JPEG), `--views`
 viewpoints, clicks 0-3 px off, one known edge. Each view is measured alone (`plan_scan`, no focal)
-and all together (`prismcore.joint.fit_views`, no focal). Errors are on the two dimensions the
+and all together (`prismcore.multiview.joint.fit_views`, no focal). Errors are on the two dimensions the
 known edge does not set; coverage is the share of them whose |error| <= 2 sigma as stated.
 Issue 20's targets for 3 views: median <= 0.5 %, worst <= 1.5 %, 2-sigma coverage >= 90 %.
 
@@ -36,8 +36,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from prismcore import InputError, ScanSpec
-from prismcore.joint import LINE_REJECT_PX, JointResult, View, fit_views
-from prismcore.pipeline import plan_scan
+from prismcore.multiview.joint import LINE_REJECT_PX, JointResult, View, fit_views
+from prismcore.scan.pipeline import plan_scan
 from prismcore.spec import KnownEdge
 from prismsynth.views import photo_like_views
 

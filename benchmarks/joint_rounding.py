@@ -22,9 +22,9 @@ import statistics
 import numpy as np
 
 from prismcore import InputError, ScanSpec
-from prismcore.faces import clicked_quads
-from prismcore.joint import View, fit_views
-from prismcore.pipeline import plan_scan
+from prismcore.geometry.faces import clicked_quads
+from prismcore.multiview.joint import View, fit_views
+from prismcore.scan.pipeline import plan_scan
 from prismcore.spec import KnownEdge
 from prismsynth.views import photo_like_views
 

@@ -27,10 +27,10 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import ScanSpec, run_scan
-from prismcore.cloud import decimate
-from prismcore.images import load_image
-from prismcore.overlay import overlay_from_report
-from prismcore.writers import encode_png, write_format, write_ply
+from prismcore.io.images import load_image
+from prismcore.outputs.overlay import overlay_from_report
+from prismcore.outputs.writers import encode_png, write_format, write_ply
+from prismcore.scan.cloud import decimate
 from prismsynth import Box, render_oblique_view
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -65,9 +65,9 @@ class Outcome:
 
 
 def _exif_focal(jpeg: bytes, width: int, height: int) -> float | None:
-    """The focal length (px) `prismcore.exif` derives from the JPEG's EXIF, when the module is there."""
+    """The focal length (px) `prismcore.io.exif` derives from the JPEG's EXIF, when the module is there."""
     try:
-        from prismcore.exif import focal_px_from_exif, read_camera_exif
+        from prismcore.io.exif import focal_px_from_exif, read_camera_exif
     except ImportError:
         return None
     exif = read_camera_exif(jpeg)
@@ -81,7 +81,7 @@ def _exif_focal(jpeg: bytes, width: int, height: int) -> float | None:
 
 def _has_exif_module() -> bool:
     try:
-        import prismcore.exif  # noqa: F401
+        import prismcore.io.exif  # noqa: F401
     except ImportError:
         return False
     return True
@@ -146,7 +146,7 @@ def measure(seed: int, edge_radius_mm: float | None = None) -> tuple[str, dict[s
     if not takes_exif:
         out["b"] = Outcome([], None, skipped="run_scan has no exif_focal_px")
     elif p.has_exif and not _has_exif_module():
-        out["b"] = Outcome([], None, skipped="no prismcore.exif to read the EXIF")
+        out["b"] = Outcome([], None, skipped="no prismcore.io.exif to read the EXIF")
     else:
         out["b"] = _outcome(p, lambda: run_scan(_spec(p, clicks), p.image, exif_focal_px=exif_focal).report)
     if exif_focal is None:

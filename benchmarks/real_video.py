@@ -7,7 +7,7 @@ the front's width as the known edge and no focal length (fitted from the box), o
 frames whose second face is the lid (``side: top``, spec ``side_face: top``) and one for those with
 the right end wall (``side: right``), then again with the tutorial's published camera intrinsics
 as a baseline. With --pooled, every frame's fitted focal length (plan only) is pooled with
-``prismcore.pooling.pool_focal`` and every frame is measured again with that focal length given;
+``prismcore.video.pooling.pool_focal`` and every frame is measured again with that focal length given;
 with --focal, again with each of those focal lengths given (is any one focal length right for the
 video?). With --clicks-only, every run takes the clicked sides as the edges (no edge refinement):
 what the refinement adds or costs on this box.
@@ -39,11 +39,11 @@ from real_video_data import (
     video_path,
 )
 
-import prismcore.pipeline
+import prismcore.scan.pipeline
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
-from prismcore.edges import EdgeFit, line_through
-from prismcore.faces import FaceQuads
-from prismcore.pooling import pool_focal
+from prismcore.geometry.edges import EdgeFit, line_through
+from prismcore.geometry.faces import FaceQuads
+from prismcore.video.pooling import pool_focal
 
 
 @contextlib.contextmanager
@@ -56,12 +56,12 @@ def clicks_as_edges() -> Iterator[None]:
                 for n, q in (("front", clicked.front), ("side", clicked.side))}
         return clicked, fits
 
-    saved = prismcore.pipeline._refine
-    prismcore.pipeline._refine = unrefined
+    saved = prismcore.scan.pipeline._refine
+    prismcore.scan.pipeline._refine = unrefined
     try:
         yield
     finally:
-        prismcore.pipeline._refine = saved
+        prismcore.scan.pipeline._refine = saved
 
 
 def frame_spec(frame: dict, camera: dict | None = None, focal_px: float | None = None) -> ScanSpec:

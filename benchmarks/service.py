@@ -39,9 +39,9 @@ from rich.table import Table
 
 from prism_cli.stack import start_api, start_redis, start_s3, start_worker
 from prismcore import ScanSpec, run_scan
-from prismcore.cloud import decimate
-from prismcore.images import load_image
-from prismcore.writers import write_csv, write_ply
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_csv, write_ply
+from prismcore.scan.cloud import decimate
 from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

@@ -26,7 +26,7 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
-from prismcore.pipeline import run_scan
+from prismcore.scan.pipeline import run_scan
 from prismcore.station import calibrate_station, measure_on_station
 from prismcore.station.scan import station_spec
 from prismsynth.station import StationSetup, station_scene, station_setup
@@ -151,8 +151,8 @@ def _real_chessboard() -> None:
     """prism station calibrate's intrinsics on OpenCV's real chessboard photos beside prism calibrate's."""
     from pathlib import Path
 
-    from prismcore.calibration import calibrate_images
-    from prismcore.images import load_image
+    from prismcore.geometry.calibration import calibrate_images
+    from prismcore.io.images import load_image
     from prismcore.station.board import BoardSpec
 
     data = Path("/usr/share/doc/opencv-doc/examples/data")

@@ -34,9 +34,9 @@ from rich.table import Table
 
 from prism_cli.stack import start_api, start_redis, start_s3, start_worker
 from prismcore import ScanSpec, run_scan
+from prismcore.outputs.writers import write_format
 from prismcore.spec import FrameSelection
-from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
-from prismcore.writers import write_format
+from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
 from prismsynth import Box, render_clip, write_video
 
 SIZE = (1280, 1024)

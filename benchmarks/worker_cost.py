@@ -38,7 +38,7 @@ import psutil
 
 from prism_cli.stack import ManagedProcess, start_api, start_redis, start_s3, start_worker
 from prismcore import ScanSpec, run_scan
-from prismcore.images import load_image
+from prismcore.io.images import load_image
 
 sys.path.insert(0, str(Path(__file__).parent))
 from throughput_model import _photos  # the same photos: 1280x1024, with a scale

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 try:
-    from prismcore.writers import write_csv, write_ply
+    from prismcore.outputs.writers import write_csv, write_ply
 except ImportError:  # the project is not pip-installed: use the tree's copy
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "shared"))
-    from prismcore.writers import write_csv, write_ply
+    from prismcore.outputs.writers import write_csv, write_ply
 
 __all__ = ["main", "make_cloud", "run"]
 

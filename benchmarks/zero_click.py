@@ -2,7 +2,7 @@
 
 For each of N scenes (`prismsynth.scenes.clutter_scene`: random box size, two or three faces,
 lighting, textures and labels, clutter objects, a background close to the box's colour in
-20 %, JPEG) `prismcore.locate.find_points` runs on the 1280x1024 photo. A found point is
+20 %, JPEG) `prismcore.locate.search.find_points` runs on the 1280x1024 photo. A found point is
 compared with the nearest true box corner (the search names the faces its own way); the
 dimensions are measured (plan only) with one known edge, the true length of the edge the
 search calls the width, and compared with the true lengths of its height and depth edges.
@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from prismcore import InputError, ScanSpec, plan_scan
-from prismcore.locate import find_points
+from prismcore.locate.search import find_points
 from prismsynth.scenes import clutter_scene
 
 POINT_TOL_PX = 3.0

@@ -20,7 +20,7 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
-from prismcore.locate import find_points, resolve_points
+from prismcore.locate.search import find_points, resolve_points
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_video_data import load_marks, points_of, read_frames, truth_mm, video_path

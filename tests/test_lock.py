@@ -137,6 +137,6 @@ def test_the_dockerfiles_install_steps_make_a_working_service(tmp_path: Path) ->
                              capture_output=True, text=True, timeout=900)
         assert run.returncode == 0, (step, run.stderr[-2000:])
     check = subprocess.run([str(venv / "bin" / "python"), "-c",
-                            "import prism_api.main, prism_worker.app, prismcore.pipeline"],
+                            "import prism_api.main, prism_worker.app, prismcore.scan.pipeline"],
                            cwd="/", capture_output=True, text=True, timeout=120)
     assert check.returncode == 0, check.stderr[-2000:]

@@ -1,7 +1,7 @@
 """What an upload is, found when it is stored: photo or video, format, pixel size, frames.
 
-A photo is probed from its first bytes (`prismcore.images.probe_image` reads the header only);
-a video from a copy of it on local disk (`prismcore.video_decode.probe_video`: OpenCV reads
+A photo is probed from its first bytes (`prismcore.io.images.probe_image` reads the header only);
+a video from a copy of it on local disk (`prismcore.io.video_decode.probe_video`: OpenCV reads
 files only). Both are the engine's own readers, so what the upload is said to be is what a
 worker will find. The engine (numpy, OpenCV) is imported on the first upload, not when the API
 starts. A file that is neither a photo the engine reads nor a video is :class:`Unsupported`,
@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from prismcore.containers import HEAD_BYTES, video_container
+from prismcore.io.containers import HEAD_BYTES, video_container
 
 __all__ = ["ImageEnd", "Unsupported", "detect_type", "is_video_head", "probe_image_head",
            "probe_video_file"]
@@ -186,7 +186,7 @@ def probe_image_head(head: bytes, *, complete: bool, name: str) -> dict[str, Any
         Not one of the engine's photo formats, and not a video.
     """
     from prismcore.errors import InputError
-    from prismcore.images import _sniff, probe_image
+    from prismcore.io.images import _sniff, probe_image
 
     label = repr(name)
     try:
@@ -211,7 +211,7 @@ def probe_video_file(path: str | os.PathLike, *, head: bytes, name: str) -> dict
     still hold frames a worker measures, so it is recorded, not refused).
     """
     from prismcore.errors import InputError
-    from prismcore.video_decode import probe_video
+    from prismcore.io.video_decode import probe_video
 
     container = (video_container(head[:HEAD_BYTES]) or "video").upper()
     try:

@@ -84,7 +84,7 @@ class UploadPublic(BaseModel):
 
 
 class VideoPublic(BaseModel):
-    """An uploaded video as the worker decodes it (`prismcore.video.probe_video`)."""
+    """An uploaded video as the worker decodes it (`prismcore.video.frames.probe_video`)."""
 
     id: str = Field(description="The upload's id.")
     frame_count: int = Field(description="Frames that decode; frame i is shown at i / fps s.")
@@ -96,7 +96,7 @@ class VideoPublic(BaseModel):
 
 
 class FoundPointsPublic(BaseModel):
-    """The box and its reference points the zero-click search (`prismcore.locate`) found in an
+    """The box and its reference points the zero-click search (`prismcore.locate.search`) found in an
     upload, for a person to check: either `points` or a `reason`."""
 
     id: str = Field(description="The upload's id.")

@@ -3,7 +3,7 @@
 Failures are reported like schema errors (422, one entry per problem with its location), so a
 client handles both the same way. Reference points are checked against the photos' pixel sizes
 recorded when they were uploaded (`prism_api.probe`), by the engine's own checks
-(`prismcore.faces`), so a job the engine would refuse for its points is refused here instead.
+(`prismcore.geometry.faces`), so a job the engine would refuse for its points is refused here instead.
 """
 
 from __future__ import annotations
@@ -37,12 +37,12 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
     """Why the engine would refuse `points` on photos of `front` and `side` size (height, width
     px, as the engine sees them), and the point at fault (None: the points as a whole); or None.
 
-    The checks `prismcore.pipeline.plan_scan` makes before it looks at a pixel: every point in
+    The checks `prismcore.scan.pipeline.plan_scan` makes before it looks at a pixel: every point in
     its photo, each face's corners in order, convex and apart.
     """
     # The engine (numpy) is imported on the first job whose photos have known sizes.
     from prismcore.errors import InputError
-    from prismcore.faces import (
+    from prismcore.geometry.faces import (
         clicked_quads,
         paper_rectangles,
         quad_labels,
@@ -50,7 +50,7 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
         validate_points,
         validate_quad,
     )
-    from prismcore.pipeline import _side_height_guess
+    from prismcore.scan.pipeline import _side_height_guess
 
     try:
         validate_points(points, front, side)

@@ -12,8 +12,8 @@ import typer
 from rich.console import Console
 
 from prismcore import InputError
-from prismcore.calibration import calibrate_images
-from prismcore.images import DEFAULT_MAX_PIXELS, load_image
+from prismcore.geometry.calibration import calibrate_images
+from prismcore.io.images import DEFAULT_MAX_PIXELS, load_image
 
 __all__ = ["calibrate", "parse_board"]
 

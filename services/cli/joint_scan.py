@@ -4,8 +4,8 @@ The points file holds one entry per photo: a JSON list in the photos' order, or 
 the photos' file names (as given, or their base names). An entry is the seven points
 ``[[x1, y1], ..., [x7, y7]]``, or ``{"points": [...], "side_face": "right|left|top"}``.
 `prism scan --spec job.json` with `views` (each photo's path relative to the spec file) does the
-same. The result (`prismcore.joint.fit_views`) is printed (each dimension ± its sigma, the focal length,
-the views left out and why) and written to ``joint.json`` in the output folder.
+same. The result (`prismcore.multiview.joint.fit_views`) is printed (each dimension ± its
+sigma, the focal length, the views left out and why) and written to ``joint.json`` in the output folder.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from rich.console import Console
 from rich.markup import escape
 
 from prismcore import InputError
-from prismcore.images import load_image
-from prismcore.joint import JointResult, View, fit_views
-from prismcore.joint_report import joint_report
+from prismcore.io.images import load_image
+from prismcore.multiview.joint import JointResult, View, fit_views
+from prismcore.multiview.report import joint_report
 from prismcore.spec import KnownEdge, ScanSpec
 
 __all__ = ["read_points_file", "scan_spec_views", "scan_views"]

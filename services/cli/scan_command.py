@@ -14,14 +14,14 @@ from pydantic import ValidationError
 from rich.console import Console
 
 from prismcore import InputError, ScanSpec, parse_points
-from prismcore.auto_points import scan_found
 from prismcore.camera import CameraModel
-from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
-from prismcore.images import load_image
-from prismcore.locate import resolve_points
-from prismcore.overlay import given_dimension, points_found
+from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
+from prismcore.io.images import load_image
+from prismcore.locate.auto_points import scan_found
+from prismcore.locate.search import resolve_points
+from prismcore.outputs.overlay import given_dimension, points_found
 from prismcore.spec import error_message
-from prismcore.video import DEFAULT_MAX_FRAMES, is_video
+from prismcore.video.frames import DEFAULT_MAX_FRAMES, is_video
 
 from .joint_scan import scan_spec_views, scan_views
 from .outputs import report_path, write_outputs, write_overlays

@@ -156,7 +156,7 @@ def calibrate(
 ) -> None:
     """Calibrate a station: the camera's intrinsics and lens, the support plane, the plate."""
     from prismcore.camera import CameraModel
-    from prismcore.images import load_image
+    from prismcore.io.images import load_image
     from prismcore.station.calibrate import calibrate_station
 
     spec = load_board(board_file)

@@ -33,7 +33,7 @@ def scan_on_station(
     image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000
 ) -> dict[str, Any]:
     """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report."""
-    from prismcore.images import load_image
+    from prismcore.io.images import load_image
     from prismcore.station.scan import scan_on_station as scan
 
     from .station_command import load_station
@@ -49,7 +49,7 @@ def scan_on_board_photo(
     max_pixels: int = 50_000_000,
 ) -> dict[str, Any]:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
-    from prismcore.images import load_image
+    from prismcore.io.images import load_image
     from prismcore.station.scan import scan_on_board
 
     from .station_command import load_board

@@ -4,7 +4,7 @@ Each frame is measured as a photo (`frame_spec` + `run_scan`) and written to `fr
 like a photo's outputs (overlay.png included); `summary.json` beside them says how repeatable
 each dimension is.
 A frame that cannot be measured is reported and the others go on. With points "auto", a first
-pass finds each frame's points in frame order (`prismcore.video_points.FrameSearch`); a frame
+pass finds each frame's points in frame order (`prismcore.video.point_search.FrameSearch`); a frame
 where the search refuses fails with its reason.
 """
 
@@ -20,12 +20,12 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec
-from prismcore.auto_points import scan_found
-from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
+from prismcore.locate.auto_points import scan_found
 from prismcore.spec import SUMMARY_NAME, frame_folder
-from prismcore.summary import DIMENSIONS, frame_info, summarize
-from prismcore.video import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
-from prismcore.video_points import FrameSearch
+from prismcore.video.frames import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video.point_search import FrameSearch
+from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
+from prismcore.video.summary import DIMENSIONS, frame_info, summarize
 
 from .outputs import report_path, write_outputs, write_overlays
 

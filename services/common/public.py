@@ -23,7 +23,7 @@ __all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList
 
 
 VERDICTS = ("pass", "fail", "uncertain")
-"""A part's verdicts against its nominal size (prismcore.verdicts.Verdict)."""
+"""A part's verdicts against its nominal size (prismcore.quality.verdicts.Verdict)."""
 
 
 class DimensionsPublic(BaseModel):
@@ -70,7 +70,7 @@ class JointLeftOutPublic(BaseModel):
 
 
 class JointPublic(BaseModel):
-    """Several views of one part measured as ONE box (prismcore.joint.fit_views)."""
+    """Several views of one part measured as ONE box (prismcore.multiview.joint.fit_views)."""
 
     views: list[JointViewPublic] = Field(description="The views used, in input order.")
     left_out: list[JointLeftOutPublic] = Field(description="The views not used, with the reason.")

@@ -44,7 +44,7 @@ class ItemResult(BaseModel):
     focal_source: str | None = None  # given, camera, exif, pooled, fitted, none
     fit_rms_px: float | None = None
     side_face: str | None = None
-    # report.json's quality block (prismcore.verdicts.QualityBlock) when the spec gave a nominal
+    # report.json's quality block (prismcore.quality.verdicts.QualityBlock) when the spec gave a nominal
     quality: dict[str, Any] | None = None
     points_source: str | None = None  # clicked, or auto (found by the zero-click search)
     points_confidence: float | None = None  # auto: the search's confidence, 0-1

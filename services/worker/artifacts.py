@@ -14,9 +14,9 @@ tiles scanned from a reloaded plan are the very tiles the engine would scan from
 A tile is its two boolean masks, one bit per pixel (np.packbits along rows), in a small .npz.
 
 Outputs: the formats the spec asks for (the cloud as CSV, PLY, LAS or LAZ; the textured box
-as glb), its display preview (``preview.ply``, at most ``prismcore.cloud.PREVIEW_POINTS``
+as glb), its display preview (``preview.ply``, at most ``prismcore.scan.cloud.PREVIEW_POINTS``
 points, by an even stride: a 20-million-point cloud would not fit a browser, and
-`prismcore.spacing.thin_to_count`, stripe-free, costs more than the scan itself), the overlay
+`prismcore.scan.spacing.thin_to_count`, stripe-free, costs more than the scan itself), the overlay
 picture of the fit (at most OVERLAY_MAX_SIDE px) and report.json. Each file is written to a
 spooled temporary file (in memory while small, on disk beyond), then streamed to the object
 store, so a large cloud does not sit in memory twice.
@@ -43,16 +43,16 @@ from prism_common.records import ItemResult
 from prism_common.storage import object_key
 
 from prismcore import ScanPlan, ScanResult, ScanSpec
-from prismcore.cloud import decimate
-from prismcore.edges import EdgeFit
-from prismcore.exif import EXIF_HEAD_BYTES, exif_focal
-from prismcore.images import load_image
-from prismcore.measure import Dimensions
-from prismcore.overlay import given_dimension, overlay_from_report
-from prismcore.pipeline import prepare_images
-from prismcore.scan import FacePlan, row_tiles
+from prismcore.geometry.edges import EdgeFit
+from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
+from prismcore.io.images import load_image
+from prismcore.outputs.overlay import given_dimension, overlay_from_report
+from prismcore.outputs.writers import FILE_NAMES, encode_png, write_format, write_ply
+from prismcore.scan.cloud import decimate
+from prismcore.scan.colour_scan import FacePlan, row_tiles
+from prismcore.scan.measure import Dimensions
+from prismcore.scan.pipeline import prepare_images
 from prismcore.spec import frame_folder
-from prismcore.writers import FILE_NAMES, encode_png, write_format, write_ply
 
 from .context import WorkerContext
 

@@ -1,4 +1,4 @@
-"""An item measured as ONE box from several views (`prismcore.joint.fit_views`), whole in one task.
+"""An item measured as ONE box from several views (`prismcore.multiview.joint.fit_views`), whole in one task.
 
 Two kinds of item: one with `views` (photos of one part, each with its seven points; each read
 where its reference points, not copied), and a video with `fit` "joint" (the frames of
@@ -25,12 +25,12 @@ from typing import Any
 from prism_common.records import ItemResult, ItemView
 
 from prismcore import InputError
-from prismcore.images import load_image
-from prismcore.joint import View, fit_views
-from prismcore.joint_report import joint_report
+from prismcore.io.images import load_image
+from prismcore.multiview.joint import View, fit_views
+from prismcore.multiview.report import joint_report
+from prismcore.quality.verdicts import quality_from_report
 from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, KnownEdge, ScanSpec
-from prismcore.verdicts import quality_from_report
-from prismcore.video import iter_frames, probe_video, select_frames
+from prismcore.video.frames import iter_frames, probe_video, select_frames
 
 from .artifacts import item_key
 from .context import WorkerContext

@@ -22,8 +22,8 @@ from prism_common.stations import station_key
 from prism_common.storage import is_missing
 
 from prismcore import InputError, ScanSpec
-from prismcore.images import load_image
-from prismcore.verdicts import quality_from_report
+from prismcore.io.images import load_image
+from prismcore.quality.verdicts import quality_from_report
 
 from .artifacts import item_key, item_result, write_outputs
 from .context import WorkerContext

@@ -7,7 +7,7 @@ holds the list of tiles the chord is made of, so the finish merges exactly the t
 scanned, even if PRISM_TILES_PER_FACE changed in between; tiles and finish read only the job's
 prefix.
 
-An item whose points are "auto" has them found in its photo first (`prismcore.locate`, in
+An item whose points are "auto" has them found in its photo first (`prismcore.locate.search`, in
 `_located`): the search's refusal fails the item with its reason, and what it found is kept
 (beside the plan in plan.json for a tiled item) for report.json and the item's result.
 
@@ -31,11 +31,11 @@ from prism_common.records import ItemResult, ItemView
 from prism_common.storage import ObjectStore, is_missing
 
 from prismcore import ScanPlan, ScanSpec, finish_scan, plan_scan
-from prismcore.auto_points import found_box_guard, record_found, scan_found
-from prismcore.exif import exif_focal
-from prismcore.images import load_image
-from prismcore.locate import resolve_points
-from prismcore.scan import merge_bands, scan_band
+from prismcore.io.exif import exif_focal
+from prismcore.io.images import load_image
+from prismcore.locate.auto_points import found_box_guard, record_found, scan_found
+from prismcore.locate.search import resolve_points
+from prismcore.scan.colour_scan import merge_bands, scan_band
 
 from .artifacts import (
     Tile,

@@ -1,8 +1,8 @@
 """The box and its reference points found in an upload, for the web page's "Find points".
 
-`find_upload_points` decodes the upload as a job would (`prismcore.images.load_image`; a
+`find_upload_points` decodes the upload as a job would (`prismcore.io.images.load_image`; a
 video's frame through `video.extract_frame`, the very PNG the page shows) and runs the
-zero-click search (`prismcore.locate.find_points`). It writes one JSON document beside the
+zero-click search (`prismcore.locate.search.find_points`). It writes one JSON document beside the
 upload (`prism_common.upload_keys.points_key`), which the API serves:
 
 * found: ``points`` (p1..p7, image (x, y) px), ``side_face``, ``confidence``, ``faces`` (the
@@ -28,8 +28,8 @@ from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, points_key, video_info_key
 
 from prismcore import InputError
-from prismcore.images import load_image
-from prismcore.locate import Found, find_points
+from prismcore.io.images import load_image
+from prismcore.locate.search import Found, find_points
 
 from . import video
 from .context import WorkerContext

@@ -6,17 +6,17 @@ send its scan task as soon as it is stored, so frames are measured while the spl
 split works for `video_split_part_s` at a time, each part handing the rest to the next task.
 One decoded frame is in memory at a time. Without a focal length, every frame's own fit is
 pooled into one (one camera) before any frame is measured. With points "auto" the split also
-finds each frame's points, in frame order (`prismcore.video_points.FrameSearch`: each search
+finds each frame's points, in frame order (`prismcore.video.point_search.FrameSearch`: each search
 starts at the box the frame before showed), and stores them beside the frame (``points.json``:
 the points, or the search's reason, which fails that frame).
 
-Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frame_spec`)
+Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frames.frame_spec`)
 and gets its own outputs and record; after the item's last frame (`frame_finished`) the item's
 result is the summary over its frames: the median of each dimension, with its spread, so a
 client sees how repeatable the measurement is.
 
 Uploads (`extract_frame`): the web page shows a frame exactly as the worker will measure it:
-decoded by the same code (`prismcore.video`) from the same bytes, whatever the codec. What is
+decoded by the same code (`prismcore.video.frames`) from the same bytes, whatever the codec. What is
 written (keys in `prism_common.upload_keys`): ``{id}.video.json``, the probe (frame count, fps,
 size, codec, duration) or ``{"error": ...}`` when the upload is not a video that decodes; the
 frame's PNG, or its ``.error.json`` when that frame does not decode. The last video read stays
@@ -48,14 +48,14 @@ from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
 
 from prismcore import InputError, ReferencePoints, ScanSpec
-from prismcore.auto_points import scan_found
-from prismcore.containers import HEAD_BYTES, video_container
-from prismcore.images import load_image
-from prismcore.pooling import PooledFocal, focal_estimate, pool_focal
+from prismcore.io.containers import HEAD_BYTES, video_container
+from prismcore.io.images import load_image
+from prismcore.locate.auto_points import scan_found
 from prismcore.spec import SUMMARY_NAME
-from prismcore.summary import frame_info, summarize
-from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
-from prismcore.video_points import FrameSearch
+from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video.point_search import FrameSearch
+from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
+from prismcore.video.summary import frame_info, summarize
 
 from . import lifecycle
 from .artifacts import frame_key, item_key, write_outputs

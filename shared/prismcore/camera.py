@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 
 from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, PositiveInt
 
-from .bounds import FocalPx
-from .errors import InputError
+from prismcore.bounds import FocalPx
+from prismcore.errors import InputError
 
 if TYPE_CHECKING:
     import numpy as np

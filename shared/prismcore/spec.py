@@ -25,8 +25,8 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from .bounds import FocalPx, MmPerPxValue, NonNegativeMm, PositiveMm
-from .camera import CameraModel
+from prismcore.bounds import FocalPx, MmPerPxValue, NonNegativeMm, PositiveMm
+from prismcore.camera import CameraModel
 
 __all__ = [
     "FILE_NAMES",
@@ -329,7 +329,7 @@ class ScanSpec(_Strict):
     points: ReferencePoints | None = Field(
         default=None, description="Reference points (every frame of a video); required unless "
         "frame_points is given. \"auto\": found in the photo, or in each frame of a video "
-        "(prismcore.locate), see auto_points.", json_schema_extra=_auto_schema,
+        "(prismcore.locate.search), see auto_points.", json_schema_extra=_auto_schema,
     )
     auto_points: AutoPoints | None = Field(
         default=None, description="Set when points is \"auto\": where to look for the box.")
@@ -343,7 +343,7 @@ class ScanSpec(_Strict):
     views: list[ViewSpec] | None = Field(
         default=None, description=f"Several photos of ONE part by one camera (one image size), each "
         f"with its seven points on the same front face, measured as one box in one least-squares fit "
-        f"(prismcore.joint.fit_views): one focal length and lens distortion, a pose per photo, one "
+        f"(prismcore.multiview.joint.fit_views): one focal length and lens distortion, a pose per photo, one "
         f"width, height and depth with their 1-sigma. 2 to {JOINT_MAX_VIEWS} views; needs a known "
         f"edge as the scale. A view that disagrees with the others beyond its noise is named and left "
         f"out (3 views or more; two that disagree get a warning). Instead of image and points (image, "

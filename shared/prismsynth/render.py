@@ -317,7 +317,7 @@ def _corners(box: Box) -> dict[str, np.ndarray]:
 
 
 def _second_face_corners(box: Box, side_face: str) -> dict[str, np.ndarray]:
-    """p4, p5, p7 of the second face by role (see prismcore.faces): right, left or top."""
+    """p4, p5, p7 of the second face by role (see prismcore.geometry.faces): right, left or top."""
     W, H, D = box.width_mm, box.height_mm, box.depth_mm
     if side_face == "left":
         return {"p4": np.zeros(3), "p5": np.array([0.0, 0.0, D]), "p7": np.array([0.0, H, D])}
@@ -1250,7 +1250,7 @@ def render_oblique_view(box: Box, *, image_size: tuple[int, int] = (1280, 1024),
     realism : Realism or None
         Imperfections of real photos; None renders exactly as before.
     side_face : {"right", "left", "top"}
-        The face p4, p5 and p7 mark besides the front (by role, see `prismcore.faces`): the
+        The face p4, p5 and p7 mark besides the front (by role, see `prismcore.geometry.faces`): the
         right side (p4 where p2 is; needs yaw > 0), the left side (p4 where p1 is, p5 and p7
         its far corners; needs yaw < 0) or the top (p4 where p1 is, p5 and p7 its far corners
         above p1 and p2; needs pitch > 0). The image does not depend on it.

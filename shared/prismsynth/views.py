@@ -5,7 +5,7 @@ and one look (style, colours, label) from a seed, then several poses, each showi
 right side and the top at a distinct angle, and renders each as `render.photo_like_scene` renders
 its one photo (distortion, rounded edges, vignetting, noise, blur, JPEG), with its own clicks
 0-3 px off. The known edge is the same for every view. Ground truth for the engine's joint fit
-(`prismcore.joint`).
+(`prismcore.multiview.joint`).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from typer.main import get_command
 from typer.testing import CliRunner
 
 from prism_cli.main import cli
-from prismcore import overlay
+from prismcore.outputs import overlay
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 # P1..P5 of samples/job.json: measured with the paper's colour scan, the front face's colour

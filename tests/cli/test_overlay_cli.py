@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from prismcore.overlay import FACE_COLORS
+from prismcore.outputs.overlay import FACE_COLORS
 from prismsynth import Box, render_clip, write_video
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,8 +12,8 @@ import cv2
 import numpy as np
 import pytest
 
-from prismcore.calibration import calibrate_images
-from prismcore.images import load_image
+from prismcore.geometry.calibration import calibrate_images
+from prismcore.io.images import load_image
 from prismsynth.station import calibration_views, station_scene
 
 PRISM = Path(sys.executable).with_name("prism")

@@ -21,7 +21,7 @@ from prism_common.settings import Settings
 from prism_common.storage import ObjectStore
 
 from prismcore import ScanSpec, run_scan
-from prismcore.writers import write_format
+from prismcore.outputs.writers import write_format
 from prismsynth import Box, Scene, render_oblique_view
 
 from .cluster import API_KEY, BUCKET, S3_KEY_ID, S3_SECRET, WEBHOOK_SECRET

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec, run_scan
-from prismcore.pipeline import SAME_SCALE_ASSUMED
+from prismcore.scan.pipeline import SAME_SCALE_ASSUMED
 from prismsynth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
 BOXES = [Box(120.0, 80.0, 60.0), Box(90.0, 140.0, 45.0), Box(200.0, 60.0, 110.0)]

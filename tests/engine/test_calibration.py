@@ -16,10 +16,10 @@ import cv2
 import numpy as np
 import pytest
 
-from prismcore.calibration import MIN_VIEWS, board_points, calibrate, calibrate_images, find_board
 from prismcore.camera import CameraModel, undistort_points
 from prismcore.errors import InputError
-from prismcore.images import load_image
+from prismcore.geometry.calibration import MIN_VIEWS, board_points, calibrate, calibrate_images, find_board
+from prismcore.io.images import load_image
 
 OPENCV_DATA = Path("/usr/share/doc/opencv-doc/examples/data")
 LEFT = [f"left{i:02d}.jpg" for i in (1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14)]  # no left10

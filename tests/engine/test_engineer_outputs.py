@@ -15,11 +15,11 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from prismcore import Cloud, InputError, ScanSpec, run_scan
-from prismcore.box_model import box_glb, box_to_gltf
 from prismcore.camera import CameraModel
-from prismcore.las import SCALE_M, box_to_las, write_las
-from prismcore.spacing import thin_to_count, thin_to_spacing
-from prismcore.writers import write_format
+from prismcore.outputs.glb import box_glb, box_to_gltf
+from prismcore.outputs.las import SCALE_M, box_to_las, write_las
+from prismcore.outputs.writers import write_format
+from prismcore.scan.spacing import thin_to_count, thin_to_spacing
 from prismsynth import Box, Realism, distort_points, render_oblique_view
 
 BOX = Box(120.0, 80.0, 60.0)

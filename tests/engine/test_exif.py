@@ -31,7 +31,7 @@ from PIL import Image, TiffImagePlugin
 from PIL.TiffImagePlugin import IFDRational
 
 from prismcore.errors import InputError
-from prismcore.exif import (
+from prismcore.io.exif import (
     CameraExif,
     ExifFocal,
     NoExifFocal,
@@ -40,7 +40,7 @@ from prismcore.exif import (
     focal_px_from_exif,
     read_camera_exif,
 )
-from prismcore.images import load_image
+from prismcore.io.images import load_image
 
 # The iPhone-like camera: 4032 x 3024 px of 1.4 um, a 4.25 mm lens sold as "26 mm".
 PITCH_MM = 0.0014

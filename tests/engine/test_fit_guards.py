@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec, plan_scan
-from prismcore.faces import validate_quad
-from prismcore.measure import obliqueness
+from prismcore.geometry.faces import validate_quad
+from prismcore.scan.measure import obliqueness
 from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

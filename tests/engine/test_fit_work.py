@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from prismcore.perspective import FaceEvidence, fit_box, project
+from prismcore.geometry.perspective import FaceEvidence, fit_box, project
 
 PRINCIPAL = np.array([639.5, 511.5])
 K = np.array([[1.0, 0, PRINCIPAL[0]], [0, 1.0, PRINCIPAL[1]], [0, 0, 1.0]])  # free focal: f unused

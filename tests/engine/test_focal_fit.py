@@ -6,9 +6,15 @@ import cv2
 import numpy as np
 import pytest
 
-from prismcore import ScanSpec, measure, plan_scan
+from prismcore import ScanSpec, plan_scan
 from prismcore.camera import CameraModel
-from prismcore.perspective import FaceEvidence, RadialDistortion, fit_box, focal_from_vanishing_points
+from prismcore.geometry.perspective import (
+    FaceEvidence,
+    RadialDistortion,
+    fit_box,
+    focal_from_vanishing_points,
+)
+from prismcore.scan import measure
 from prismsynth import Box, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 from PIL import Image, ImageFile, ImageOps
 
-from prismcore import images
 from prismcore.errors import InputError
-from prismcore.images import DEFAULT_MAX_PIXELS, ImageInfo, load_image, probe_image
+from prismcore.io import images
+from prismcore.io.images import DEFAULT_MAX_PIXELS, ImageInfo, load_image, probe_image
 
 H, W = 48, 64
 

@@ -1,4 +1,4 @@
-"""Issue 20, items 1-2: several photos of one box measured as one box (`prismcore.joint.fit_views`).
+"""Issue 20, items 1-2: several photos of one box measured as one box (`prismcore.multiview.joint.fit_views`).
 
 Oracle: `prismsynth.photo_like_views`, photo-like renders of ONE box from three viewpoints by one
 phone (focal length unknown to the engine, lens distortion, rounded edges, JPEG, clicks 0-3 px
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from prismcore import InputError
-from prismcore.joint import CLICK_WARN_PX, JointResult, View, fit_views
-from prismcore.joint_report import joint_report
+from prismcore.multiview.joint import CLICK_WARN_PX, JointResult, View, fit_views
+from prismcore.multiview.report import joint_report
 from prismcore.spec import KnownEdge, MmPerPx
 from prismsynth import PhotoLikeScene, photo_like_views
 
@@ -159,7 +159,7 @@ def test_edge_lines_the_clicks_disagree_with_can_be_left_out(clean) -> None:
 def test_an_edge_line_on_another_feature_is_left_out(clean, monkeypatch) -> None:
     """A view's refined edge moved 6 px off the box (as onto a printed border parallel to it) lies
     off the box the other views share: it is left out and the box is what the clean views give."""
-    import prismcore.joint as joint
+    import prismcore.multiview.joint as joint
 
     prepare = joint._prepare
 
@@ -187,7 +187,7 @@ def test_an_edge_line_on_another_feature_is_left_out(clean, monkeypatch) -> None
 def test_a_view_whose_edges_all_moved_is_warned_about_by_its_clicks(clean, monkeypatch) -> None:
     """Every edge of view 2 moved 6 px outward: its pose follows them (a nearer box), so its
     clicks end up far from the shared box; it is named in a warning, the clean views are not."""
-    import prismcore.joint as joint
+    import prismcore.multiview.joint as joint
 
     prepare = joint._prepare
 

@@ -1,4 +1,4 @@
-"""`prismcore.las.write_las` read back by laspy (the independent reader), on clouds made to
+"""`prismcore.outputs.las.write_las` read back by laspy (the independent reader), on clouds made to
 probe its record building: every point in order across the writer's blocks, each coordinate
 within half a 0.1 mm grid step of (x, z, -y) / 1000 m written out here, ties at 0.05 mm, both
 dtypes, with and without colours, LAS and LAZ.
@@ -12,8 +12,8 @@ import laspy
 import numpy as np
 import pytest
 
-from prismcore import las as las_module
-from prismcore.las import write_las
+from prismcore.outputs import las as las_module
+from prismcore.outputs.las import write_las
 
 
 def _cloud(n: int, dtype: type, seed: int) -> np.ndarray:

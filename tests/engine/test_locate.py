@@ -1,4 +1,4 @@
-"""Zero-click search (prismcore.locate) on rendered scenes whose box corners are known.
+"""Zero-click search (prismcore.locate.search) on rendered scenes whose box corners are known.
 
 The truth is the renderer's projection of the box's eight corners (prismsynth.scenes), not
 anything the search computes; the search may name the faces its own way, so each found point
@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec
-from prismcore.locate import CONFIDENCE_MIN, find_points, resolve_points
-from prismcore.locate_faces import propose_neighbours
+from prismcore.locate.search import CONFIDENCE_MIN, find_points, resolve_points
+from prismcore.locate.second_face import propose_neighbours
 from prismsynth import Box, render_front_view
 from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from prismcore import InputError
-from prismcore.overlay import (
+from prismcore.outputs.overlay import (
     CLICK_COLOR,
     FACE_COLORS,
     LABEL_COLOR,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismcore.scan import paper_colour_scan
+from prismcore.scan.colour_scan import paper_colour_scan
 
 
 def paper_scan_literal(pixels: np.ndarray, seed: np.ndarray, tol: float) -> np.ndarray:

@@ -12,7 +12,7 @@ The photos: the sample (`samples/box.jpg`, its clicks in `samples/job.json`), ph
 renders with clicks off by up to 3 px and no focal length, and the hand-marked frames of OpenCV's
 real cookie-box video.
 
-The zero-click search (`prismcore.locate`) decides on regions that close or leak on one grey
+The zero-click search (`prismcore.locate.search`) decides on regions that close or leak on one grey
 level. It pools its faces over two samplings of the photo and says when a box rests on a face
 only one of them found (`Found.stable`, and a warning); a decision that flips under these changes
 must have said so on one side or the other. Over seeds 0-143 (432 scene-perturbations) the
@@ -31,8 +31,8 @@ import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec, plan_scan
-from prismcore.images import load_image
-from prismcore.locate import Found, find_points
+from prismcore.io.images import load_image
+from prismcore.locate.search import Found, find_points
 from prismsynth import photo_like_scene
 from prismsynth.scenes import clutter_scene
 

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from prismcore.pooling import pool_focal
+from prismcore.video.pooling import pool_focal
 
 
 def test_agreeing_estimates_give_the_inverse_variance_mean():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import InputError
-from prismcore.cloud import PREVIEW_POINTS, Cloud, decimate
+from prismcore.scan.cloud import PREVIEW_POINTS, Cloud, decimate
 
 
 def _cloud(n: int) -> Cloud:

@@ -14,7 +14,7 @@ import pytest
 
 from prismcore import ScanSpec
 from prismcore.camera import CameraModel
-from prismcore.pipeline import plan_scan
+from prismcore.scan.pipeline import plan_scan
 from prismsynth import PhotoLikeScene, photo_like_scene
 
 SEEDS = tuple(range(12))

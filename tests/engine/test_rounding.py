@@ -1,4 +1,4 @@
-"""The edge radius read from the shading at a box's folds (`prismcore.rounding`).
+"""The edge radius read from the shading at a box's folds (`prismcore.geometry.rounding`).
 
 Oracle: photo-like renders (`prismsynth.photo_like_scene`) of a known radius, read through the
 render's true camera (pose, focal length, distortion), so that only the estimator is tested.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prismcore.rounding import _sample, estimate_edge_radius
+from prismcore.geometry.rounding import _sample, estimate_edge_radius
 from prismsynth import PhotoLikeScene, photo_like_scene
 from prismsynth.render import distort_points
 

@@ -1,4 +1,4 @@
-"""The fold fit's batched least squares (`prismcore.rounding.fold_profile_radius`) against the
+"""The fold fit's batched least squares (`prismcore.geometry.rounding.fold_profile_radius`) against the
 plain oracle it replaced: one `np.linalg.lstsq` per (radius, blur, offset) candidate.
 
 Its decisions (the radius, the offset) must be the same, and every candidate's residual equal to
@@ -13,7 +13,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from prismcore import rounding as R  # noqa: N812 (the module under test, short)
+from prismcore.geometry import rounding as R  # noqa: N812 (the module under test, short)
 
 
 def _oracle(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[float, float],

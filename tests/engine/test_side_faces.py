@@ -17,8 +17,8 @@ import pytest
 from pydantic import ValidationError
 
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
-from prismcore.faces import resolve_side_face
-from prismcore.overlay import RESIDUAL_COLOR, draw_overlay
+from prismcore.geometry.faces import resolve_side_face
+from prismcore.outputs.overlay import RESIDUAL_COLOR, draw_overlay
 from prismsynth import Box, Style, render_oblique_view, save_image
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from prismcore.summary import DIMENSIONS, summarize
+from prismcore.video.summary import DIMENSIONS, summarize
 
 sizes = st.floats(1.0, 1000.0, allow_nan=False)
 

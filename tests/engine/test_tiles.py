@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec
-from prismcore.pipeline import plan_scan, scan_face
-from prismcore.scan import merge_bands, row_tiles, scan_band
+from prismcore.scan.colour_scan import merge_bands, row_tiles, scan_band
+from prismcore.scan.pipeline import plan_scan, scan_face
 
 
 def _image(rng) -> np.ndarray:

@@ -8,7 +8,7 @@ import pytest
 from pydantic import ValidationError
 
 from prismcore import InputError, ScanSpec
-from prismcore.verdicts import COVERAGE_K, judge, quality_block, quality_from_report
+from prismcore.quality.verdicts import COVERAGE_K, judge, quality_block, quality_from_report
 
 # (measured, nominal, tolerance, sigma, verdict), worked out by hand with k = 2:
 # pass iff |d| + 2s <= T, fail iff |d| - 2s > T, else uncertain.

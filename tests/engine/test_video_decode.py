@@ -10,7 +10,7 @@ import pytest
 from video_clips import CLIP_FPS, CLIP_FRAMES, CODEC_IDS, CODECS, read_stamp
 
 from prismcore import InputError
-from prismcore.video import iter_frames, probe_video
+from prismcore.video.frames import iter_frames, probe_video
 from prismsynth import write_video
 
 # What OpenCV reports as the FourCC of each codec (MPEG-4 part 2 reads as "FMP4" whatever the tag).

@@ -1,4 +1,4 @@
-"""Zero-click along a video (prismcore.video_points.FrameSearch): each frame's search starts at
+"""Zero-click along a video (prismcore.video.point_search.FrameSearch): each frame's search starts at
 the box the frame before showed, so the box a person pointed at in the first frame is followed
 while it moves, past a frame where it is missing; that frame is refused with the reason.
 
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec
-from prismcore.locate import find_points
-from prismcore.video_points import FrameSearch, points_centre
+from prismcore.locate.search import find_points
+from prismcore.video.point_search import FrameSearch, points_centre
 from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 
 SHIFTS = (0, 40, None, 60)  # px to the right per frame; None: a frame without the boxes

@@ -7,8 +7,8 @@ import pytest
 from video_clips import CLIP_BOX, CLIP_FRAMES, CODEC_IDS, CODECS
 
 from prismcore import ScanSpec, run_scan
-from prismcore.summary import DIMENSIONS, summarize
-from prismcore.video import frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
+from prismcore.video.summary import DIMENSIONS, summarize
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 TRUTH = {"width": CLIP_BOX.width_mm, "height": CLIP_BOX.height_mm, "depth": CLIP_BOX.depth_mm}

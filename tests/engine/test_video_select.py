@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from prismcore import InputError
 from prismcore.spec import FrameSelection
-from prismcore.video import VideoInfo, frame_sharpness, probe_video, select_frames
+from prismcore.video.frames import VideoInfo, frame_sharpness, probe_video, select_frames
 from prismsynth import write_video
 
 INFO = VideoInfo(frame_count=100, fps=25.0, width=640, height=512, codec="MJPG", duration_s=4.0)

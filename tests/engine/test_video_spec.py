@@ -15,10 +15,10 @@ from pydantic import ValidationError
 from video_clips import CODEC_IDS, CODECS
 
 from prismcore import InputError, ScanSpec, run_scan
-from prismcore.containers import video_container
-from prismcore.images import load_image
+from prismcore.io.containers import video_container
+from prismcore.io.images import load_image
 from prismcore.spec import FrameSelection
-from prismcore.video import frame_spec, is_video
+from prismcore.video.frames import frame_spec, is_video
 
 P = [[10, 10], [50, 12], [50, 40], [50, 12], [60, 11]]
 Q = [[11, 10], [51, 12], [51, 40], [51, 12], [61, 11]]

@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from plyfile import PlyData
 
-from prismcore import writers
 from prismcore.errors import InputError
-from prismcore.writers import write_csv, write_ply
+from prismcore.outputs import writers
+from prismcore.outputs.writers import write_csv, write_ply
 
 
 def make_cloud(n: int, dtype=np.float32, seed: int = 7, scale: float = 250.0):

@@ -22,8 +22,8 @@ import pytest
 from prism_cli.main import main
 from prism_cli.stack import start_api, start_worker
 from prismcore import ScanSpec, run_scan
-from prismcore.images import load_image
-from prismcore.writers import write_format
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_format
 from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS

@@ -25,8 +25,8 @@ from prism_common.store import JobStore
 from prism_worker.artifacts import plan_tiles
 from prism_worker.tasks import retry_caps_s, retry_window_s
 from prismcore import ScanSpec, plan_scan, run_scan
-from prismcore.images import load_image
-from prismcore.writers import write_format
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_format
 from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS

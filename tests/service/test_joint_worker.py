@@ -1,5 +1,5 @@
 """Issue 20, item 1 through a real worker (Celery process, Redis, SeaweedFS): several views of one
-part measured as ONE box (`prismcore.joint.fit_views`), whole in one task.
+part measured as ONE box (`prismcore.multiview.joint.fit_views`), whole in one task.
 
 * Photo-like renders of one box from three viewpoints (`prismsynth.photo_like_views`): the box
   within its stated 2 sigma and 3 % of the truth; a view whose points mark a deeper box is named

@@ -15,7 +15,7 @@ from collections import Counter
 import pytest
 
 from prismcore import ScanSpec, run_scan
-from prismcore.images import load_image
+from prismcore.io.images import load_image
 
 from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene

@@ -22,7 +22,7 @@ from prism_common.public import JobPublic
 from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, start_api, start_worker
 from prismcore import ScanSpec, run_scan
-from prismcore.images import load_image
+from prismcore.io.images import load_image
 from prismcore.spec import frame_folder
 from prismsynth import Box, render_clip, render_oblique_view, write_video
 

@@ -15,8 +15,8 @@ from prism_common.queue import TASK_FIND_POINTS
 from prism_common.upload_keys import tenant_hash
 
 from prism_worker.upload_points import found_document
-from prismcore.images import load_image
-from prismcore.locate import CONFIDENCE_MIN, find_points
+from prismcore.io.images import load_image
+from prismcore.locate.search import CONFIDENCE_MIN, find_points
 from prismsynth import Box, render_clip, write_video
 from prismsynth.scenes import clutter_scene, empty_scene, two_box_scene
 

@@ -15,9 +15,9 @@ from prism_common.queue import TASK_PLAN_ITEM
 from prism_common.records import State
 
 from prismcore import run_scan
-from prismcore.cloud import PREVIEW_POINTS, Cloud, decimate
-from prismcore.images import load_image
-from prismcore.writers import write_csv, write_ply
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_csv, write_ply
+from prismcore.scan.cloud import PREVIEW_POINTS, Cloud, decimate
 from prismsynth import Box, render_oblique_view
 
 from .worker_env import Env, encode, spec_for, worker_env

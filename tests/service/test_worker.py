@@ -21,9 +21,9 @@ from prism_common.records import State
 from prism_worker.artifacts import dumps_plan, loads_plan, pack_tile, plan_tiles, tile_id, unpack_tile
 from prism_worker.broker import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
-from prismcore.images import load_image
-from prismcore.scan import merge_bands, row_tiles, scan_band
-from prismcore.writers import write_csv
+from prismcore.io.images import load_image
+from prismcore.outputs.writers import write_csv
+from prismcore.scan.colour_scan import merge_bands, row_tiles, scan_band
 from prismsynth import Box, CameraExif, Realism, Style, render_oblique_view
 
 from .worker_env import INPUTS_BUCKET, Env, encode, spec_for, worker_env

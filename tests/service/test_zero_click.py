@@ -25,7 +25,7 @@ import pytest
 from prism_common.storage import ObjectStore
 
 from prism_cli.stack import start_api, start_worker
-from prismcore.locate import CONFIDENCE_MIN, find_points
+from prismcore.locate.search import CONFIDENCE_MIN, find_points
 from prismsynth import Box, write_video
 from prismsynth.scenes import ClutterScene, box_vertices_px, clutter_scene, empty_scene
 from prismsynth.video import render_clip

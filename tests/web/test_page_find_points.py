@@ -14,7 +14,7 @@ import numpy as np
 from page_driver import KEY, PageDriver, save_photo
 from playwright.sync_api import expect
 
-from prismcore.locate import find_points
+from prismcore.locate.search import find_points
 from prismsynth.scenes import clutter_scene, empty_scene
 
 SIZE = (640, 512)

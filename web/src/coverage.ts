@@ -2,7 +2,7 @@
 // face to show no gaps.
 //
 // Why: the worker's preview keeps every k-th point of the cloud in scan order
-// (prismcore.cloud.decimate, k about 6 for a 600,000-point scan), and scan order is row by row
+// (prismcore.scan.cloud.decimate, k about 6 for a 600,000-point scan), and scan order is row by row
 // over each face. Where a face's row length is close to a multiple of k, the points kept line up
 // in columns k pixels apart for many rows running: slits wider than a point, across the face.
 // Through them the faces behind showed, and in depth colours the back face is the far end of the

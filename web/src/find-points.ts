@@ -1,5 +1,5 @@
 // Step 2's "Find points": the service's zero-click search (GET /v1/uploads/{id}/points, run by a
-// worker with the engine's prismcore.locate on the photo as a job decodes it) places P1...P7 for
+// worker with the engine's prismcore.locate.search on the photo as a job decodes it) places P1...P7 for
 // the person to check and drag, and the faces it found are drawn dashed on the photo; when it
 // refuses, its reason is shown in words. With P1 placed, the search looks for the box under it
 // (a hint), which settles a photo with two boxes. A photo's scan whose found points were not

@@ -1,6 +1,6 @@
 // Step 3 for a video: which frames are measured (the spec's `frames`) and whether the points hold
 // for every frame (`points`) or only for the frames marked, each its own (`frame_points`).
-// The candidates mirror prismcore.frame_select, so the note says which frames will be measured.
+// The candidates mirror prismcore.video.frame_select, so the note says which frames will be measured.
 
 import { state } from "./state";
 import type { FrameSelection, VideoInfo } from "./types";
@@ -82,7 +82,7 @@ export class FrameSelectionForm {
   }
 }
 
-/** The frames in [start_s, end_s), every Nth from the first (prismcore.frame_select._candidates). */
+/** The frames in [start_s, end_s), every Nth from the first (prismcore.video.frame_select._candidates). */
 export function candidates(selection: FrameSelection, info: VideoInfo): number[] {
   const n = info.frame_count;
   let [first, stop] = [0, n];

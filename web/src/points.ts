@@ -1,5 +1,5 @@
 // The reference points, the order they are clicked in, and the face regions they outline
-// (mirrors prismcore.faces.clicked_quads, paper_rectangles and resolve_side_face, so what is
+// (mirrors prismcore.geometry.faces.clicked_quads, paper_rectangles and resolve_side_face, so what is
 // drawn is what is scanned).
 //
 // P1, P2, P3 (and P6) are the front's corners. P4, P5 (and P7) mark the second face by role: P4
@@ -76,7 +76,7 @@ export type Marks = Partial<Record<PointName, Point>>;
 const add = (a: Point, b: Point): Point => [a[0] + b[0], a[1] + b[1]];
 const sub = (a: Point, b: Point): Point => [a[0] - b[0], a[1] - b[1]];
 const dist = (a: Point, b: Point): number => Math.hypot(a[0] - b[0], a[1] - b[1]);
-const SAME_CORNER = 0.5; // prismcore.faces._SAME_CORNER
+const SAME_CORNER = 0.5; // prismcore.geometry.faces._SAME_CORNER
 
 /** (a, b) with v = a * across + b * down, each scaled by its axis' length (faces._front_axes). */
 function inFront(v: Point, across: Point, down: Point): [number, number] {
@@ -86,7 +86,7 @@ function inFront(v: Point, across: Point, down: Point): [number, number] {
   return [a * Math.hypot(...across), b * Math.hypot(...down)];
 }
 
-/** The second face the points mark in one photo (prismcore.faces.resolve_side_face), or null
+/** The second face the points mark in one photo (prismcore.geometry.faces.resolve_side_face), or null
  *  while they do not tell yet (or do not fit the choice). */
 export function secondFace(m: Marks, twoPhoto: boolean, chosen: FaceChoice = choice): SecondFace | null {
   if (twoPhoto) return "right";

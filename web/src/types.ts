@@ -31,7 +31,7 @@ export interface DimensionStats {
   relative_spread: number | null;
 }
 
-/** A video item's summary.json (prismcore.summary.summarize). */
+/** A video item's summary.json (prismcore.video.summary.summarize). */
 export interface Summary {
   frames: { selected: number; measured: number; failed: number };
   unit: string | null;
@@ -43,7 +43,7 @@ export interface Summary {
 export type Verdict = "pass" | "fail" | "uncertain";
 export const VERDICTS: readonly Verdict[] = ["pass", "fail", "uncertain"];
 
-/** One dimension against its nominal (prismcore.verdicts.DimensionVerdict), mm. */
+/** One dimension against its nominal (prismcore.quality.verdicts.DimensionVerdict), mm. */
 export interface DimensionVerdict {
   nominal_mm: number;
   measured_mm: number;
@@ -200,7 +200,7 @@ export interface ScanSpec {
   /** With `views`, left out: the first view's photo is the item's image. */
   image?: string;
   side_image?: string;
-  /** "auto": the worker finds them (prismcore.locate), around `auto_points.hint` if given. */
+  /** "auto": the worker finds them (prismcore.locate.search), around `auto_points.hint` if given. */
   points?: PointSet | "auto";
   auto_points?: { hint?: Point };
   frames?: FrameSelection;

@@ -1,4 +1,4 @@
-// Videos: told from photos by their first bytes (mirrors prismcore.containers), and read through
+// Videos: told from photos by their first bytes (mirrors prismcore.io.containers), and read through
 // the API, which has a worker decode them: the frame shown here is the very PNG the worker's
 // decoder makes, so it is the frame measured, whatever the codec (MJPEG AVI plays in no browser).
 
@@ -6,7 +6,7 @@ import { whenReady as ready } from "./api";
 import type { VideoInfo } from "./types";
 
 const HEAD_BYTES = 16;
-// ISO media brands that are still images or audio (prismcore.containers._NOT_VIDEO_BRANDS).
+// ISO media brands that are still images or audio (prismcore.io.containers._NOT_VIDEO_BRANDS).
 const NOT_VIDEO_BRANDS = new Set(["heic", "heix", "heim", "heis", "hevc", "hevx", "hevm", "hevs", "mif1",
   "msf1", "avif", "avis", "avio", "jxl ", "crx ", "jp2 ", "jpx ", "jpm ", "M4A ", "M4B ", "M4P ", "F4A ", "F4B "]);
 const QUICKTIME_ATOMS = new Set(["moov", "mdat", "wide", "free", "skip", "pnot"]);

@@ -8,9 +8,9 @@ support plane, plate); ``segment`` re-registers a photo on the plate and outline
 
 from __future__ import annotations
 
-from .board import BoardSpec, board_image, default_board, find_board_corners
-from .calibrate import Station, calibrate_station
-from .measure import StationMeasurement, measure_on_station
+from prismcore.station.board import BoardSpec, board_image, default_board, find_board_corners
+from prismcore.station.calibrate import Station, calibrate_station
+from prismcore.station.measure import StationMeasurement, measure_on_station
 
 __all__ = [
     "BoardSpec",

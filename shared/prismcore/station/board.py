@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, model_validator
 
-from ..errors import InputError
+from prismcore.errors import InputError
 
 __all__ = ["PAPER_MM", "BoardSpec", "BoardView", "board_image", "default_board", "find_board_corners"]
 
@@ -192,7 +192,7 @@ def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
     ``MIN_CORNERS`` show (a chessboard: when not every inner corner shows)."""
     gray = _gray(image)
     if board.type == "chessboard":
-        from ..calibration import find_board
+        from prismcore.geometry.calibration import find_board
 
         corners = find_board(np.dstack([gray] * 3), board.inner_corners)
         if corners is None:

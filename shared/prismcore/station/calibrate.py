@@ -14,9 +14,9 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..camera import CameraModel
-from ..errors import InputError
-from .board import BoardSpec, BoardView, find_board_corners
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
+from prismcore.station.board import BoardSpec, BoardView, find_board_corners
 
 __all__ = [
     "MAX_RMS_PX",

@@ -11,12 +11,12 @@ from typing import cast
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
-from ..errors import InputError
-from .board import BoardSpec, BoardView, board_image, find_board_corners
-from .calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
-from .measure import StationMeasurement, measure_registered
-from .segment import Registration, undistorter
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
+from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
+from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
+from prismcore.station.measure import StationMeasurement, measure_registered
+from prismcore.station.segment import Registration, undistorter
 
 __all__ = ["board_camera", "expected_board", "measure_on_board"]
 

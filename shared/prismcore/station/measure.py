@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
-from ..errors import InputError
-from .boxfit import _FACES, BoxFit, fit_box, fold_distance, project
-from .calibrate import Station
-from .segment import Registration, register, segment_part, undistorter
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
+from prismcore.station.boxfit import _FACES, BoxFit, fit_box, fold_distance, project
+from prismcore.station.calibrate import Station
+from prismcore.station.segment import Registration, register, segment_part, undistorter
 
 __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
 

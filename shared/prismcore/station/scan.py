@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import CameraModel
-from ..errors import InputError
-from ..pipeline import ScanResult, run_scan
-from ..spec import ScanSpec, parse_points
-from .board import BoardSpec
-from .calibrate import Station
-from .measure import StationMeasurement, measure_on_station
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
+from prismcore.scan.pipeline import ScanResult, run_scan
+from prismcore.spec import ScanSpec, parse_points
+from prismcore.station.board import BoardSpec
+from prismcore.station.calibrate import Station
+from prismcore.station.measure import StationMeasurement, measure_on_station
 
 __all__ = ["StationScan", "scan_on_board", "scan_on_station", "station_spec"]
 
@@ -95,6 +95,6 @@ def scan_on_board(
 ) -> StationScan:
     """A hand-held photo of a part lying on `board`: as :func:`scan_on_station`, with the board in
     the photo as the station (``scale_source`` "board")."""
-    from .handheld import measure_on_board
+    from prismcore.station.handheld import measure_on_board
 
     return _with_cloud(measure_on_board(photo, board, camera), photo, image, extra, "board")

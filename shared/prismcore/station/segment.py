@@ -12,10 +12,10 @@ from typing import cast
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
-from ..errors import InputError
-from .board import BoardSpec, find_board_corners
-from .calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
+from prismcore.station.board import BoardSpec, find_board_corners
+from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
 
 __all__ = ["MAX_SHIFT_PX", "Registration", "Silhouette", "register", "segment_part", "undistorter"]
 

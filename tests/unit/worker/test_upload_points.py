@@ -9,7 +9,7 @@ import numpy as np
 from prism_common.upload_keys import points_key
 
 from prism_worker import upload_points
-from prismcore.locate import find_points
+from prismcore.locate.search import find_points
 from prismsynth.scenes import empty_scene
 
 from .conftest import Fakes

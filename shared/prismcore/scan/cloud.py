@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .scan import FaceScan
+from prismcore.errors import InputError
+from prismcore.scan.colour_scan import FaceScan
 
 __all__ = ["PREVIEW_POINTS", "Cloud", "assemble", "decimate", "face_points"]
 

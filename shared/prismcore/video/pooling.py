@@ -10,35 +10,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import ScanSpec
+from prismcore.scan.pipeline import PooledFocal, plan_scan
+from prismcore.spec import ScanSpec
 
 __all__ = ["PooledFocal", "focal_estimate", "pool_focal"]
 
 _OUTLIER_SIGMAS = 3.0
 _MAD_TO_SIGMA = 1.4826  # the MAD of a normal distribution, in sigmas
-
-
-@dataclass(frozen=True)
-class PooledFocal:
-    """The pooled focal length and how it was reached.
-
-    focal_px : float
-        The inverse-variance weighted mean of the estimates kept, px.
-    std_px : float
-        Its standard error, px, widened by the scatter of the estimates when they disagree more
-        than their own errors say (Birge ratio).
-    used : tuple of int
-        Indices of the estimates kept; the others disagreed with the median by more than
-        3 sigma (their own error combined with the estimates' robust scatter).
-    """
-
-    focal_px: float
-    std_px: float
-    used: tuple[int, ...]
 
 
 def pool_focal(estimates: Sequence[tuple[float, float]]) -> PooledFocal | None:
@@ -83,8 +64,7 @@ def focal_estimate(spec: ScanSpec, image: np.ndarray) -> tuple[float, float] | N
 
     image : (H, W, 3) RGB, as for `prismcore.plan_scan`. Only the fit runs, not the scan.
     """
-    from .errors import InputError
-    from .pipeline import plan_scan  # the pipeline takes a PooledFocal: imported here, not above
+    from prismcore.errors import InputError
 
     try:
         camera = plan_scan(spec, image).camera

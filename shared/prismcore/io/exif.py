@@ -2,7 +2,7 @@
 
 :func:`read_camera_exif` reads the few EXIF fields that say what camera took a photo and how long
 its lens was; :func:`focal_px_from_exif` turns them into a focal length in pixels of the image as
-:func:`prismcore.images.load_image` decodes it (or says why it cannot); :func:`camera_key` names
+:func:`prismcore.io.images.load_image` decodes it (or says why it cannot); :func:`camera_key` names
 the camera so photos taken with one camera and lens setting can share one focal length.
 
 EXIF blocks are parsed by Pillow (``PIL.Image.Exif``); this module only finds the block in the
@@ -23,9 +23,9 @@ Two ways to a focal length, in this order of trust:
    ``f_px = f_mm * px_per_mm * decoded_width / original_width``, widths taken in the stored
    (unrotated) frame.
 
-Orientation: :func:`~prismcore.images.load_image` applies the EXIF orientation, so for
+Orientation: :func:`~prismcore.io.images.load_image` applies the EXIF orientation, so for
 orientations 5..8 (turned by 90 degrees) the decoded width is the stored height. The orientation
-used here is the one :func:`~prismcore.images.probe_image` reads, the same reading
+used here is the one :func:`~prismcore.io.images.probe_image` reads, the same reading
 ``load_image`` turns the pixels by, so the two cannot disagree even on a malformed block.
 Without ``PixelXDimension``/``PixelYDimension`` the decoded image is assumed to be the photo as
 taken (the basis says so).
@@ -53,8 +53,8 @@ from typing import Any
 
 from PIL import Image
 
-from .errors import InputError
-from .images import PIL_ERRORS, jpeg_header, probe_image
+from prismcore.errors import InputError
+from prismcore.io.images import PIL_ERRORS, jpeg_header, probe_image
 
 __all__ = [
     "FILM_35MM_DIAGONAL_MM",
@@ -108,7 +108,7 @@ class CameraExif:
     make, model, lens_model : str or None
         ``Make``, ``Model`` and ``LensModel``, stripped of padding and control characters.
     orientation : int
-        EXIF orientation 1..8 as :func:`prismcore.images.load_image` applies it (1 when missing
+        EXIF orientation 1..8 as :func:`prismcore.io.images.load_image` applies it (1 when missing
         or invalid); 5..8 mean the decoded image is the stored one turned by 90 degrees.
     pixel_width, pixel_height : int or None
         ``PixelXDimension`` x ``PixelYDimension``: the size of the image as the camera wrote it,
@@ -179,7 +179,7 @@ def read_camera_exif(data: bytes | bytearray | memoryview) -> CameraExif | None:
     Parameters
     ----------
     data : bytes
-        The content of an image file that :func:`prismcore.images.load_image` reads (JPEG, PNG,
+        The content of an image file that :func:`prismcore.io.images.load_image` reads (JPEG, PNG,
         WebP or TIFF), or a bare EXIF block starting with ``b"Exif\\0\\0"`` (an APP1 payload,
         as Pillow's ``im.info["exif"]`` holds it; its orientation is then read from the block).
 
@@ -229,7 +229,7 @@ def explain_exif_focal(
     exif : CameraExif
         From :func:`read_camera_exif` for the same file.
     decoded_width, decoded_height : int
-        Size in px of the image :func:`prismcore.images.load_image` returned for the file, which
+        Size in px of the image :func:`prismcore.io.images.load_image` returned for the file, which
         has the EXIF orientation applied: for orientation 5..8 the decoded width is the stored
         (and ``PixelYDimension``) height.
 
@@ -480,7 +480,7 @@ def _text(value: Any) -> str | None:
 def _exif_block(data: bytes, fmt: str) -> bytes | None:
     """The EXIF block of an image file of format ``fmt`` (as probe_image names it), or None.
 
-    The same block :mod:`prismcore.images` takes the orientation from: the first "Exif" APP1
+    The same block :mod:`prismcore.io.images` takes the orientation from: the first "Exif" APP1
     segment of a JPEG before its first scan, a PNG's eXIf chunk before its image data, a WebP's
     EXIF chunk, and a TIFF file's own first directory.
     """
@@ -521,7 +521,7 @@ def exif_focal(data: bytes | bytearray | memoryview, decoded_width: int,
     """The focal length, px of the decoded photo, that the photo's own EXIF gives; None when it
     has none that can be trusted (no EXIF, a crop, implausible values).
 
-    data : the photo file's bytes, as given to `prismcore.images.load_image`.
+    data : the photo file's bytes, as given to `prismcore.io.images.load_image`.
     """
     exif = read_camera_exif(data)
     return None if exif is None else focal_px_from_exif(exif, decoded_width, decoded_height)

@@ -77,8 +77,8 @@ from PIL import (
     WebPImagePlugin,
 )
 
-from .containers import video_container
-from .errors import InputError
+from prismcore.errors import InputError
+from prismcore.io.containers import video_container
 
 __all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "PIL_ERRORS", "ImageInfo", "jpeg_header", "load_image",
            "probe_image"]

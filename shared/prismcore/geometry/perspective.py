@@ -15,7 +15,7 @@ in the same minimum. The starts' work is bounded (`BoxFit.nfev`): on points that
 they slide towards the focal length's bound without converging.
 
 The second face may be the right side (the paper's), the left side (in the plane X = 0) or the
-top (in the plane Y = 0): see `prismcore.faces` for which corner each point marks.
+top (in the plane Y = 0): see `prismcore.geometry.faces` for which corner each point marks.
 """
 
 from __future__ import annotations

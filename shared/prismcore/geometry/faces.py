@@ -27,8 +27,8 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import InputError
-from .spec import ReferencePoints
+from prismcore.errors import InputError
+from prismcore.spec import ReferencePoints
 
 __all__ = ["SIDE_FACES", "FaceQuads", "SideFace", "clicked_quads", "paper_rectangles", "quad_area",
            "quad_labels", "resolve_side_face", "shared_edges", "validate_points", "validate_quad"]

@@ -7,9 +7,9 @@ import math
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .spec import FrameSelection
-from .video_decode import PathLike, VideoInfo, decode_bgr
+from prismcore.errors import InputError
+from prismcore.io.video_decode import PathLike, VideoInfo, decode_bgr
+from prismcore.spec import FrameSelection
 
 __all__ = ["DEFAULT_MAX_FRAMES", "frame_sharpness", "select_frames"]
 

@@ -1,4 +1,4 @@
-"""Measuring with the points the zero-click search found (`prismcore.locate`): the rules the CLI
+"""Measuring with the points the zero-click search found (`prismcore.locate.search`): the rules the CLI
 and the worker share, so a found box is refused and recorded the same way wherever it is measured.
 
 A found box that the engine then refuses (its fit guards, a face too thin, ...) is the search's
@@ -11,9 +11,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from .errors import InputError
-from .pipeline import ScanResult, run_scan
-from .spec import ScanSpec
+from prismcore.errors import InputError
+from prismcore.scan.pipeline import ScanResult, run_scan
+from prismcore.spec import ScanSpec
 
 __all__ = ["found_box_guard", "record_found", "scan_found"]
 

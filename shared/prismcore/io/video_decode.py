@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .containers import HEAD_BYTES, video_container
-from .errors import InputError
+from prismcore.errors import InputError
+from prismcore.io.containers import HEAD_BYTES, video_container
 
 __all__ = ["SEEK_GAP", "VideoInfo", "decode_bgr", "is_video", "iter_frames", "probe_video"]
 

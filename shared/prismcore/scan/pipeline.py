@@ -15,11 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import __version__
-from .cloud import Cloud, assemble, face_points
-from .edges import Bound, EdgeFit, inward, line_through, refine_quad
-from .errors import InputError
-from .faces import (
+from prismcore import __version__
+from prismcore.errors import InputError
+from prismcore.geometry.edges import Bound, EdgeFit, inward, line_through, refine_quad
+from prismcore.geometry.faces import (
     FaceQuads,
     Labels,
     SideFace,
@@ -31,7 +30,11 @@ from .faces import (
     validate_points,
     validate_quad,
 )
-from .measure import (
+from prismcore.geometry.perspective import NOISE_CLICK_PX, FaceEvidence
+from prismcore.quality.verdicts import quality_from_report
+from prismcore.scan.cloud import Cloud, assemble, face_points
+from prismcore.scan.colour_scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
+from prismcore.scan.measure import (
     Dimensions,
     camera_matrix,
     measure_affine,
@@ -40,17 +43,13 @@ from .measure import (
     obliqueness,
     square_on_cost,
 )
-from .perspective import NOISE_CLICK_PX, FaceEvidence
-from .pooling import PooledFocal
-from .scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
-from .spacing import thin_to_spacing
-from .spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
-from .verdicts import quality_from_report
+from prismcore.scan.spacing import thin_to_spacing
+from prismcore.spec import MmPerPx, Pinhole, ReferencePoints, ScanSpec
 
 if TYPE_CHECKING:
-    from .camera import CameraModel
+    from prismcore.camera import CameraModel
 
-__all__ = ["ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images", "run_scan",
+__all__ = ["PooledFocal", "ScanPlan", "ScanResult", "finish_scan", "plan_scan", "prepare_images", "run_scan",
            "scan_face"]
 
 FIT_WARN_PX = 3.0  # a click this far from the fitted model's corner is worth a look
@@ -83,6 +82,25 @@ SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
 SAME_SCALE_ASSUMED = ("two photos, no P7 and a scale for only one of them: the other is taken to be "
                       "at the same scale (shot from the same distance), and the dimensions it gives "
                       "rest on that; mark P7, or give each photo its scale, to measure them")
+
+
+@dataclass(frozen=True)
+class PooledFocal:
+    """The pooled focal length and how it was reached.
+
+    focal_px : float
+        The inverse-variance weighted mean of the estimates kept, px.
+    std_px : float
+        Its standard error, px, widened by the scatter of the estimates when they disagree more
+        than their own errors say (Birge ratio).
+    used : tuple of int
+        Indices of the estimates kept; the others disagreed with the median by more than
+        3 sigma (their own error combined with the estimates' robust scatter).
+    """
+
+    focal_px: float
+    std_px: float
+    used: tuple[int, ...]
 
 
 @dataclass
@@ -378,7 +396,7 @@ def _guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: boo
 
 
 def _undistorted_points(spec: ScanSpec, cameras: list[CameraModel]) -> ReferencePoints:
-    from .camera import undistort_points
+    from prismcore.camera import undistort_points
 
     assert spec.points is not None
     moved = {}
@@ -404,7 +422,7 @@ def prepare_images(spec: ScanSpec, images: list[np.ndarray]) -> list[np.ndarray]
     cameras = _cameras(spec, images)
     if cameras is None or not cameras[0].has_distortion:
         return images
-    from .camera import undistort_image
+    from prismcore.camera import undistort_image
 
     return [undistort_image(img, cam) for img, cam in zip(images, cameras, strict=True)]
 
@@ -416,7 +434,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
 
     The focal length is, in this order of trust: the spec's `focal_px`, its `camera`,
     `exif_focal_px` (read from the photo by the caller, in pixels of the decoded image),
-    `pooled_focal` (fitted over the photos of one camera, `prismcore.pooling.pool_focal`), or
+    `pooled_focal` (fitted over the photos of one camera, `prismcore.video.pooling.pool_focal`), or
     fitted from the box itself (one photo, seven points). A camera with lens distortion has it
     removed from the images and the points first (see `prepare_images`).
 
@@ -433,7 +451,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     """
     if spec.is_video or spec.points is None:
         raise InputError(f"{spec.image!r} is a video spec: measure each frame with the spec "
-                         "prismcore.video.frame_spec gives for it")
+                         "prismcore.video.frames.frame_spec gives for it")
     if spec.two_photo and side is None:
         raise InputError("two-photo mode: the side image is missing")
     images = [front] + ([side] if spec.two_photo and side is not None else [])

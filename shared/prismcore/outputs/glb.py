@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from prismcore.errors import InputError
 
 __all__ = ["GREY", "JPEG_QUALITY", "TEXTURE_MAX_PX", "box_corners", "box_glb", "box_to_gltf"]
 
@@ -107,7 +107,7 @@ def _undistorted(report: Mapping[str, Any], photos: list[np.ndarray]) -> list[np
     """The photos as the fit saw them: undistorted with the report's camera when it was."""
     if not (report.get("camera") or {}).get("undistorted"):
         return photos
-    from .camera import CameraModel, undistort_image
+    from prismcore.camera import CameraModel, undistort_image
 
     model = (report.get("inputs") or {}).get("camera")
     if model is None:

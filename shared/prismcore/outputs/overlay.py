@@ -33,8 +33,8 @@ import cv2
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from .errors import InputError
-from .spec import FILE_NAMES
+from prismcore.errors import InputError
+from prismcore.spec import FILE_NAMES
 
 __all__ = [
     "CLICK_COLOR",
@@ -80,7 +80,7 @@ SECOND_FACE_CORNERS: dict[str, dict[str, tuple[str, int]]] = {
     "top": {"p4": ("side", 3), "p5": ("side", 0), "p7": ("side", 1)},
 }
 """In one photo, the side quad's corner P4, P5 and P7 mark for each second face (see
-`prismcore.faces`); the side quad is as photographed."""
+`prismcore.geometry.faces`); the side quad is as photographed."""
 _SIDE_PHOTO_POINTS = ("p4", "p5", "p7")  # two-photo mode: the clicks made on the side photo
 _DIMENSIONS = ("width", "height", "depth")
 _SHIFT = 4  # OpenCV fixed point: coordinates in 1/16 px
@@ -572,7 +572,7 @@ def _undistorted(
 ) -> tuple[np.ndarray, dict[str, Any]]:
     from pydantic import ValidationError
 
-    from .camera import CameraModel, undistort_image, undistort_points
+    from prismcore.camera import CameraModel, undistort_image, undistort_points
 
     if not isinstance(model, Mapping):
         raise InputError("the report says the photos were undistorted but has no inputs.camera")

@@ -13,7 +13,7 @@ noise (perspective), or from the click noise and the obliqueness the square-on m
 (affine).
 
 In one photo the second face may be the right side, the left side or the top
-(`side_face`, see `prismcore.faces`): its quad is as photographed, and its depth edges run
+(`side_face`, see `prismcore.geometry.faces`): its quad is as photographed, and its depth edges run
 horizontally in the photo for a side, vertically for a top.
 """
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from .perspective import (
+from prismcore.geometry.perspective import (
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
     ROUNDING_RMS_MM,
@@ -44,8 +44,8 @@ from .perspective import (
     rounding_shifts,
     undistort_evidence,
 )
-from .rounding import RadiusEstimate, estimate_edge_radius
-from .spec import KnownEdge, MmPerPx, Pinhole, Scale
+from prismcore.geometry.rounding import RadiusEstimate, estimate_edge_radius
+from prismcore.spec import KnownEdge, MmPerPx, Pinhole, Scale
 
 __all__ = ["Dimensions", "Obliqueness", "camera_matrix", "measure_affine", "measure_perspective",
            "obliqueness", "quad_size_px"]

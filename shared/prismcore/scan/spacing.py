@@ -17,8 +17,8 @@ import math
 
 import numpy as np
 
-from .cloud import Cloud
-from .errors import InputError
+from prismcore.errors import InputError
+from prismcore.scan.cloud import Cloud
 
 __all__ = ["thin_to_count", "thin_to_spacing"]
 

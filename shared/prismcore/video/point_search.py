@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .locate import Found, resolve_points
-from .spec import ReferencePoints, ScanSpec
-from .video import frame_spec
+from prismcore.errors import InputError
+from prismcore.locate.search import Found, resolve_points
+from prismcore.spec import ReferencePoints, ScanSpec
+from prismcore.video.frames import frame_spec
 
 __all__ = ["FrameSearch", "points_centre"]
 

@@ -1,4 +1,4 @@
-"""joint.json: the report of several views measured as ONE box (`prismcore.joint.fit_views`), the
+"""joint.json: the report of several views measured as ONE box (`prismcore.multiview.joint.fit_views`), the
 same document for `prism scan A B --points-file` and for a service item (views, or a video's
 frames with fit "joint")."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from .joint import JointResult
+from prismcore.multiview.joint import JointResult
 
 __all__ = ["joint_report"]
 

@@ -30,12 +30,13 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 import polars as pl
 
-from .errors import InputError
-from .spec import FILE_NAMES
+from prismcore.errors import InputError
+from prismcore.outputs.cloud_check import check_cloud
+from prismcore.spec import FILE_NAMES
 
 if TYPE_CHECKING:
-    from .cloud import Cloud
-    from .spec import ScanSpec
+    from prismcore.scan.cloud import Cloud
+    from prismcore.spec import ScanSpec
 
 __all__ = ["CHUNK_ROWS", "FILE_NAMES", "MAX_DECIMALS", "encode_png", "write_csv", "write_format", "write_ply"]
 
@@ -99,7 +100,7 @@ def write_csv(
     InputError
         Bad shape, dtype, row count, non-finite value, ``decimals`` or ``dest``.
     """
-    points, colors = _check_cloud(points, colors)
+    points, colors = check_cloud(points, colors)
     if isinstance(decimals, bool) or not isinstance(decimals, int | np.integer):
         raise InputError(f"decimals must be an integer, got {decimals!r}")
     decimals = int(decimals)
@@ -154,7 +155,7 @@ def write_ply(
         Bad shape, dtype, row count, non-finite value (or a float64 value too large for
         float32), bad ``comment`` or ``dest``.
     """
-    points, colors = _check_cloud(points, colors)
+    points, colors = check_cloud(points, colors)
     if points.dtype == np.float64 and len(points):
         biggest = max(float(points.max()), -float(points.min()))
         if biggest >= _F32_OVERFLOW:
@@ -196,8 +197,8 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
 
     The one place that maps a spec's output options (CSV header and colours, ASCII PLY) onto
     the writers, for the CLI and the service alike. "csv", "ply", "las" and "laz" write the
-    cloud (LAS/LAZ: see `prismcore.las` for its metres and axes; they need a seekable `dest`);
-    "glb" writes the fitted box textured from the photos (`prismcore.box_model`) and needs
+    cloud (LAS/LAZ: see `prismcore.outputs.las` for its metres and axes; they need a seekable `dest`);
+    "glb" writes the fitted box textured from the photos (`prismcore.outputs.glb`) and needs
     `report` (the scan's report dict) and `images` (the front photo, and the side photo in
     two-photo mode, as decoded).
     """
@@ -208,49 +209,19 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
     elif kind == "ply":
         write_ply(dest, cloud.points, cloud.colors, ascii=spec.ply_ascii)
     elif kind in ("las", "laz"):
-        from .las import write_las
+        from prismcore.outputs.las import write_las
 
         write_las(dest, cloud.points, cloud.colors, compressed=kind == "laz")
     elif kind == "glb":
         if report is None or not images:
             raise InputError("the glb model needs the scan's report and its photos")
-        from .box_model import box_glb
+        from prismcore.outputs.glb import box_glb
 
         data = box_glb(report, images[0], images[1] if len(images) > 1 else None)
         _emit(dest, iter([data]))
     else:
         raise InputError(f"unknown output format {kind!r}")
     return (time.perf_counter() - start) * 1000
-
-
-def _check_cloud(points: Any, colors: Any) -> tuple[np.ndarray, np.ndarray | None]:
-    if not isinstance(points, np.ndarray):
-        raise InputError(f"points must be a numpy array, got {type(points).__name__}")
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise InputError(f"points must have shape (N, 3), got {points.shape}")
-    if points.dtype not in (np.float32, np.float64):
-        raise InputError(f"points must be float32 or float64, got {points.dtype}")
-    if len(points) and not (np.isfinite(points.min()) and np.isfinite(points.max())):
-        bad = ~np.isfinite(points)
-        row = int(np.argmax(bad.any(axis=1)))
-        raise InputError(
-            f"points hold {int(bad.sum())} non-finite values (NaN or inf), the first in row "
-            f"{row}: {points[row].tolist()}"
-        )
-    if colors is None:
-        return points, None
-    if not isinstance(colors, np.ndarray):
-        raise InputError(f"colors must be a numpy array or None, got {type(colors).__name__}")
-    if colors.ndim != 2 or colors.shape[1] != 3:
-        raise InputError(f"colors must have shape (N, 3), got {colors.shape}")
-    if colors.dtype != np.uint8:
-        raise InputError(f"colors must be uint8, got {colors.dtype}")
-    if len(colors) != len(points):
-        raise InputError(
-            f"colors has shape {colors.shape} but points has shape {points.shape}: "
-            "one colour per point is needed"
-        )
-    return points, colors
 
 
 def _ply_header(n: int, with_colors: bool, ascii: bool, comment: str | None) -> bytes:

@@ -44,10 +44,9 @@ import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 from scipy.stats import chi2
 
-from .errors import InputError
-from .faces import clicked_quads
-from .measure import Dimensions
-from .perspective import (
+from prismcore.errors import InputError
+from prismcore.geometry.faces import clicked_quads
+from prismcore.geometry.perspective import (
     _F_SCALE,
     _FRONT_IDX,
     _SECOND,
@@ -73,8 +72,9 @@ from .perspective import (
     rounding_shifts,
     undistort_evidence,
 )
-from .rounding import STD_FLOOR_MM, RadiusEstimate, estimate_edge_radius
-from .spec import KnownEdge, ReferencePoints, ScanSpec
+from prismcore.geometry.rounding import STD_FLOOR_MM, RadiusEstimate, estimate_edge_radius
+from prismcore.scan.measure import Dimensions
+from prismcore.spec import KnownEdge, ReferencePoints, ScanSpec
 
 __all__ = ["CLICK_WARN_PX", "OUTLIER_LEVEL", "JointResult", "LeftOut", "View", "ViewFit", "fit_views"]
 
@@ -219,7 +219,7 @@ class _Prepared:
 
 def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None,
              edge_agree_px: float | None = None) -> _Prepared:
-    from .pipeline import plan_scan
+    from prismcore.scan.pipeline import plan_scan
 
     name = view.name or f"view {k + 1}"
     points = view.points if isinstance(view.points, ReferencePoints) else [list(map(float, p))

@@ -21,7 +21,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Literal, TypedDict
 
-from .errors import InputError
+from prismcore.errors import InputError
 
 __all__ = ["COVERAGE_K", "DIMENSIONS", "EPSILON_MM", "DimensionVerdict", "QualityBlock", "Verdict",
            "judge", "quality_block", "quality_from_report"]

@@ -37,11 +37,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from .edges import intersect
-from .errors import InputError
-from .faces import SideFace, quad_area
-from .locate_faces import across_samples, propose_neighbours
-from .spec import ReferencePoints, ScanSpec, search_area_problem
+from prismcore.errors import InputError
+from prismcore.geometry.edges import intersect
+from prismcore.geometry.faces import SideFace, quad_area
+from prismcore.locate.second_face import across_samples, propose_neighbours
+from prismcore.spec import ReferencePoints, ScanSpec, search_area_problem
 
 __all__ = ["CONFIDENCE_MIN", "CONFIDENCE_WARN", "Found", "find_points", "resolve_points"]
 
@@ -664,7 +664,7 @@ def _from(quad: np.ndarray, start: int) -> np.ndarray:
 
 
 def _label(box: _Box) -> tuple[dict[str, np.ndarray], SideFace] | None:
-    """P1..P7 (work px) and the second face of a box's faces, per `prismcore.faces`; None when
+    """P1..P7 (work px) and the second face of a box's faces, per `prismcore.geometry.faces`; None when
     the faces labelled front and side share no edge (three faces read the wrong way round)."""
     faces = sorted(box.faces, key=lambda f: f.corners[:, 1].mean())
     if len(faces) == 3:
@@ -752,8 +752,8 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
     A quick screen before the engine's fit, which on points that fit no box can take seconds:
     the faces' aspects from their homographies, then a PnP pose for a few focal lengths.
     """
-    from .faces import clicked_quads
-    from .perspective import _closed_form
+    from prismcore.geometry.faces import clicked_quads
+    from prismcore.geometry.perspective import _closed_form
 
     h, w = shape[:2]
     ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
@@ -791,7 +791,7 @@ def _refined(image: np.ndarray, points: dict[str, np.ndarray], side_face: SideFa
 
     Raises InputError when the plan refuses the points (a fit guard, a degenerate face).
     """
-    from .pipeline import plan_scan
+    from prismcore.scan.pipeline import plan_scan
 
     ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
     spec = ScanSpec(image="auto", points=ref, side_face=side_face)

@@ -8,10 +8,10 @@ spec, which runs through `run_scan` (or `plan_scan` and the tiles) unchanged.
 
 from __future__ import annotations
 
-from .errors import InputError
-from .frame_select import DEFAULT_MAX_FRAMES, frame_sharpness, select_frames
-from .spec import ScanSpec
-from .video_decode import SEEK_GAP, VideoInfo, is_video, iter_frames, probe_video
+from prismcore.errors import InputError
+from prismcore.io.video_decode import SEEK_GAP, VideoInfo, is_video, iter_frames, probe_video
+from prismcore.spec import ScanSpec
+from prismcore.video.frame_select import DEFAULT_MAX_FRAMES, frame_sharpness, select_frames
 
 __all__ = [
     "DEFAULT_MAX_FRAMES",

@@ -24,7 +24,8 @@ from typing import BinaryIO
 
 import numpy as np
 
-from .errors import InputError
+from prismcore.errors import InputError
+from prismcore.outputs.cloud_check import check_cloud
 
 __all__ = ["COLOR_SCALE", "SCALE_M", "box_to_las", "write_las"]
 
@@ -67,9 +68,8 @@ def write_las(dest: str | os.PathLike[str] | BinaryIO, points: np.ndarray, color
     """
     import laspy  # here: the other writers do not need it
 
-    from .writers import _check_cloud  # the one check every cloud writer applies
 
-    points, colors = _check_cloud(points, colors)
+    points, colors = check_cloud(points, colors)
     if len(points):
         biggest = max(float(np.abs(points.min())), float(np.abs(points.max())))
         if biggest / 1000.0 / SCALE_M >= 2**31 - 1:

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .camera import CameraModel
-from .errors import InputError
+from prismcore.camera import CameraModel
+from prismcore.errors import InputError
 
 __all__ = ["MIN_VIEWS", "Calibration", "board_points", "calibrate", "calibrate_images", "find_board"]
 
@@ -100,7 +100,7 @@ def _gray(image: np.ndarray) -> np.ndarray:
     a = np.asarray(image)
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 8 or a.shape[1] < 8:
         raise InputError(f"expected an RGB image of shape (H, W, 3), got shape {a.shape}")
-    if a.dtype != np.uint8:  # 16-bit photos arrive as float32 in 0..255 units (prismcore.images)
+    if a.dtype != np.uint8:  # 16-bit photos arrive as float32 in 0..255 units (prismcore.io.images)
         a = np.clip(np.round(a.astype(np.float32)), 0, 255).astype(np.uint8)
     return cv2.cvtColor(a, cv2.COLOR_RGB2GRAY)
 
