@@ -1,0 +1,462 @@
+"""Issue 28's figures, side by side in one run: each beside its target and the figure before.
+
+    .venv/bin/python benchmarks/speed.py            # every figure, now and at --base (~10 min)
+    .venv/bin/python benchmarks/speed.py --quick    # the quick subset (~1 min)
+    .venv/bin/python benchmarks/speed.py --only engine.sample.total,out.overlay --no-base
+
+Every figure is measured twice, in fresh child processes of this same script: once on this tree
+("now") and once on the tree of `--base` (default BASE_COMMIT, the engine as issue 28 found it),
+checked out with `git worktree add --detach` under /tmp and imported first through PYTHONPATH
+(a folder of links named as pyproject's package-dir maps them: prismcore, prismsynth, prism_cli,
+...; the child prints which prismcore it imported, and the run stops when it is not the base's).
+The same measuring code runs on both sides; a figure whose code the base lacks prints n/a there.
+
+Single-threaded figures run with cv2.setNumThreads(1) and one BLAS/OpenMP thread; times are CPU
+time (time.process_time) medians over repeats: the machine is shared, and CPU time is what a
+factory batch pays. A figure is a function registered with @figure; it gets a `Ctx` (quick or
+not, the tree measured, a cache shared by the figures of one child) and returns a number in its
+unit, or a `Measured` (number and a note), or None (not measured). To add one: write the
+function beside the others in its group, nothing else.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+# The engine as issue 28 found it (the subpackage layout, before any speed work).
+BASE_COMMIT = "773c537"
+SAMPLE = ROOT / "samples" / "box.jpg"
+SAMPLE_POINTS = "395,293 943,331 919,761 943,331 1035,298 411,647 1009,660"
+SAMPLE_FLAGS = ["--focal-px", "1400", "--width-mm", "120"]
+# pyproject's [tool.setuptools] package-dir: package -> folder in a tree.
+PACKAGES = {"prismcore": "shared/prismcore", "prismsynth": "shared/prismsynth", "prism_cli": "services/cli",
+            "prism_common": "services/common", "prism_api": "services/api", "prism_worker": "services/worker"}
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                     "POLARS_MAX_THREADS": "1"}
+
+
+# ---------------------------------------------------------------------------------------------
+# Registry
+# ---------------------------------------------------------------------------------------------
+
+@dataclass
+class Measured:
+    value: float | None
+    note: str = ""
+
+
+@dataclass
+class Ctx:
+    quick: bool
+    tree: Path  # the tree measured (this checkout, or the base's worktree)
+    cache: dict[str, Any] = field(default_factory=dict)
+
+    def once(self, key: str, make: Callable[[], Any]) -> Any:
+        """`make()` once per child process (several figures read one measurement)."""
+        if key not in self.cache:
+            self.cache[key] = make()
+        return self.cache[key]
+
+
+@dataclass
+class Figure:
+    key: str
+    group: str
+    label: str
+    target: str  # in words, e.g. "<= 50"
+    unit: str
+    fn: Callable[[Ctx], float | Measured | None]
+    quick: bool  # part of --quick
+    limit: float | None  # the target as a number (met when value <= limit; >= when `at_least`)
+    at_least: bool = False
+
+
+FIGURES: list[Figure] = []
+
+
+def figure(key: str, group: str, label: str, *, unit: str, target: str = "",
+           limit: float | None = None, at_least: bool = False,
+           quick: bool = True) -> Callable[[Callable[[Ctx], Any]], Callable[[Ctx], Any]]:
+    def register(fn: Callable[[Ctx], Any]) -> Callable[[Ctx], Any]:
+        FIGURES.append(Figure(key, group, label, target, unit, fn, quick, limit, at_least))
+        return fn
+    return register
+
+
+# ---------------------------------------------------------------------------------------------
+# Helpers
+# ---------------------------------------------------------------------------------------------
+
+def single_thread() -> None:
+    import cv2
+    cv2.setNumThreads(1)
+
+
+@contextmanager
+def cpu_clock() -> Iterator[None]:
+    """The engine's own stage timings (time.perf_counter in the pipeline) read as CPU time."""
+    wall = time.perf_counter
+    time.perf_counter = time.process_time  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        time.perf_counter = wall  # type: ignore[assignment]
+
+
+def median_cpu_ms(fn: Callable[[], Any], runs: int, warm: int = 1) -> float:
+    for _ in range(warm):
+        fn()
+    times = []
+    for _ in range(runs):
+        start = time.process_time()
+        fn()
+        times.append((time.process_time() - start) * 1000)
+    return statistics.median(times)
+
+
+def sample_spec(**extra: Any) -> Any:
+    from prismcore import ScanSpec
+    points = [[float(v) for v in p.split(",")] for p in SAMPLE_POINTS.split()]
+    return ScanSpec(image=str(SAMPLE), points=points, focal_px=1400.0,
+                    scale={"kind": "edge", "edge": "width", "length_mm": 120.0}, **extra)
+
+
+ENGINE_STAGES = ("refine", "measure", "scan", "assemble")
+
+
+def engine_runs(ctx: Ctx, name: str, spec: Any, image: Any) -> dict[str, float]:
+    """Median CPU ms per stage and in all (run_scan: refine + measure + scan + assemble), and
+    the dimensions (mm) of the last run."""
+    def make() -> dict[str, float]:
+        from prismcore import run_scan
+        single_thread()
+        runs = 5 if ctx.quick else 15
+        with cpu_clock():
+            run_scan(spec, image)
+            totals, stages = [], []
+            result = None
+            for _ in range(runs):
+                start = time.process_time()
+                result = run_scan(spec, image)
+                totals.append((time.process_time() - start) * 1000)
+                stages.append(result.report["timings_ms"])
+        out = {k: statistics.median(s.get(k, 0.0) for s in stages) for k in ENGINE_STAGES}
+        out["total"] = statistics.median(totals)
+        assert result is not None
+        out.update({f"dim.{k}": float(v) for k, v in result.report["dimensions"].items()
+                    if isinstance(v, int | float)})
+        return out
+    return ctx.once(f"engine:{name}", make)
+
+
+def sample_engine(ctx: Ctx) -> dict[str, float]:
+    from prismcore.io.images import load_image
+    return engine_runs(ctx, "sample", sample_spec(), load_image(SAMPLE))
+
+
+def photo_like_engine(ctx: Ctx) -> dict[str, float]:
+    """The engine on photo-like oblique renders (1280x1024, clicked as a user would, one known
+    edge, no focal length): the median over scenes of each scene's median."""
+    def make() -> dict[str, float]:
+        from prismcore import ScanSpec
+        from prismsynth import photo_like_scene
+        seeds = range(3) if ctx.quick else range(8)
+        per: list[dict[str, float]] = []
+        for seed in seeds:
+            p = photo_like_scene(seed, image_size=(1280, 1024))
+            clicks = [list(map(float, p.clicks[f"p{i}"])) for i in range(1, 8)]
+            spec = ScanSpec(image="photo.jpg", points=clicks,
+                            scale={"kind": "edge", "edge": p.known_edge, "length_mm": p.known_length_mm})
+            per.append(engine_runs(ctx, f"photo_like:{seed}", spec, p.image))
+        return {k: statistics.median(r[k] for r in per) for k in (*ENGINE_STAGES, "total")}
+    return ctx.once("engine:photo_like", make)
+
+
+def prism_command(tree: Path) -> list[str]:
+    """`prism` as the tree's own entry point (pyproject: prism = prism_cli.main:app)."""
+    return [sys.executable, "-c", "import sys; from prism_cli.main import app; sys.argv[0] = 'prism'; app()"]
+
+
+def run_child_process(cmd: list[str]) -> tuple[float, float, subprocess.CompletedProcess[str]]:
+    """Wall and CPU seconds (the child's user + system) of one command."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, done
+
+
+def sample_command(ctx: Ctx) -> dict[str, float]:
+    """`prism scan` of the sample with the default outputs, in a fresh process: the process's CPU
+    and wall ms, and the report's own timings (load, engine stages, writers, total)."""
+    def make() -> dict[str, float]:
+        runs = 3 if ctx.quick else 7
+        cpus, walls, reports = [], [], []
+        for _ in range(runs):
+            with tempfile.TemporaryDirectory(prefix="speed_scan_") as out:
+                cmd = [*prism_command(ctx.tree), "scan", str(SAMPLE), "--points", SAMPLE_POINTS,
+                       *SAMPLE_FLAGS, "--out", out]
+                wall, cpu, done = run_child_process(cmd)
+                if done.returncode != 0:
+                    raise RuntimeError(f"prism scan failed: {done.stderr[-500:]}")
+                reports.append(json.loads((Path(out) / "report.json").read_text())["timings_ms"])
+                cpus.append(cpu * 1000)
+                walls.append(wall * 1000)
+        out = {"cpu_ms": statistics.median(cpus), "wall_ms": statistics.median(walls)}
+        for key in reports[0]:
+            out[f"t.{key}"] = statistics.median(r.get(key, 0.0) for r in reports)
+        return out
+    return ctx.once("command:sample", make)
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. The engine (refine + measure + scan + assemble), single-threaded CPU ms
+# ---------------------------------------------------------------------------------------------
+
+def _stage(which: Callable[[Ctx], dict[str, float]], key: str) -> Callable[[Ctx], float]:
+    return lambda ctx: which(ctx)[key]
+
+
+for _stage_name in ENGINE_STAGES:
+    figure(f"engine.sample.{_stage_name}", "1 engine", f"sample: {_stage_name}", unit="ms")(
+        _stage(sample_engine, _stage_name))
+
+
+@figure("engine.sample.total", "1 engine", "sample: engine (run_scan)", unit="ms",
+        target="<= 50 (goal 20)", limit=50.0)
+def engine_sample_total(ctx: Ctx) -> float:
+    return sample_engine(ctx)["total"]
+
+
+@figure("engine.photo_like.total", "1 engine", "photo-like oblique renders: engine", unit="ms",
+        target="<= 50 (goal 20)", limit=50.0)
+def engine_photo_like_total(ctx: Ctx) -> float:
+    return photo_like_engine(ctx)["total"]
+
+
+@figure("engine.photo_like.measure", "1 engine", "photo-like: measure (incl. rounding)", unit="ms")
+def engine_photo_like_measure(ctx: Ctx) -> float:
+    return photo_like_engine(ctx)["measure"]
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. Outputs
+# ---------------------------------------------------------------------------------------------
+
+@figure("out.overlay", "2 outputs", "overlay, default format (draw + encode)", unit="ms",
+        target="<= 20", limit=20.0)
+def out_overlay(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 2)
+
+
+@figure("out.csv_4m", "2 outputs", "CSV, 4 M points", unit="s", target="<= 0.63", limit=0.63, quick=False)
+def out_csv(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 2)
+
+
+@figure("out.ply_vs_open3d", "2 outputs", "binary PLY, 4 M points: Open3D / ours", unit="x",
+        target=">= 6.5", limit=6.5, at_least=True, quick=False)
+def out_ply(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 2)
+
+
+@figure("out.laz_sample", "2 outputs", "LAZ, the sample's cloud", unit="ms", target="<= 60", limit=60.0)
+def out_laz(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 2)
+
+
+@figure("cmd.scan_inside", "2 outputs", "prism scan of the sample: in-command total / engine", unit="x",
+        target="<= 3", limit=3.0)
+def cmd_scan_ratio(ctx: Ctx) -> float | Measured | None:
+    t = sample_command(ctx)
+    engine = sum(t.get(f"t.{k}", 0.0) for k in ENGINE_STAGES)
+    return Measured(t["t.total"] / engine, f"{t['t.total']:.0f} ms of which engine {engine:.0f} ms (wall)")
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. The command itself (the CLI engineer's)
+# ---------------------------------------------------------------------------------------------
+
+@figure("cmd.help", "3 command", "prism --help (process CPU)", unit="ms", target="<= 200", limit=200.0)
+def cmd_help(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 3)
+
+
+@figure("cmd.scan_fixed", "3 command", "prism scan: fixed cost (process CPU - in-command)", unit="ms",
+        target="<= 300", limit=300.0)
+def cmd_scan_fixed(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 3)
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. Several views, the search, the worker (the joint-fit / search engineer's)
+# ---------------------------------------------------------------------------------------------
+
+@figure("joint.3", "4 views", "joint fit, 3 views of 1280x1024 (CPU)", unit="s", target="", quick=True)
+def joint_3(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+@figure("joint.10", "4 views", "joint fit, 10 views (CPU)", unit="s", target="<= 3", limit=3.0, quick=False)
+def joint_10(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+@figure("joint.30", "4 views", "joint fit, 30 views (CPU)", unit="s", target="<= 10", limit=10.0, quick=False)
+def joint_30(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+@figure("search.median", "4 views", "zero-click search, median", unit="ms", target="")
+def search_median(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+@figure("search.worst", "4 views", "zero-click search, worst", unit="ms", target="<= 150", limit=150.0)
+def search_worst(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+@figure("worker.ratio", "4 views", "worker CPU per photo / engine CPU", unit="x", target="<= 2",
+        limit=2.0, quick=False)
+def worker_ratio(ctx: Ctx) -> float | Measured | None:
+    return None  # TODO(issue 28 item 4)
+
+
+# ---------------------------------------------------------------------------------------------
+# Children, the base tree, the table
+# ---------------------------------------------------------------------------------------------
+
+def child_main(keys: list[str], quick: bool, tree: Path, out: Path) -> None:
+    """Measure `keys` in this process; write {key: [value, note]} as JSON to `out`."""
+    import prismcore
+    ctx = Ctx(quick=quick, tree=tree)
+    results: dict[str, Any] = {"__prismcore__": str(Path(prismcore.__file__).resolve())}
+    by_key = {f.key: f for f in FIGURES}
+    for key in keys:
+        try:
+            got = by_key[key].fn(ctx)
+        except Exception as exc:  # a figure the tree cannot give prints n/a
+            got = Measured(None, f"n/a: {type(exc).__name__}: {str(exc)[:80]}")
+        if not isinstance(got, Measured):
+            got = Measured(None if got is None else float(got))
+        results[key] = [got.value, got.note]
+    out.write_text(json.dumps(results))
+
+
+def base_tree(rev: str) -> tuple[Path, Path]:
+    """The base's worktree (made once) and a folder of links to its packages for PYTHONPATH."""
+    sha = subprocess.run(["git", "rev-parse", "--short=10", rev], cwd=ROOT, capture_output=True,
+                         text=True, check=True).stdout.strip()
+    tree = Path(tempfile.gettempdir()) / f"speed-base-{sha}"
+    if not tree.exists():
+        subprocess.run(["git", "worktree", "add", "--detach", str(tree), sha], cwd=ROOT, check=True,
+                       capture_output=True)
+    links = tree.parent / f"speed-base-{sha}-path"
+    links.mkdir(exist_ok=True)
+    for package, folder in PACKAGES.items():
+        link = links / package
+        if not link.exists():
+            link.symlink_to(tree / folder)
+    return tree, links
+
+
+def run_side(keys: list[str], quick: bool, tree: Path, pythonpath: Path | None) -> dict[str, Any]:
+    env = {**os.environ, **SINGLE_THREAD_ENV}
+    if pythonpath is not None:
+        env["PYTHONPATH"] = str(pythonpath)
+    with tempfile.TemporaryDirectory(prefix="speed_child_") as tmp:
+        out = Path(tmp) / "figures.json"
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--child", ",".join(keys), "--tree", str(tree),
+               "--out", str(out)] + (["--quick"] if quick else [])
+        subprocess.run(cmd, env=env, check=True, cwd=tree)
+        results: dict[str, Any] = json.loads(out.read_text())
+    expected = (tree / PACKAGES["prismcore"]).resolve()
+    if not results["__prismcore__"].startswith(str(expected)):
+        sys.exit(f"the child imported {results['__prismcore__']}, not {expected}")
+    return results
+
+
+def _fmt(value: float | None, unit: str) -> str:
+    if value is None:
+        return "-"
+    if unit == "s":
+        return f"{value:.2f} s"
+    if unit == "x":
+        return f"{value:.1f}x"
+    return f"{value:.1f} {unit}"
+
+
+def print_table(rows: list[tuple[Figure, list | None, list | None]], base_name: str) -> None:
+    from rich.console import Console
+    from rich.table import Table
+    table = Table(title="Issue 28: speed figures (CPU time, single-threaded, medians)")
+    for col in ("group", "figure", "target", f"before ({base_name})", "now", "met", "note"):
+        table.add_column(col)
+    for fig, now, before in rows:
+        value = now[0] if now else None
+        met = "-"
+        if value is not None and fig.limit is not None:
+            ok = value >= fig.limit if fig.at_least else value <= fig.limit
+            met = "yes" if ok else "NO"
+        notes = "; ".join(n for n in ((now or [None, ""])[1], (before or [None, ""])[1] and
+                                      f"before: {(before or [None, ''])[1]}") if n)
+        table.add_row(fig.group, fig.label, fig.target, _fmt(before[0] if before else None, fig.unit),
+                      _fmt(value, fig.unit), met, notes)
+    Console(width=200).print(table)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="the quick subset (~1 min)")
+    parser.add_argument("--only", help="comma-separated figure keys (see --list)")
+    parser.add_argument("--list", action="store_true", help="list the figures' keys")
+    parser.add_argument("--base", default=BASE_COMMIT, help=f"commit measured as 'before' ({BASE_COMMIT})")
+    parser.add_argument("--no-base", action="store_true", help="measure this tree only")
+    parser.add_argument("--json", type=Path, help="also write every figure here as JSON")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--tree", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child is not None:
+        child_main(args.child.split(","), args.quick, args.tree, args.out)
+        return
+    if args.list:
+        for f in FIGURES:
+            print(f"{f.key:28} {f.group:10} {f.label}{'' if f.quick else '  (not in --quick)'}")
+        return
+    figures = [f for f in FIGURES if (not args.quick or f.quick)]
+    if args.only:
+        wanted = set(args.only.split(","))
+        figures = [f for f in FIGURES if f.key in wanted]
+    keys = [f.key for f in figures]
+    now = run_side(keys, args.quick, ROOT, None)
+    before: dict[str, Any] = {}
+    if not args.no_base:
+        tree, links = base_tree(args.base)
+        before = run_side(keys, args.quick, tree, links)
+    print_table([(f, now.get(f.key), before.get(f.key)) for f in figures],
+                "-" if args.no_base else args.base)
+    if args.json:
+        args.json.write_text(json.dumps({"now": now, "before": before, "base": args.base}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
