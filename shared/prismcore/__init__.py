@@ -23,8 +23,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from prismcore._lazy import lazy_exports
-
-__version__ = "0.1.0"
+from prismcore._version import __version__
 
 _EXPORTS = {
     "CameraModel": "camera",

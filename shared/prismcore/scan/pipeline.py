@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prismcore import __version__
+from prismcore._version import __version__
 from prismcore.errors import InputError
 from prismcore.geometry.edges import Bound, EdgeFit, inward, line_through, refine_quad
 from prismcore.geometry.faces import (

@@ -1,0 +1,114 @@
+"""The engine's layout: imports run one way down the layers, no circle, no module too long to
+read, nothing of the services or the test renderer inside the engine (read from the source by
+`import_graph`, function-local imports included)."""
+
+from __future__ import annotations
+
+import importlib
+
+import pytest
+from import_graph import (
+    ENGINE,
+    SHARED,
+    cycles,
+    engine_imports,
+    engine_modules,
+    module_graph,
+    package_graph,
+    unit,
+)
+
+# Bottom to top: a unit may import only units of the layers below its own (not its siblings).
+# The contract callers hand the engine comes first, then the stages in the order a scan uses them.
+LAYERS: list[set[str]] = [
+    {"_lazy", "_version", "errors"},
+    {"bounds"},
+    {"camera"},
+    {"spec"},
+    {"io", "quality"},
+    {"geometry"},
+    {"scan"},
+    {"locate", "multiview"},
+    {"video", "outputs", "station"},
+    {"prismcore"},  # the package's __init__: re-exports what integrators use
+]
+LAYER = {name: i for i, layer in enumerate(LAYERS) for name in layer}
+
+# What the engine never imports: the test renderer, the services, their frameworks.
+FORBIDDEN = {
+    "prismsynth", "prism_api", "prism_worker", "prism_cli", "prism_common", "services",
+    "fastapi", "starlette", "uvicorn", "celery", "kombu", "redis", "boto3", "botocore",
+}
+
+MAX_LINES = 600
+# Modules still over MAX_LINES while issue 26's splits land (each leaves this list when split).
+TOO_LONG_FOR_NOW = {
+    "prismcore/geometry/perspective.py",
+    "prismcore/outputs/overlay.py",
+    "prismcore/scan/pipeline.py",
+    "prismcore/multiview/joint.py",
+    "prismcore/locate/search.py",
+    "prismcore/io/images.py",
+    "prismcore/spec.py",
+    "prismsynth/render.py",
+}
+
+
+def test_every_unit_has_a_layer():
+    units = {unit(m) for m in engine_modules()}
+    assert units - set(LAYER) == set(), "add the new subpackage to LAYERS (and the architecture page)"
+
+
+def test_no_import_circle():
+    assert cycles(module_graph()) == []
+
+
+def test_imports_run_down_the_layers():
+    upward = [
+        f"{i.source} (line {i.line}) imports {i.target}"
+        for i in engine_imports()
+        if i.target.startswith("prismcore")
+        and unit(i.source) != unit(i.target)
+        and i.source != "prismcore"
+        and LAYER[unit(i.target)] >= LAYER[unit(i.source)]
+    ]
+    assert upward == []
+
+
+def test_package_graph_is_layered():
+    # the same rule at the level of the architecture page's diagram
+    for source, targets in package_graph().items():
+        for target in targets:
+            assert LAYER[target] < LAYER[source], f"{source} -> {target}"
+
+
+def test_engine_imports_nothing_of_the_services():
+    bad = [
+        f"{i.source} (line {i.line}) imports {i.target}"
+        for i in engine_imports()
+        if i.target.split(".")[0] in FORBIDDEN
+    ]
+    assert bad == []
+
+
+@pytest.mark.parametrize("package", ["prismcore", "prismsynth"])
+def test_no_module_too_long(package):
+    lengths = {
+        str(p.relative_to(SHARED)): len(p.read_text(encoding="utf-8").splitlines())
+        for p in sorted((SHARED / package).rglob("*.py"))
+    }
+    too_long = {name: n for name, n in lengths.items() if n > MAX_LINES and name not in TOO_LONG_FOR_NOW}
+    assert too_long == {}, f"split by what the parts do (over {MAX_LINES} lines)"
+    split = {name for name in TOO_LONG_FOR_NOW if name.startswith(package + "/")} - {
+        name for name, n in lengths.items() if n > MAX_LINES
+    }
+    assert split == set(), "take the split modules out of TOO_LONG_FOR_NOW"
+
+
+def test_public_names_import():
+    """Every name a package's __init__ exports is where it says."""
+    for path in sorted(ENGINE.rglob("__init__.py")):
+        name = ".".join(path.relative_to(SHARED).parent.parts)
+        package = importlib.import_module(name)
+        for public in getattr(package, "__all__", []):
+            assert getattr(package, public) is not None, f"{name}.{public}"
