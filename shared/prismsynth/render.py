@@ -130,6 +130,9 @@ class Style:
         front face in front and oblique views); clutter stays in the same colour family.
     box_color : tuple of 3 int or None
         Base RGB colour of the box before shading; random if None.
+    texel_mm : float or None
+        Fixed texture density, mm per texel, so that frames of one scene from different poses
+        (a moving camera's clip) show the same texture; None: set by each render's distance.
     """
 
     label: bool = True
@@ -141,6 +144,7 @@ class Style:
     clutter: bool = True
     background_close: bool = False
     box_color: tuple[int, int, int] | None = None
+    texel_mm: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("texture", "lighting", "noise_sigma", "blur_sigma"):
@@ -896,7 +900,7 @@ def _render_linear(box: Box, K: np.ndarray, R: np.ndarray, t: np.ndarray, image_
             continue
         # Texture density: _TEXELS_PER_PX at the face's nearest point.
         z_near = float(np.min((corners_w @ R.T + t)[:, 2]))
-        mm_per_texel = z_near / f_px / _TEXELS_PER_PX
+        mm_per_texel = style.texel_mm or z_near / f_px / _TEXELS_PER_PX
         nu = int(min(_MAX_TEXELS, max(4, math.ceil(face.size_u / mm_per_texel))))
         nv = int(min(_MAX_TEXELS, max(4, math.ceil(face.size_v / mm_per_texel))))
         albedo = np.empty((nv, nu, 3), np.float32)

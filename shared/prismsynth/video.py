@@ -17,7 +17,7 @@ import numpy as np
 
 from .render import DEFAULT_STYLE, Box, Scene, Style, render_oblique_view
 
-__all__ = ["render_clip", "write_video"]
+__all__ = ["moving_clip", "render_clip", "write_video"]
 
 
 def render_clip(box: Box, frames: int, *, image_size: tuple[int, int] = (640, 512),
@@ -98,3 +98,39 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], *, c
 def _chain(first: np.ndarray, rest: Iterable[np.ndarray]) -> Iterable[np.ndarray]:
     yield first
     yield from rest
+
+
+def moving_clip(box: Box, frames: int, *, image_size: tuple[int, int] = (960, 540), focal_px: float = 900.0,
+                yaw_deg: float = 30.0, pitch_deg: float = 15.0, sway_deg: float = 8.0,
+                noise_sigma: float = 2.0, blur_sigma: float = 0.8, jpeg_quality: int = 85,
+                seed: int = 0) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """A hand-held camera's clip of one box whose texture stays put (`Style.texel_mm` fixed), with
+    fresh sensor noise every frame, optical blur and a JPEG round trip per frame.
+
+    Returns
+    -------
+    frames : list of ndarray, shape (H, W, 3), uint8 RGB
+    points : list of ndarray, shape (7, 2), float64
+        Each frame's exact P1..P7 (image px).
+    """
+    base = render_clip(box, 1, image_size=image_size, focal_px=focal_px, yaw_deg=yaw_deg,
+                       pitch_deg=pitch_deg, sway_deg=0.0, seed=seed)[0]
+    texel_mm = base.distance_mm / focal_px / 1.5
+    style = Style(noise_sigma=0.0, blur_sigma=blur_sigma, jpeg_quality=None, texel_mm=texel_mm)
+    scenes = render_clip(box, frames, image_size=image_size, focal_px=focal_px, yaw_deg=yaw_deg,
+                         pitch_deg=pitch_deg, sway_deg=sway_deg, style=style, seed=seed)
+    rng = np.random.default_rng(seed + 1)
+    images, points = [], []
+    for scene in scenes:
+        noisy = scene.image.astype(np.float32) + rng.normal(0.0, noise_sigma, scene.image.shape)
+        img = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR),
+                               [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        if not ok:
+            raise RuntimeError("JPEG encoding failed")
+        decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        if decoded is None:
+            raise RuntimeError("JPEG decoding failed")
+        images.append(cv2.cvtColor(decoded, cv2.COLOR_BGR2RGB))
+        points.append(np.array([scene.points[n] for n in ("p1", "p2", "p3", "p4", "p5", "p6", "p7")]))
+    return images, points

@@ -19,6 +19,7 @@ __all__ = [
     "probe_video",
     "select_frames",
     "summarize",
+    "track_points",
 ]
 
 _EXPORTS = {
@@ -30,6 +31,7 @@ _EXPORTS = {
     "probe_video": "frames",
     "select_frames": "frames",
     "summarize": "summary",
+    "track_points": "tracking",
 }
 
 if TYPE_CHECKING:
@@ -37,5 +39,6 @@ if TYPE_CHECKING:
     from prismcore.video.point_search import FrameSearch
     from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
     from prismcore.video.summary import summarize
+    from prismcore.video.tracking import track_points
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,0 +1,641 @@
+"""Seven points marked on one frame of a hand-held video, carried to the other frames by tracking.
+
+A person marks the box's seven reference points (P1..P7, the engine's order) on one frame; the
+points of every other selected frame follow from the box's own motion:
+
+* features (`cv2.goodFeaturesToTrack`) are taken inside each face's quadrilateral (the front,
+  and the second face the points mark), a few px inside its sides so that the background past
+  a silhouette does not move them;
+* every frame between the selected frames is tracked (small steps): pyramidal Lucas-Kanade
+  from one frame to the next, each feature checked forward and backward (tracked back, it must
+  land within `TrackerSettings.fb_max_px` of where it started);
+* each face's motion is re-estimated robustly from its surviving features, a RANSAC homography
+  (`cv2.findHomography`) from the frame the points were last fixed on (the anchor) to this one,
+  and the face's points are moved with it (the shared corner with the front's);
+* on the selected frames only, the points are refined on the box's edges as clicks are, by the
+  engine's own plan (`prismcore.scan.pipeline.plan_scan`: edges fitted to sub-pixel lines, the
+  box fitted to them, its fit guard), and the tracker takes the refined points as its new anchor.
+
+A frame whose track is lost (too few inliers on the front, forward-backward errors too large) or
+whose box no longer fits (the plan's fit guard refuses it) is named with the reason and left out;
+the track is then picked up from the last good frame, with a wider search (larger window, more
+pyramid levels) straight to each later frame, for up to `TrackerSettings.max_gap` frames. A cut
+to another scene (a large change of the grey-level histogram from one frame to the next, or no
+feature at all surviving) ends the track: every later frame is left out with that reason.
+
+Frames before the marked one are tracked backwards from it (the caller's frames are kept, in
+grey, until the marked one is reached). Pure functions over arrays: no I/O.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection, Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from prismcore.errors import InputError
+from prismcore.geometry.faces import SideFace, clicked_quads, quad_labels, resolve_side_face
+from prismcore.spec import ReferencePoints
+
+__all__ = [
+    "TrackQuality",
+    "TrackedFrame",
+    "TrackerSettings",
+    "box_refiner",
+    "track_points",
+    "viewing_spread",
+]
+
+_POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+_FRONT = (0, 1, 2, 5)  # P1, P2, P3, P6: the front face's corners
+_SIDE_ONLY = (4, 6)  # P5, P7: the second face's far corners (P4 is a front corner)
+_SHARED_CORNERS = {"right": (1, 2), "left": (0, 5), "top": (0, 1)}  # the front corners on the fold
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """The tracker's knobs (defaults measured on the real cookie-box video and on renders)."""
+
+    max_features: int = 160
+    """Most features kept per face."""
+    min_distance_px: float = 5.0
+    """Least distance between two features (goodFeaturesToTrack's minDistance), px."""
+    quality: float = 0.005
+    """goodFeaturesToTrack's qualityLevel."""
+    inset_px: float = 3.0
+    """Features are taken this far inside a face's sides, px."""
+    win_px: int = 21
+    """Lucas-Kanade window side, px (odd)."""
+    levels: int = 3
+    """Pyramid levels beyond the image itself."""
+    fb_max_px: float = 1.0
+    """A feature tracked forward then back must land this close to where it started, px."""
+    ransac_px: float = 1.5
+    """RANSAC reprojection threshold of each face's homography, px."""
+    min_inliers: int = 10
+    """The front's homography needs this many inliers, else the frame is lost."""
+    min_side_inliers: int = 8
+    """Fewer on the second face: its far corners move with the front's homography instead."""
+    refresh_fraction: float = 0.6
+    """Features are taken again on a face once fewer than this fraction of them survive."""
+    cut_distance: float = 0.5
+    """A grey-level histogram Bhattacharyya distance from one frame to the next past this is a cut."""
+    max_gap: int = 30
+    """Frames after the last good one over which a lost track is searched for again."""
+    wide_win_px: int = 41
+    """The re-seeding search's window side, px."""
+    wide_levels: int = 5
+    """The re-seeding search's pyramid levels."""
+    max_width_px: int = 1280
+    """Frames wider than this are tracked at a reduced size (the points are scaled back)."""
+
+
+DEFAULT_SETTINGS = TrackerSettings()
+
+
+@dataclass(frozen=True)
+class TrackQuality:
+    """How well one frame's points were tracked.
+
+    inliers : int
+        The faces' homography inliers together (front + second face).
+    inliers_front, inliers_side : int
+    fb_error_px : float
+        Median forward-backward error of the features kept, px (0 on the marked frame).
+    confidence : float
+        0..1: more inliers, smaller forward-backward errors and a small refinement shift are
+        more sure (1 on the marked frame).
+    refine_shift_px : float or None
+        Largest move of a point by the refinement on the edges, px (None: not refined).
+    steps : int
+        Frames tracked since the marked frame (0 for it).
+    """
+
+    inliers: int
+    inliers_front: int
+    inliers_side: int
+    fb_error_px: float
+    confidence: float
+    refine_shift_px: float | None = None
+    steps: int = 0
+
+    def as_json(self) -> dict[str, Any]:
+        """JSON-ready, rounded."""
+        return {"inliers": self.inliers, "inliers_front": self.inliers_front,
+                "inliers_side": self.inliers_side, "fb_error_px": round(self.fb_error_px, 3),
+                "confidence": round(self.confidence, 3),
+                "refine_shift_px": None if self.refine_shift_px is None else round(self.refine_shift_px, 3),
+                "steps": self.steps}
+
+
+@dataclass(frozen=True)
+class TrackedFrame:
+    """One reported frame: its seven points and their quality, or the reason it is left out.
+
+    index : int
+        Frame index in the video.
+    points : ndarray, shape (7, 2), float64, or None
+        P1..P7, image (x, y) px; None when the frame is left out.
+    quality : TrackQuality or None
+    reason : str or None
+        Why the frame is left out (None when it has points).
+    """
+
+    index: int
+    points: np.ndarray | None
+    quality: TrackQuality | None
+    reason: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.points is not None
+
+    def as_json(self) -> dict[str, Any]:
+        """tracked_points.json's entry: points and quality, or the reason."""
+        if self.points is None:
+            return {"reason": self.reason}
+        return {"points": [[round(float(x), 3), round(float(y), 3)] for x, y in self.points],
+                "quality": None if self.quality is None else self.quality.as_json()}
+
+
+Refiner = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""(image (H, W, 3) RGB, points (7, 2)) -> refined points (7, 2); raises InputError when refused."""
+
+
+def _as_points(points: ReferencePoints | Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
+    if isinstance(points, ReferencePoints):
+        d = points.as_dict()
+        if len(d) != 7:
+            raise InputError("tracking needs all seven points P1..P7 (P6 and P7 too)")
+        return np.array([d[n] for n in _POINT_NAMES], dtype=np.float64)
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.shape != (7, 2) or not np.isfinite(arr).all():
+        raise InputError(f"tracking needs seven finite (x, y) points P1..P7, got shape {arr.shape}")
+    return arr
+
+
+def to_reference(points: np.ndarray) -> ReferencePoints:
+    """(7, 2) points as the spec's ReferencePoints."""
+    return ReferencePoints.model_validate({n: (float(x), float(y)) for n, (x, y) in zip(_POINT_NAMES, points,
+                                                                                       strict=True)})
+
+
+def _quads(points: np.ndarray, side_face: SideFace) -> tuple[np.ndarray, np.ndarray]:
+    q = clicked_quads(to_reference(points), two_photo=False, side_face=side_face)
+    return q.front, q.side
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 2:
+        return image if image.dtype == np.uint8 else np.clip(image, 0, 255).astype(np.uint8)
+    if image.dtype != np.uint8:
+        image = np.clip(image, 0, 255).astype(np.uint8)
+    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+
+
+def _histogram(grey: np.ndarray) -> np.ndarray:
+    small = grey[::4, ::4]
+    return cv2.calcHist([small], [0], None, [32], [0, 256])
+
+
+def _inset_mask(shape: tuple[int, int], quad: np.ndarray, inset_px: float) -> np.ndarray:
+    """uint8 mask of `quad` shrunk by `inset_px` toward its centre (along each side's normal)."""
+    centre = quad.mean(axis=0)
+    lines = []
+    for i in range(4):
+        p, q = quad[i], quad[(i + 1) % 4]
+        n = np.array([q[1] - p[1], p[0] - q[0]])
+        norm = float(np.linalg.norm(n))
+        if norm < 1e-9:
+            return np.zeros(shape, np.uint8)
+        n /= norm
+        c = -float(n @ p)
+        if n @ centre + c < 0:
+            n, c = -n, -c
+        lines.append((n, c - inset_px))
+    corners = []
+    for i in range(4):
+        (n1, c1), (n2, c2) = lines[(i - 1) % 4], lines[i]
+        a = np.stack([n1, n2])
+        if abs(np.linalg.det(a)) < 1e-9:
+            return np.zeros(shape, np.uint8)
+        corners.append(np.linalg.solve(a, -np.array([c1, c2])))
+    mask = np.zeros(shape, np.uint8)
+    poly = np.array(corners)
+    # An inset that turned the quad inside out (a face thinner than twice the inset) is empty.
+    if np.sign(_area(poly)) != np.sign(_area(quad)):
+        return mask
+    cv2.fillConvexPoly(mask, np.round(poly * 16).astype(np.int32), 255, lineType=cv2.LINE_8, shift=4)
+    return mask
+
+
+def _area(quad: np.ndarray) -> float:
+    x, y = quad[:, 0], quad[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _features(grey: np.ndarray, quad: np.ndarray, s: TrackerSettings) -> np.ndarray:
+    """Features inside `quad` (inset), shape (N, 2) float32."""
+    mask = _inset_mask(grey.shape[:2], quad, s.inset_px)
+    if not mask.any():
+        return np.zeros((0, 2), np.float32)
+    found = cv2.goodFeaturesToTrack(grey, s.max_features, s.quality, s.min_distance_px, mask=mask,
+                                    blockSize=5)
+    return np.zeros((0, 2), np.float32) if found is None else found.reshape(-1, 2).astype(np.float32)
+
+
+def _lk(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray, win: int, levels: int
+        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features `pts` of `prev` tracked to `cur`, checked back: (new positions (N, 2), kept mask,
+    forward-backward error (N,) px)."""
+    if len(pts) == 0:
+        return pts, np.zeros(0, bool), np.zeros(0)
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+    p0 = pts.reshape(-1, 1, 2)
+    p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, winSize=(win, win), maxLevel=levels,
+                                          criteria=crit)
+    p0r, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, p1, None, winSize=(win, win), maxLevel=levels,
+                                           criteria=crit)
+    fb = np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1)
+    ok = (st1.ravel() == 1) & (st2.ravel() == 1) & np.isfinite(fb)
+    return p1.reshape(-1, 2), ok, fb
+
+
+def _homography(src: np.ndarray, dst: np.ndarray, ransac_px: float) -> tuple[np.ndarray | None, np.ndarray]:
+    """RANSAC homography src -> dst and its inlier mask (None, all False with fewer than 4)."""
+    if len(src) < 4:
+        return None, np.zeros(len(src), bool)
+    H, mask = cv2.findHomography(src.astype(np.float64), dst.astype(np.float64), cv2.RANSAC, ransac_px,
+                                 maxIters=500, confidence=0.995)
+    if H is None or mask is None or not np.isfinite(H).all():
+        return None, np.zeros(len(src), bool)
+    return H, mask.ravel().astype(bool)
+
+
+def _apply(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    out = cv2.perspectiveTransform(pts.reshape(-1, 1, 2).astype(np.float64), H)
+    return np.asarray(out.reshape(-1, 2), dtype=np.float64)
+
+
+@dataclass
+class _Face:
+    """One face's features: where they are now and where they were on the anchor frame."""
+
+    now: np.ndarray  # (N, 2) float32, current frame
+    anchor: np.ndarray  # (N, 2) float32, the anchor frame
+
+
+@dataclass
+class _State:
+    """The tracker's state after a good frame."""
+
+    grey: np.ndarray
+    points: np.ndarray  # (7, 2) in this frame
+    anchor_points: np.ndarray  # (7, 2) on the anchor frame
+    faces: list[_Face]  # front, side
+    counts: list[int]  # features per face when last taken
+    hist: np.ndarray
+    index: int
+    steps: int = 0
+
+
+@dataclass
+class _Step:
+    points: np.ndarray | None
+    inliers: tuple[int, int] = (0, 0)
+    fb_px: float = 0.0
+    reason: str | None = None
+    cut: bool = False
+    faces: list[_Face] = field(default_factory=list)
+
+
+class _Tracker:
+    """Frame-to-frame tracking of one box's seven points (one direction in time)."""
+
+    def __init__(self, grey: np.ndarray, points: np.ndarray, side_face: SideFace, index: int,
+                 s: TrackerSettings) -> None:
+        self.s = s
+        self.side_face = side_face
+        self.state = self._seed(grey, points, index, steps=0)
+
+    def _seed(self, grey: np.ndarray, points: np.ndarray, index: int, steps: int) -> _State:
+        quads = _quads(points, self.side_face)
+        faces = [(_features(grey, q, self.s)) for q in quads]
+        return _State(grey, points.copy(), points.copy(), [_Face(f, f.copy()) for f in faces],
+                      [len(f) for f in faces], _histogram(grey), index, steps)
+
+    def reanchor(self, points: np.ndarray) -> None:
+        """The points of the current (last good) frame are now `points` (refined): features and
+        anchor taken again there."""
+        st = self.state
+        self.state = self._seed(st.grey, points, st.index, st.steps)
+
+    def step(self, grey: np.ndarray, index: int, *, wide: bool = False) -> _Step:
+        """Track the last good frame's features to `grey` (frame `index`)."""
+        st, s = self.state, self.s
+        hist = _histogram(grey)
+        if not wide and cv2.compareHist(st.hist, hist, cv2.HISTCMP_BHATTACHARYYA) > s.cut_distance:
+            return _Step(None, reason="a cut to another scene (the picture changed at once)", cut=True)
+        win, levels = (s.wide_win_px, s.wide_levels) if wide else (s.win_px, s.levels)
+        sizes = [len(f.now) for f in st.faces]
+        allpts = np.concatenate([f.now for f in st.faces]) if sum(sizes) else np.zeros((0, 2), np.float32)
+        new, ok, fb = _lk(st.grey, grey, allpts, win, levels)
+        ok &= fb < s.fb_max_px
+        if not ok.any():
+            return _Step(None, reason="no feature on the box could be followed into this frame", cut=not wide)
+        fb_med = float(np.median(fb[ok]))
+        faces, hs, inl = [], [], []
+        start = 0
+        for f, n in zip(st.faces, sizes, strict=True):
+            sel = ok[start:start + n]
+            cur, anc = new[start:start + n][sel], f.anchor[sel]
+            start += n
+            H, mask = _homography(anc, cur, s.ransac_px)
+            hs.append(H)
+            inl.append(int(mask.sum()))
+            faces.append(_Face(cur[mask].astype(np.float32), anc[mask].astype(np.float32)))
+        if hs[0] is None or inl[0] < s.min_inliers:
+            return _Step(None, inliers=(inl[0], inl[1]), fb_px=fb_med,
+                         reason=f"track lost: {inl[0]} features on the front follow the box "
+                                f"(at least {s.min_inliers} needed; forward-backward error {fb_med:.2f} px)")
+        pts = st.anchor_points
+        moved = np.empty_like(pts)
+        moved[list(_FRONT)] = _apply(hs[0], pts[list(_FRONT)])
+        moved[3] = _apply(hs[0], pts[3:4])[0]
+        side_h = None
+        if hs[1] is not None and inl[1] >= s.min_side_inliers:
+            # The second face shares an edge with the front: its homography is refitted to its
+            # inliers with that edge's two corners as the front moved them (weighed as many
+            # features), so a thin or plain face cannot swing about the fold.
+            shared = list(_SHARED_CORNERS[self.side_face])
+            weight = max(len(faces[1].now), 8)
+            src = np.concatenate([faces[1].anchor.astype(np.float64), np.repeat(pts[shared], weight, axis=0)])
+            dst = np.concatenate([faces[1].now.astype(np.float64), np.repeat(moved[shared], weight, axis=0)])
+            side_h, _ = cv2.findHomography(src, dst, 0)
+        if side_h is not None and np.isfinite(side_h).all():
+            moved[list(_SIDE_ONLY)] = _apply(side_h, pts[list(_SIDE_ONLY)])
+        else:
+            # Too little texture on the second face: its far corners move with the front (the
+            # refinement on the edges sets them right on the frames reported).
+            moved[list(_SIDE_ONLY)] = _apply(hs[0], pts[list(_SIDE_ONLY)])
+        if not np.isfinite(moved).all():
+            return _Step(None, reason="track lost: the front's motion is degenerate")
+        return _Step(moved, inliers=(inl[0], inl[1]), fb_px=fb_med, faces=faces)
+
+    def accept(self, grey: np.ndarray, index: int, step: _Step) -> None:
+        """Frame `index` was tracked (`step`): it becomes the last good frame."""
+        st, s = self.state, self.s
+        assert step.points is not None
+        faces = step.faces
+        refresh = any(len(f.now) < s.refresh_fraction * max(c, 1)
+                      for f, c in zip(faces, st.counts, strict=True))
+        self.state = _State(grey, step.points, st.anchor_points, faces, st.counts, _histogram(grey), index,
+                            st.steps + 1)
+        if refresh:
+            # Fresh features, anchored on this frame's points.
+            self.state = self._seed(grey, step.points, index, st.steps + 1)
+
+
+def _confidence(inliers: tuple[int, int], fb_px: float, shift: float | None, s: TrackerSettings) -> float:
+    more = min(1.0, inliers[0] / (4 * s.min_inliers))
+    steady = float(np.exp(-fb_px / s.fb_max_px))
+    snapped = 1.0 if shift is None else float(np.exp(-max(shift - 1.0, 0.0) / 4.0))
+    return float(more * steady * snapped)
+
+
+def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndarray, start_points: np.ndarray,
+                   start_index: int, side_face: SideFace, report: Collection[int],
+                   refine: Refiner | None, s: TrackerSettings, k: float) -> dict[int, TrackedFrame]:
+    """Track from the marked frame along `frames` (one direction; each (index, image) with image
+    (H, W, 3) RGB or (H, W) grey already reduced by `k`), reporting the frames in `report`."""
+    tracker = _Tracker(start_grey, start_points * k, side_face, start_index, s)
+    out: dict[int, TrackedFrame] = {}
+    lost_since: int | None = None
+    ended: str | None = None
+    for index, image in frames:
+        wanted = index in report
+        if ended is not None:
+            if wanted:
+                out[index] = TrackedFrame(index, None, None, ended)
+            continue
+        grey = _grey(image)
+        if k != 1.0:
+            grey = cv2.resize(grey, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+        step = tracker.step(grey, index, wide=lost_since is not None)
+        if step.points is None:
+            if step.cut and lost_since is None:
+                ended = f"the track ended at frame {index}: {step.reason}"
+                if wanted:
+                    out[index] = TrackedFrame(index, None, None, ended)
+                continue
+            lost_since = index if lost_since is None else lost_since
+            if abs(index - tracker.state.index) > s.max_gap:
+                ended = (f"the track was lost at frame {lost_since} and not found again within "
+                         f"{s.max_gap} frames: {step.reason}")
+            if wanted:
+                out[index] = TrackedFrame(index, None, None, step.reason)
+            continue
+        lost_since = None
+        tracker.accept(grey, index, step)
+        if not wanted:
+            continue
+        points = step.points / k
+        shift: float | None = None
+        if refine is not None and image.ndim == 3:
+            try:
+                refined = refine(image, points)
+            except InputError as exc:
+                out[index] = TrackedFrame(index, None, _quality(step, None, tracker.state.steps, s),
+                                          f"the box no longer fits the tracked points: {exc}")
+                continue
+            shift = float(np.linalg.norm(refined - points, axis=1).max())
+            points = refined
+            tracker.reanchor(points * k)
+        out[index] = TrackedFrame(index, points, _quality(step, shift, tracker.state.steps, s))
+    return out
+
+
+def _quality(step: _Step, shift: float | None, steps: int, s: TrackerSettings) -> TrackQuality:
+    return TrackQuality(sum(step.inliers), step.inliers[0], step.inliers[1], step.fb_px,
+                        _confidence(step.inliers, step.fb_px, shift, s), shift, steps)
+
+
+def track_points(frames: Iterable[tuple[int, np.ndarray]],
+                 points: ReferencePoints | Sequence[Sequence[float]] | np.ndarray, start: int, *,
+                 report: Collection[int] | None = None, side_face: str = "auto",
+                 refine: Refiner | None = None,
+                 settings: TrackerSettings = DEFAULT_SETTINGS) -> dict[int, TrackedFrame]:
+    """Carry seven points marked on frame `start` to the frames in `report`.
+
+    Parameters
+    ----------
+    frames : iterable of (int, ndarray)
+        The video's frames in increasing index order, each RGB uint8 of shape (H, W, 3) (or
+        grey (H, W) for frames that are not reported or not refined); it must hold `start` and
+        should hold every frame between the reported ones (tracking takes small steps; a gap is
+        bridged as a larger one). Frames before `start` are kept in grey (and in RGB when
+        reported) until `start` is reached, then tracked backwards.
+    points : ReferencePoints or array-like, shape (7, 2)
+        P1..P7 on frame `start`, image (x, y) px, the engine's order.
+    start : int
+        The marked frame's index.
+    report : collection of int, optional
+        The frames to report (default: every frame). `start` is reported when listed, with its
+        points as marked (refined when `refine` is given).
+    side_face : {"auto", "right", "left", "top"}
+        Which face P4, P5 and P7 mark (as `ScanSpec.side_face`).
+    refine : callable, optional
+        (image (H, W, 3), points (7, 2)) -> refined points (7, 2), raising InputError when it
+        refuses them; `box_refiner` gives the engine's. None: the tracked points as they are.
+    settings : TrackerSettings
+
+    Returns
+    -------
+    dict of int to TrackedFrame
+        One per reported frame that `frames` held: its points (7, 2) px and their quality, or
+        why it is left out.
+
+    Raises
+    ------
+    InputError
+        The points are not seven finite points, describe no box face, or `start` is not in `frames`.
+    """
+    pts = _as_points(points)
+    face = resolve_side_face(to_reference(pts), side_face)
+    wanted: set[int] | None = None if report is None else set(report)
+    before: list[tuple[int, np.ndarray]] = []
+    it = iter(frames)
+    first: tuple[int, np.ndarray] | None = None
+    for index, image in it:
+        if index == start:
+            first = (index, image)
+            break
+        if index > start:
+            break
+        keep = image if (wanted is None or index in wanted) and image.ndim == 3 else _grey(image)
+        before.append((index, keep))
+    if first is None:
+        raise InputError(f"the marked frame {start} is not among the video's frames")
+    image0 = first[1]
+    width = image0.shape[1]
+    k = min(1.0, settings.max_width_px / width)
+    grey0 = _grey(image0)
+    if k != 1.0:
+        grey0 = cv2.resize(grey0, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    marks = _quads(pts, face)
+    for name, quad in zip(("front", "second"), marks, strict=True):
+        if not (_inset_mask(grey0.shape[:2], quad * k, settings.inset_px)).any():
+            raise InputError(f"the {name} face the points mark on frame {start} is too small to track")
+    everything: Collection[int] = wanted if wanted is not None else _Everything()
+    out: dict[int, TrackedFrame] = {}
+    start_points = pts
+    if start in everything:
+        shift: float | None = None
+        if refine is not None and image0.ndim == 3:
+            try:
+                refined = refine(image0, pts)
+            except InputError as exc:
+                raise InputError(f"the points marked on frame {start} do not fit a box: {exc}") from None
+            shift = float(np.linalg.norm(refined - pts, axis=1).max())
+            start_points = refined
+        n0 = [len(_features(grey0, q * k, settings)) for q in marks]
+        out[start] = TrackedFrame(start, start_points,
+                                  TrackQuality(sum(n0), n0[0], n0[1], 0.0, 1.0, shift, 0))
+    out.update(_track_one_way(it, grey0, start_points, start, face, everything, refine, settings, k))
+    if before:
+        out.update(_track_one_way(reversed(before), grey0, start_points, start, face, everything, refine,
+                                  settings, k))
+    return dict(sorted(out.items()))
+
+
+class _Everything(Collection[int]):
+    """Every frame index."""
+
+    def __contains__(self, x: object) -> bool:
+        return True
+
+    def __iter__(self) -> Any:
+        return iter(())
+
+    def __len__(self) -> int:
+        return 0
+
+
+def box_refiner(spec_fields: dict[str, Any] | None = None) -> Refiner:
+    """The engine's refinement of clicked points as a tracker's `refine`.
+
+    The points run through `plan_scan` as clicks on a photo do (edges fitted to sub-pixel lines,
+    the box fitted to them, the snap and fit guards); the refined points are the fitted box's
+    corners. `spec_fields` adds to the photo spec (side_face, focal_px, camera, scale...).
+
+    Returns
+    -------
+    callable
+        (image (H, W, 3) RGB, points (7, 2)) -> points (7, 2); InputError when the plan refuses.
+    """
+    from prismcore.scan.pipeline import plan_scan
+    from prismcore.spec import ScanSpec
+
+    extra = dict(spec_fields or {})
+
+    def refine(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        spec = ScanSpec.model_validate({"image": "frame", "formats": ["csv"], **extra,
+                                        "points": to_reference(points).model_dump()})
+        plan = plan_scan(spec, image)
+        side_face = plan.side_face
+        front, side = plan.faces[0].region, plan.faces[1].region
+        labels = quad_labels(clicked_quads(to_reference(points), two_photo=False, side_face=side_face))
+        out = points.copy()
+        for quad, names in ((front, labels[0]), (side, labels[1])):
+            for corner, name in zip(quad, names, strict=True):
+                if name is not None:
+                    out[_POINT_NAMES.index(name)] = corner
+        # P4 is the front's corner it marks (P2, or P1), as the box has one corner there.
+        out[3] = out[1] if side_face == "right" else out[0]
+        if not np.isfinite(out).all():
+            raise InputError("the refined box has no finite corners")
+        return out
+
+    return refine
+
+
+def viewing_spread(points: dict[int, np.ndarray], count: int) -> list[int]:
+    """The frames whose views of the box differ most: farthest-point sampling of the seven
+    points' shape (centred, scaled to unit size), which changes as the viewing angle does.
+
+    Parameters
+    ----------
+    points : dict of int to ndarray, shape (7, 2)
+        Each frame's points.
+    count : int
+        How many frames to choose (all when fewer).
+
+    Returns
+    -------
+    list of int
+        The chosen frame indices, increasing.
+    """
+    keys = sorted(points)
+    if len(keys) <= count:
+        return keys
+    shapes = []
+    for key in keys:
+        p = points[key] - points[key].mean(axis=0)
+        shapes.append((p / max(float(np.sqrt((p**2).sum(axis=1).mean())), 1e-9)).ravel())
+    x = np.array(shapes)
+    centre = x.mean(axis=0)
+    chosen = [int(np.argmax(np.linalg.norm(x - centre, axis=1)))]
+    dist = np.linalg.norm(x - x[chosen[0]], axis=1)
+    while len(chosen) < count:
+        nxt = int(np.argmax(dist))
+        chosen.append(nxt)
+        dist = np.minimum(dist, np.linalg.norm(x - x[nxt], axis=1))
+    return sorted(keys[i] for i in chosen)
+
+
+def with_settings(settings: TrackerSettings, **changes: Any) -> TrackerSettings:
+    """`settings` with some fields changed."""
+    return replace(settings, **changes)
