@@ -177,6 +177,13 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
+        if item.points_frame is not None:
+            # The worker measures a video's frames with `points` as a fixed camera's: it would
+            # ignore points_frame. Refused until it tracks (issue 29).
+            fail(("items", i, "points_frame"), f"item {i} points_frame: points tracked from one frame "
+                 "are measured by prism scan VIDEO --points ... --points-frame N for now; the service "
+                 "does not track yet (give frame_points, each frame's own points)")
+            continue
         shapes: dict[str, tuple[int, int] | None] = {}
         # Each input as (its place in the item, the field its kind is judged as, its reference).
         inputs: list[tuple[tuple[str | int, ...], str, str | None]] = (

@@ -340,6 +340,12 @@ class ScanSpec(_Strict):
         default=None, min_length=1, description="Video with a moving camera: reference points "
         "per frame index; exactly these frames are measured."
     )
+    points_frame: NonNegativeInt | None = Field(
+        default=None, description="Video with a moving camera: the frame index `points` were "
+        "marked on; they are carried to every selected frame by tracking "
+        "(prismcore.video.tracking), each frame's points written to tracked_points.json, frames "
+        "whose track is lost or whose box no longer fits left out with the reason. Needs all "
+        "seven points.")
     views: list[ViewSpec] | None = Field(
         default=None, description=f"Several photos of ONE part by one camera (one image size), each "
         f"with its seven points on the same front face, measured as one box in one least-squares fit "
@@ -353,7 +359,8 @@ class ScanSpec(_Strict):
         default=None, description="How several views are combined. A video's frames: \"frames\" "
         "(the default) measures each frame as a photo and summarises the medians; \"joint\" "
         f"measures the frames of frame_points (2 to {JOINT_MAX_VIEWS}, seven points each, a known "
-        "edge as the scale) as ONE box, as views are. Items with views are always joint.")
+        "edge as the scale) as ONE box, as views are, or with points_frame the tracked frames "
+        "whose views differ most (up to 30). Items with views are always joint.")
     station: str | None = Field(
         default=None, description="The service: a stored station's id (POST /v1/stations): the part "
         "resting on its support is found and measured in mm from the photo alone (prismcore.station), "
@@ -463,6 +470,8 @@ class ScanSpec(_Strict):
                 and not self._focal_fittable():
             raise ValueError("a shooting distance needs focal_px (the focal length in pixels), "
                              "a camera, or p6 and p7 in one photo (the focal length is fitted)")
+        if self.points_frame is not None:
+            self._points_frame_consistent()
         if self.frame_points is not None:
             if self.auto_points is not None:
                 raise ValueError("points \"auto\" finds the points in every frame: drop frame_points")
@@ -504,6 +513,20 @@ class ScanSpec(_Strict):
                              f"{self.side_image!r} cannot be used with frames")
         return self
 
+    def _points_frame_consistent(self) -> None:
+        """`points_frame`: seven clicked points on one frame of a video, tracked to the others."""
+        if self.frames is None:
+            raise _field_error(("points_frame",), "points_frame is for a video (with frames): a photo's "
+                               "points are its own", self.points_frame)
+        if self.points is None:
+            raise _field_error(("points_frame",), "points_frame names the frame points were marked on: "
+                               "give points (seven clicked points; not \"auto\", not frame_points)",
+                               self.points_frame)
+        missing = [p for p in ("p6", "p7") if getattr(self.points, p) is None]
+        if missing:
+            raise _field_error(("points", missing[0]), f"{missing[0]} is missing: tracking from "
+                               "points_frame needs all seven points p1..p7", None)
+
     def _station_consistent(self) -> None:
         """A station item: the photo alone, measured on the station (no points, no scale)."""
         for name in _STATION_ASIDE:
@@ -544,6 +567,11 @@ class ScanSpec(_Strict):
                         name, "each view carries its own points and side_face"), getattr(self, name))
             if self._formats_asked():
                 fail(("formats",), "formats does not go with views: " + _JOINT_ASIDE["formats"], self.formats)
+        elif self.fit == "joint" and self.points_frame is not None:
+            for name in ("camera", "principal_point", "spacing_mm"):
+                if getattr(self, name) is not None:
+                    fail((name,), f"{name} does not go with fit \"joint\": " + _JOINT_ASIDE[name],
+                         getattr(self, name))
         elif self.fit == "joint":
             if self.frame_points is None:
                 where = "points" if self.points is not None or self.auto_points is not None else "fit"

@@ -48,5 +48,5 @@ def frame_spec(spec: ScanSpec, index: int) -> ScanSpec:
                              f"(it gives frames {sorted(spec.frame_points)})")
     else:
         points = spec.points
-    data = spec.model_dump(exclude={"frames", "frame_points", "points", "fit"})
+    data = spec.model_dump(exclude={"frames", "frame_points", "points", "fit", "points_frame"})
     return ScanSpec.model_validate({**data, "points": points.model_dump() if points else None})
