@@ -8,12 +8,8 @@ import pytest
 
 from prismcore import ScanSpec, plan_scan
 from prismcore.camera import CameraModel
-from prismcore.geometry.perspective import (
-    FaceEvidence,
-    RadialDistortion,
-    fit_box,
-    focal_from_vanishing_points,
-)
+from prismcore.geometry.lens import RadialDistortion
+from prismcore.geometry.perspective import FaceEvidence, fit_box, focal_from_vanishing_points
 from prismcore.scan import measure
 from prismsynth import Box, render_oblique_view
 

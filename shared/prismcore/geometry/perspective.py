@@ -16,6 +16,9 @@ they slide towards the focal length's bound without converging.
 
 The second face may be the right side (the paper's), the left side (in the plane X = 0) or the
 top (in the plane Y = 0): see `prismcore.geometry.faces` for which corner each point marks.
+
+The lens distortion the edges show is `prismcore.geometry.lens`; what the model leaves out (that
+distortion, rounded edges) as the shape's covariance, `prismcore.geometry.model_error`.
 """
 
 from __future__ import annotations
@@ -27,27 +30,20 @@ from typing import Any
 import cv2
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
-from scipy.special import ndtr, ndtri
+
+from prismcore.geometry.lens import RadialDistortion, tls_line
 
 __all__ = [
-    "DISTORTION_PRIOR",
-    "FOLD_FRACTION",
     "NOISE_CLICK_PX",
     "NOISE_LINE_PX",
-    "ROUNDING_RMS_MM",
     "BoxFit",
     "FaceEvidence",
-    "RadialDistortion",
     "box_edge_samples",
     "centre_depth",
-    "edge_shifts",
-    "estimate_distortion",
     "fit_box",
     "fit_rectangle",
     "focal_from_vanishing_points",
-    "model_error_cov",
     "project",
-    "rounding_shifts",
     "undistort_evidence",
 ]
 
@@ -530,161 +526,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                   G @ _influence(best), principal.copy(), nfev=nfev)
 
 
-# --------------------------------------------------------------------------- what the model leaves out
-
-DISTORTION_PRIOR = 0.06
-"""1-sigma of a phone lens's radial distortion before the photo is looked at, as the fraction q by
-which it moves a point at the image's corner radius (k1 of -0.15..0.10 at focal lengths 0.7-1.2
-times the width moves the corners by about -12 % .. +8 %)."""
-DISTORTED_SHARE = 0.5
-"""Prior probability that a photo still carries its lens's distortion (many phones remove it in
-the camera, many do not)."""
-ROUNDING_RMS_MM = 1.5
-"""RMS radius (mm) of a box's rounded edges when nothing says it (folded carton, moulded and
-machined parts: 0-2.5 mm); a sharp box has 0. Its silhouette lies inside the sharp outline."""
-FOLD_FRACTION = 0.5
-"""Where an edge detector finds a rounded fold (both faces seen): anywhere on the shading ramp
-the rounding makes, which spans about the radius on either face; 1-sigma, in radii."""
-
-
-@dataclass(frozen=True)
-class RadialDistortion:
-    """A one-coefficient radial lens model in pixels: a pinhole point p lands at
-    c + (p - c) (1 + kappa |p - c|^2) (OpenCV's k1 is kappa * f^2).
-
-    kappa : float, px^-2
-    kappa_std : float, px^-2, its 1-sigma error
-    centre : ndarray, shape (2,), the distortion centre (the principal point), px
-    """
-
-    kappa: float
-    kappa_std: float
-    centre: np.ndarray
-
-    def distort(self, pts: np.ndarray) -> np.ndarray:
-        """Pinhole image points (N, 2) px -> where the lens puts them."""
-        d = np.asarray(pts, dtype=np.float64) - self.centre
-        moved: np.ndarray = self.centre + d * (1 + self.kappa * (d**2).sum(axis=-1, keepdims=True))
-        return moved
-
-    def undistort(self, pts: np.ndarray) -> np.ndarray:
-        """Image points (N, 2) px as photographed -> where a pinhole puts them."""
-        return _undistort(np.asarray(pts, dtype=np.float64), self.centre, self.kappa)
-
-
-def _undistort(pts: np.ndarray, centre: np.ndarray, kappa: float) -> np.ndarray:
-    d = pts - centre
-    r2d = (d**2).sum(axis=-1, keepdims=True)
-    scale = np.ones_like(r2d)
-    # r_d = r_u (1 + kappa r_u^2): fixed point in the scale r_u / r_d (contracts for |kappa r^2| < 1/3).
-    for _ in range(12):
-        scale = 1.0 / (1.0 + kappa * r2d * scale**2)
-    undone: np.ndarray = centre + d * scale
-    return undone
-
-
-def _tls_cost(pts: np.ndarray) -> float:
-    """Sum of squared distances of points (N, 2) to their total-least-squares line."""
-    d = pts - pts.mean(axis=0)
-    return float(np.linalg.eigvalsh(d.T @ d)[0])
-
-
-def _tls_line(pts: np.ndarray) -> np.ndarray:
-    """The (a, b, c) line, (a, b) a unit normal, nearest to the points (N, 2) in total least squares."""
-    m = pts.mean(axis=0)
-    d = pts - m
-    normal = np.linalg.eigh(d.T @ d)[1][:, 0]
-    return np.array([normal[0], normal[1], -float(normal @ m)])
-
-
-def estimate_distortion(samples: list[np.ndarray], centre: np.ndarray, radius_px: float) -> RadialDistortion:
-    """Radial lens distortion read from how the box's straight edges bend (plumb-line method).
-
-    The box's edges are straight in the world, so under a pinhole they are straight in the
-    image; the one-coefficient radial model's kappa is chosen to make the undistorted samples of
-    every edge as straight as possible (sum of squared distances to each edge's own line).
-    Its error follows from that cost's curvature and the samples' scatter about their lines;
-    the estimate is then combined with the prior: with probability DISTORTED_SHARE the photo
-    still carries distortion of 1-sigma DISTORTION_PRIOR, else none (the camera removed it). An
-    edge set that says little (short edges near the centre) leaves the lens undistorted with the
-    prior's error, a long bent edge overrules it.
-
-    Parameters
-    ----------
-    samples : list of ndarray, shape (N_i, 2)
-        Image (x, y) px along each straight edge, as photographed (`EdgeFit.points`).
-    centre : ndarray, shape (2,)
-        Distortion centre (the principal point), px.
-    radius_px : float
-        The image's corner radius (half its diagonal), px: the prior is stated there.
-
-    Returns
-    -------
-    RadialDistortion
-    """
-    from scipy.optimize import minimize_scalar
-
-    centre = np.asarray(centre, dtype=np.float64)
-    unit = 1.0 / radius_px**2  # kappa per unit of q
-    prior = DISTORTION_PRIOR
-    edges = [np.asarray(e, dtype=np.float64) for e in samples if e is not None and len(e) >= 6]
-    if not edges:
-        return RadialDistortion(0.0, prior * unit, centre)
-    # Work in units of the corner radius: the cost is then of order one per edge.
-    scaled = [(e - centre) / radius_px for e in edges]
-    zero = np.zeros(2)
-
-    def cost(q: float) -> float:
-        return sum(_tls_cost(_undistort(e, zero, q)) for e in scaled)
-
-    bound = 0.35  # past this the fixed point stops contracting at the corners
-    q_hat = float(minimize_scalar(cost, bounds=(-bound, bound), method="bounded",
-                                  options={"xatol": 1e-5}).x)
-    n = sum(len(e) for e in scaled)
-    dof = n - 2 * len(scaled) - 1
-    if dof <= 0:
-        return RadialDistortion(0.0, prior * unit, centre)
-    h = 1e-3
-    per_edge = np.array([[_tls_cost(_undistort(e, zero, q)) for e in scaled]
-                         for q in (q_hat - h, q_hat, q_hat + h)])
-    curv = (per_edge[0] - 2 * per_edge[1] + per_edge[2]) / h**2
-    grad = (per_edge[2] - per_edge[0]) / (2 * h)
-    if not curv.sum() > 0:
-        return RadialDistortion(0.0, prior * unit, centre)
-    # From the samples' scatter about their lines (all samples independent) ...
-    var = 2 * (per_edge[1].sum() / dof) / curv.sum()
-    # ... and from how far the edges disagree (leave one edge out: jackknife). Each edge's own q
-    # (one Newton step from the common one) carries what bends that edge alone (texture,
-    # shading, a compressed video's blocks, a face fitted in part), which neighbouring samples
-    # share; one edge that alone says "bent" must not decide. The larger of the two.
-    ok = curv > 0
-    if ok.sum() >= 3:
-        c, q_own = curv[ok], q_hat - grad[ok] / curv[ok]
-        left_out = (c @ q_own - c * q_own) / (c.sum() - c)
-        m = len(c)
-        var = max(var, float((m - 1) / m * ((left_out - left_out.mean()) ** 2).sum()))
-    # The prior is a mixture: many cameras already remove their lens's distortion from the JPEG
-    # (q = 0 exactly, probability 1 - DISTORTED_SHARE), the others' q ~ N(0, prior^2). The
-    # posterior is then a point mass at 0 and a normal, and its median is the estimate: exactly
-    # 0 while the bend is one the samples' noise explains (an undistorted photo is left as it
-    # was), the normal's own estimate for a clear bend, and continuous in the data in between
-    # (a thresholding estimator: neighbouring photos get neighbouring answers).
-    post_var = 1.0 / (1.0 / var + 1.0 / prior**2)
-    q_post = q_hat * post_var / var
-    log_bf = 0.5 * (np.log(var / (var + prior**2)) + q_hat**2 / var - q_hat**2 / (var + prior**2))
-    odds = DISTORTED_SHARE / (1 - DISTORTED_SHARE) * np.exp(min(log_bf, 50.0))
-    w = odds / (1 + odds)
-    sd = float(np.sqrt(post_var))
-    below = w * float(ndtr(-q_post / sd))  # the posterior's mass below 0
-    if below > 0.5:
-        q = q_post + sd * float(ndtri(0.5 / w))
-    elif below + 1 - w < 0.5:
-        q = q_post + sd * float(ndtri(1 - 0.5 / w))
-    else:
-        q = 0.0
-    q_var = w * (post_var + (q_post - q) ** 2) + (1 - w) * q**2  # the posterior's spread about q
-    return RadialDistortion(q * unit, float(np.sqrt(q_var)) * unit, centre)
-
+# --------------------------------------------------------------------------- the evidence undistorted
 
 def undistort_evidence(face: FaceEvidence, lens: RadialDistortion) -> FaceEvidence:
     """The face's evidence as a pinhole would have seen it: corners and clicks undistorted, each
@@ -697,7 +539,7 @@ def undistort_evidence(face: FaceEvidence, lens: RadialDistortion) -> FaceEviden
             continue
         pts = face.samples[s] if s < len(face.samples) else None
         if pts is not None and len(pts) >= 2:
-            lines.append(_tls_line(lens.undistort(pts)))
+            lines.append(tls_line(lens.undistort(pts)))
             continue
         ends = face.corners[[s, (s + 1) % 4]]
         ends = ends - np.outer(ends @ line[:2] + line[2], line[:2])  # onto the line
@@ -715,139 +557,3 @@ def box_edge_samples(front: FaceEvidence, side: FaceEvidence, side_face: str = "
     if side.samples:
         out += [e for e in (side.samples[s] for s in _SECOND[side_face].sides) if e is not None]
     return out
-
-
-def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
-    """The line residuals' layout as `_residual_fn` makes it: (face, side, line, model corner)."""
-    return [(f, s, line, idx[e])
-            for f, (face, idx, sides) in enumerate(faces) for s in sides
-            if (line := face.lines[s]) is not None
-            for e in (s, (s + 1) % 4)]
-
-
-def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, side_face: str = "right",
-                    distortion_std: float = 0.0, rounding_radius: float = 0.0,
-                    fold_radius: float | None = None) -> np.ndarray:
-    """Covariance (4, 4) of (width, depth, z, focal_px) from what the pinhole box model leaves out.
-
-    Each effect is a systematic shift of the data of known shape and uncertain size, carried to
-    the shape by the fit's linear response (`BoxFit.influence`), so that whatever the pose and
-    the focal length absorb costs nothing:
-
-    * lens distortion left in the points (`distortion_std`, px^-2, the 1-sigma of kappa in
-      `RadialDistortion` about what was removed): every corner moves by
-      delta (p - c) |p - c|^2, its clicks with it, and each edge line with its end points;
-    * rounded edges (`rounding_radius`, the radius in the model's units, height 1, 1-sigma):
-      a silhouette edge (the face beyond it turned away) appears where the camera's ray grazes
-      the rounded edge, which meets the face's plane at r (sin a + cos a - 1) / sin a inside
-      the sharp edge (a the ray's angle to the face's plane across the edge). All silhouettes
-      of a box move together (one radius). A fold edge (both faces seen) is found somewhere on
-      the shading ramp the rounding makes: FOLD_FRACTION radii (of `fold_radius`, default
-      `rounding_radius`), independently per edge.
-    """
-    if fit.influence is None or fit.principal is None:
-        return np.zeros((4, 4))
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    K = _camera(fit.focal_px, fit.principal)
-    model = second.corners(np.array([fit.width, fit.depth]))
-    image = project(K, fit.rvec, fit.tvec, model)
-    rows = _rows(faces)
-    n_lines = len(rows)
-    n = fit.influence.shape[1]
-    patterns: list[np.ndarray] = []
-    if distortion_std > 0:
-        d = image - fit.principal
-        move = distortion_std * d * (d**2).sum(axis=1, keepdims=True)
-        dr = np.zeros(n)
-        for k, (_, _, line, corner) in enumerate(rows):
-            dr[k] = -float(line[:2] @ move[corner]) / SIGMA_LINE_PX
-        dr[n_lines:] = -np.concatenate([move[list(idx)].ravel() for _, idx, _ in faces]) / SIGMA_CLICK_PX
-        patterns.append(dr)
-    if rounding_radius > 0:
-        patterns.append(rounding_shifts(fit, front, side, rounding_radius, side_face=side_face)[0])
-    fold = rounding_radius if fold_radius is None else fold_radius
-    if fold > 0:
-        patterns += rounding_shifts(fit, front, side, FOLD_FRACTION * fold, side_face=side_face)[1]
-    cov = np.zeros((4, 4))
-    for dr in patterns:
-        dx = fit.influence @ dr
-        cov += np.outer(dx, dx)
-    return cov
-
-
-def rounding_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, radius: float, *,
-                    side_face: str = "right") -> tuple[np.ndarray, list[np.ndarray]]:
-    """How edges rounded with `radius` (model units, height 1) move the fit's whitened residuals.
-
-    A silhouette edge (the face beyond it turned away) appears where the camera's ray grazes the
-    rounded edge, which meets the face's plane at r (sin a + cos a - 1) / sin a inside the sharp
-    edge (a the ray's angle to the face's plane across the edge); a fold edge (both faces seen)
-    is moved in by `radius` itself. The clicks do not move (they mark the corners).
-
-    Returns
-    -------
-    silhouettes : ndarray, shape (n_residuals,)
-        All silhouettes together (one radius moves them all).
-    folds : list of ndarray, shape (n_residuals,)
-        One pattern per fold edge.
-    """
-    n = 0 if fit.influence is None else fit.influence.shape[1]
-    if fit.principal is None or n == 0:
-        return np.zeros(n), []
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    K = _camera(fit.focal_px, fit.principal)
-    model = second.corners(np.array([fit.width, fit.depth]))
-    image = project(K, fit.rvec, fit.tvec, model)
-    R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
-    camera_centre = -R.T @ fit.tvec
-    box_centre = np.array([fit.width, 1.0, fit.depth]) / 2
-    silhouettes = np.zeros(n)
-    folds: dict[tuple[int, int], np.ndarray] = {}
-    for k, (f, s, line, corner) in enumerate(_rows(faces)):
-        quad = model[list(faces[f][1])]
-        centre = quad.mean(axis=0)
-        normal = (centre - box_centre) / np.linalg.norm(centre - box_centre)
-        mid = (quad[s] + quad[(s + 1) % 4]) / 2
-        out = (mid - centre) / np.linalg.norm(mid - centre)
-        ray = camera_centre - mid
-        dm, dn = float(ray @ out), float(ray @ normal)
-        silhouette = dm < 0 and dn > 0
-        if silhouette:
-            a = np.arctan2(dn, -dm)
-            inset = radius * (np.sin(a) + np.cos(a) - 1) / np.sin(a)
-        else:
-            inset = radius
-        moved = project(K, fit.rvec, fit.tvec, (model[corner] - inset * out)[None])[0]
-        shift = -float(line[:2] @ (moved - image[corner])) / SIGMA_LINE_PX
-        if silhouette:
-            silhouettes[k] = shift
-        else:
-            folds.setdefault((f, s), np.zeros(n))[k] = shift
-    return silhouettes, list(folds.values())
-
-
-def edge_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence,
-                moves: list[tuple[np.ndarray, np.ndarray]], *, side_face: str = "right") -> np.ndarray:
-    """How moving some of the box's edge lines in the image changes the fit's whitened residuals.
-
-    moves : per edge, its model midpoint (3,) (height 1) and the image vector (2,) px by which
-        its fitted line moves; an edge the fit has no line for is skipped.
-
-    Returns
-    -------
-    ndarray, shape (n_residuals,)
-    """
-    n = 0 if fit.influence is None else fit.influence.shape[1]
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    model = second.corners(np.array([fit.width, fit.depth]))
-    dr = np.zeros(n)
-    for k, (f, s, line, _) in enumerate(_rows(faces)):
-        idx = faces[f][1]
-        mid = (model[idx[s]] + model[idx[(s + 1) % 4]]) / 2
-        for where, vector in moves:
-            if np.linalg.norm(where - mid) < 1e-6 * max(1.0, fit.width, fit.depth):
-                dr[k] = -float(line[:2] @ vector) / SIGMA_LINE_PX
-    return dr

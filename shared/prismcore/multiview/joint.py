@@ -3,7 +3,7 @@
 Each view is first measured alone (`pipeline.plan_scan`: its points checked, its edges refined to
 sub-pixel lines, its own box fitted). The joint fit then shares what one camera and one part
 share: one focal length (fitted unless given), one radial lens distortion (read from every view's
-edges together, `perspective.estimate_distortion`), one width and depth (height 1, the known edge
+edges together, `lens.estimate_distortion`), one width and depth (height 1, the known edge
 sets the millimetres); each view keeps its own pose. All views' edge lines and clicks are fitted
 in one least-squares problem with the single-view residuals (`perspective`: each model edge's end
 points on its fitted line, sigma 0.3 px, each corner weakly towards its click, sigma 5 px, a
@@ -46,30 +46,31 @@ from scipy.stats import chi2
 
 from prismcore.errors import InputError
 from prismcore.geometry.faces import clicked_quads
+from prismcore.geometry.lens import RadialDistortion, estimate_distortion
+from prismcore.geometry.model_error import (
+    FOLD_FRACTION,
+    ROUNDING_RMS_MM,
+    _rows,
+    edge_shifts,
+    rounding_shifts,
+)
 from prismcore.geometry.perspective import (
     _F_SCALE,
     _FRONT_IDX,
     _SECOND,
-    FOLD_FRACTION,
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
-    ROUNDING_RMS_MM,
     SIGMA_CLICK_PX,
     SIGMA_LINE_PX,
     BoxFit,
     FaceEvidence,
     FaceTerms,
-    RadialDistortion,
     _camera,
     _n_line_terms,
     _residual_fn,
-    _rows,
     box_edge_samples,
-    edge_shifts,
-    estimate_distortion,
     fit_box,
     project,
-    rounding_shifts,
     undistort_evidence,
 )
 from prismcore.geometry.rounding import STD_FLOOR_MM, RadiusEstimate, estimate_edge_radius
@@ -643,7 +644,7 @@ def _dims_gradient(scale: KnownEdge, x: np.ndarray) -> np.ndarray:
 def _fold_sigma(problem: _Problem, res: OptimizeResult, scale: KnownEdge, rounding: _Rounding) -> np.ndarray:
     """1-sigma (3,) of the dimensions from where the edge detector found each rounded fold (both
     faces seen): anywhere on the shading ramp, FOLD_FRACTION radii (of the radius read plus its
-    sigma, or ROUNDING_RMS_MM), as `perspective.model_error_cov` takes it for one view. One
+    sigma, or ROUNDING_RMS_MM), as `model_error.model_error_cov` takes it for one view. One
     physical fold is found alike in every view (the same surface and light), so its shifts in
     all views move together; different folds are independent. Carried to the shape by the joint
     fit's linear response (robust weights frozen)."""

@@ -26,22 +26,18 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from prismcore.geometry.lens import RadialDistortion, estimate_distortion
+from prismcore.geometry.model_error import ROUNDING_RMS_MM, edge_shifts, model_error_cov, rounding_shifts
 from prismcore.geometry.perspective import (
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
-    ROUNDING_RMS_MM,
     BoxFit,
     FaceEvidence,
-    RadialDistortion,
     box_edge_samples,
     centre_depth,
-    edge_shifts,
-    estimate_distortion,
     fit_box,
     fit_rectangle,
-    model_error_cov,
     project,
-    rounding_shifts,
     undistort_evidence,
 )
 from prismcore.geometry.rounding import RadiusEstimate, estimate_edge_radius
@@ -318,10 +314,10 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     face's centre along the optical axis.
 
     Unless the lens is known (its distortion already removed from the evidence), its radial
-    distortion is read from how the box's edges bend (`perspective.estimate_distortion`, a
+    distortion is read from how the box's edges bend (`lens.estimate_distortion`, a
     plumb-line estimate that stays at none while the bend is one the edges' noise explains) and
     removed from the evidence before the fit. The uncertainty adds to the click and edge noise
-    what the model leaves out (`perspective.model_error_cov`): the estimate's error (the prior's,
+    what the model leaves out (`model_error.model_error_cov`): the estimate's error (the prior's,
     DISTORTION_PRIOR, when the edges say little), and edges rounded by an unknown radius
     (ROUNDING_RMS_MM; only when the scale is in mm, which says how large a millimetre is in the
     model).
