@@ -2,20 +2,25 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 
-from prismcore import InputError
-from prismcore.geometry.calibration import calibrate_images
-from prismcore.io.images import DEFAULT_MAX_PIXELS, load_image
+from prismcore.errors import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["calibrate", "parse_board"]
+
+# prismcore.io.images.DEFAULT_MAX_PIXELS, not imported for --help (it loads OpenCV; the
+# calibration, scipy): tests/cli/test_cli_imports.py checks the two agree.
+DEFAULT_MAX_PIXELS = 50_000_000
 
 console = Console(soft_wrap=True)  # a list of photo names stays on its line
 
@@ -40,7 +45,7 @@ def _positive_mm(text: str) -> float:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not (np.isfinite(value) and value > 0):
+    if not (math.isfinite(value) and value > 0):
         raise InputError(f"--square-mm {text!r}: expected a positive length in mm")
     return value
 
@@ -60,6 +65,8 @@ def _photo_paths(images: list[Path]) -> list[Path]:
 
 
 def _photos(paths: list[Path], max_pixels: int) -> Iterator[tuple[str, np.ndarray]]:
+    from prismcore.io.images import load_image
+
     for path in paths:  # one decoded photo in memory at a time
         yield str(path), load_image(path, max_pixels=max_pixels)
 
@@ -81,6 +88,10 @@ def calibrate(
     max_pixels: Annotated[int, typer.Option(help="Refuse larger images.")] = DEFAULT_MAX_PIXELS,
 ) -> None:
     """Calibrate a camera from photos of a printed chessboard; write its model for `prism scan --camera`."""
+    import numpy as np
+
+    from prismcore.geometry.calibration import calibrate_images
+
     cols_rows = parse_board(board)
     square = _positive_mm(square_mm)
     paths = _photo_paths(images)

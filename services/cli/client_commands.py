@@ -4,19 +4,22 @@ from scripts."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from prism_common.public import JobPublic, ResultPublic
-from pydantic import ValidationError
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from prismcore import InputError
+from prismcore.errors import InputError
 
-from .client import ApiClient, format_eta, remaining_s
-from .results_command import render_results
 from .scan_command import one_line, read_spec_json, spec_from_flags
+
+if TYPE_CHECKING:
+    from prism_common.public import JobPublic, ResultPublic
+
+    from .client import ApiClient
+
+# The client (httpx, the API's pydantic models) is imported when a command talks to the API, not
+# for `prism --help` or `prism scan` (tests/cli/test_cli_imports.py).
 
 __all__ = ["cancel", "download", "jobs", "results", "station_delete", "station_list", "station_upload",
            "status", "submit", "wait"]
@@ -30,6 +33,8 @@ _REFERENCE_PREFIXES = ("upload:", "s3://", "https://")
 def _client(api: str, key: str) -> ApiClient:
     if not key:
         raise InputError("no API key: pass --key or set PRISM_API_KEY")
+    from .client import ApiClient
+
     return ApiClient(api, key)
 
 
@@ -57,6 +62,8 @@ def _upload_local(client: ApiClient, item: dict, base: Path) -> dict:
 
 def _progress_text(job: JobPublic) -> str:
     """'3 of 10 items, about 40 s left' (the items part only when the job has more than one)."""
+    from .client import format_eta, remaining_s
+
     parts = [f"{job.items_done} of {job.item_count} items"] if job.item_count > 1 else []
     if eta := format_eta(remaining_s(job)):
         parts.append(eta)
@@ -143,6 +150,8 @@ def submit(
     """Submit a job (local files are uploaded first) and print its id; with --wait, exit 0 if it
     succeeded, 1 otherwise."""
     client = _client(api, key)
+    from pydantic import ValidationError
+
     if spec_file is not None:
         document, base = _job_document(spec_file), spec_file.parent
         if station is not None:
@@ -226,6 +235,8 @@ def status(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
 
 
 def _wait(client: ApiClient, job_id: str, timeout: float) -> JobPublic:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                   TextColumn("{task.fields[detail]}"), TimeElapsedColumn(), console=console,
                   transient=not console.is_terminal) as bar:
@@ -257,6 +268,8 @@ def download(job_id: str, out: Annotated[Path, typer.Option(help="Folder for the
 def results(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
             as_json: Annotated[bool, typer.Option("--json", help="Print results.json.")] = False) -> None:
     """Print the job's results table: a row per item (and video frame), dimensions ± sigma, verdicts."""
+    from .results_command import render_results
+
     with _client(api, key) as client:
         table = client.results(job_id)
     console.print_json(table.model_dump_json()) if as_json else render_results(table, console)

@@ -17,7 +17,6 @@ from typer.exceptions import TyperException
 from prismcore import InputError
 
 from .calibrate_command import calibrate
-from .client import ApiError, WaitTimeoutError
 from .client_commands import (
     cancel,
     download,
@@ -30,6 +29,7 @@ from .client_commands import (
     submit,
     wait,
 )
+from .errors import ApiError, WaitTimeoutError
 from .sample_command import sample
 from .scan_command import scan
 from .schema_command import schema

@@ -9,9 +9,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from prismcore import InputError
-from prismcore.bounds import LENGTH_MM_RANGE
-from prismsynth import Box, render_oblique_view, save_image
+from prismcore.errors import InputError
 
 __all__ = ["sample"]
 
@@ -24,6 +22,9 @@ def sample(
     seed: Annotated[int, typer.Option(help="Scene seed.")] = 1,
 ) -> None:
     """Render an oblique photo of a box and write a spec that measures it."""
+    from prismcore.bounds import LENGTH_MM_RANGE
+    from prismsynth import Box, render_oblique_view, save_image
+
     low, high = LENGTH_MM_RANGE
     for flag, value in (("--width-mm", width_mm), ("--height-mm", height_mm), ("--depth-mm", depth_mm)):
         if not low <= value <= high:  # the spec written would be refused (prismcore.bounds)

@@ -7,27 +7,28 @@ import math
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from pydantic import ValidationError
 from rich.console import Console
 
-from prismcore import InputError, ScanSpec, parse_points
-from prismcore.camera import CameraModel
-from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
-from prismcore.io.images import load_image
-from prismcore.locate.auto_points import scan_found
-from prismcore.locate.search import resolve_points
-from prismcore.outputs.overlay import given_dimension, points_found
-from prismcore.spec import error_message
-from prismcore.video.frames import DEFAULT_MAX_FRAMES, is_video
+from prismcore.errors import InputError
 
-from .joint_scan import scan_spec_views, scan_views
-from .outputs import report_path, write_outputs, write_overlays
-from .video_scan import scan_video, selection_from_flags
+if TYPE_CHECKING:
+    from pydantic import ValidationError
 
-__all__ = ["one_line", "quality_flags", "quality_lines", "scan", "spec_from_flags", "summary_line"]
+    from prismcore.camera import CameraModel
+    from prismcore.spec import ScanSpec
+
+# The engine (numpy, OpenCV, scipy) and pydantic are imported where a command runs, not here:
+# `prism --help` and every other command import this module (tests/cli/test_cli_imports.py).
+
+# prismcore.video.frame_select.DEFAULT_MAX_FRAMES (importing it loads OpenCV for --help);
+# tests/cli/test_cli_imports.py checks the two agree.
+DEFAULT_MAX_FRAMES = 500
+
+__all__ = ["one_line", "quality_flags", "quality_lines", "scan", "selection_from_flags", "spec_from_flags",
+           "summary_line"]
 
 console = Console()
 
@@ -38,6 +39,8 @@ def _internal(step: int | str) -> bool:
 
 def one_line(error: ValidationError) -> str:
     """A spec's validation error as one line: where, what, how many more."""
+    from prismcore.spec import error_message
+
     first = error.errors()[0]
     # Steps that name pydantic's own validators ("function-after[check(), constrained-float]",
     # a branch of a union) are not in the spec: left out.
@@ -103,6 +106,8 @@ def quality_flags(nominal: str | None, tolerance_mm: str | None) -> dict[str, An
 def spec_from_flags(image: Path | None, points: str | None, **flags: Any) -> ScanSpec:
     if image is None or points is None:
         raise InputError("give IMAGE and --points, or --spec FILE")
+    from prismcore.spec import ScanSpec
+
     formats = [f.strip() for f in flags.pop("formats", "csv,ply").split(",") if f.strip()]
     scale = _scale(*(flags.pop(k, None) for k in ("mm_per_px", "distance_mm", "width_mm",
                                                    "height_mm", "depth_mm")))
@@ -133,6 +138,8 @@ def _auto_points(points: str, hint: str | None, roi: str | None) -> dict[str, ob
     if points.strip() != "auto":
         if hint is not None or roi is not None:
             raise InputError("--hint and --roi go with --points auto")
+        from prismcore.spec import parse_points
+
         try:
             return {"points": parse_points(points).model_dump()}
         except ValueError as exc:
@@ -144,10 +151,25 @@ def _auto_points(points: str, hint: str | None, roi: str | None) -> dict[str, ob
         "roi": None if roi is None else _numbers("--roi", roi, 4)}}
 
 
+def selection_from_flags(every: int | None, start: float | None, end: float | None,
+                         frames: str | None, sharpest: int | None) -> dict | None:
+    """The spec's `frames` from the CLI flags; None when no flag was given."""
+    selection: dict = {"every": every, "start_s": start, "end_s": end, "sharpest": sharpest}
+    if frames is not None:
+        try:
+            selection["indices"] = [int(v) for v in frames.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--frames {frames!r}: expected frame indices like 0,5,9") from None
+    given = {k: v for k, v in selection.items() if v is not None}
+    return given or None
+
+
 def summary_line(report: dict) -> str:
     """'640,268 points  120.00 ± 0.14 x 79.99 ± 0.09 x 59.99 ± 0.51 mm  focal 1400 px (fitted)
     point loss 0.1%'; a known edge's dimension as '120.00 (given)'; points the search found
     as '  points found (confidence 0.99)' at the end."""
+    from prismcore.outputs.overlay_report import given_dimension, points_found
+
     dims, sigma = report["dimensions"], report.get("uncertainty") or {}
     given = given_dimension(report)
     sizes = " x ".join(f"{dims[k]:.2f}" + (" (given)" if k == given else
@@ -186,11 +208,17 @@ def quality_lines(quality: Mapping[str, Any] | None) -> list[str]:
 
 
 def _head(path: Path) -> bytes:
+    from prismcore.io.exif import EXIF_HEAD_BYTES
+
     with path.open("rb") as fh:
         return fh.read(EXIF_HEAD_BYTES)
 
 
 def _camera_file(path: Path) -> CameraModel:
+    from pydantic import ValidationError
+
+    from prismcore.camera import CameraModel
+
     try:
         return CameraModel.model_validate_json(path.read_text())
     except OSError as exc:
@@ -213,6 +241,8 @@ def read_spec_json(path: Path) -> Any:
 
 
 def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
+    from prismcore.spec import ScanSpec
+
     return ScanSpec.model_validate(read_spec_json(path)), path.parent
 
 
@@ -277,10 +307,18 @@ def scan(
     board: Annotated[Path | None, typer.Option(
         help="board.json of the board the part lies on, hand-held (no station): the board in the photo "
              "gives the scale, and the focal length unless --camera.")] = None,
+    points_frame: Annotated[int | None, typer.Option(
+        help="Video, hand-held: the frame --points were marked on; they are tracked to every selected "
+             "frame (tracked_points.json in --out).", min=0)] = None,
+    fit: Annotated[str | None, typer.Option(
+        help="Video with --points-frame: frames (each frame measured, summary.json) or joint (the "
+             "tracked frames as ONE box, joint.json; needs a known edge).", metavar="frames|joint")] = None,
 ) -> None:
     """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds;
     several photos of one part with --points-file: measured as one box."""
     started = time.perf_counter()
+    from pydantic import ValidationError
+
     images = image or []
     if station is not None or board is not None:
         flag = "--station" if station is not None else "--board"
@@ -311,6 +349,8 @@ def scan(
             raise InputError("--points-file goes with the photos alone: not with --points, --spec or --side")
         if not images:
             raise InputError("--points-file: give the photos it marks")
+        from .joint_scan import scan_views
+
         try:
             scale = _scale(mm_per_px, distance_mm, width_mm, height_mm, depth_mm)
             scan_views(images, points_file, out, scale, focal_px, max_pixels)
@@ -318,6 +358,8 @@ def scan(
             raise InputError(one_line(exc)) from None
         return
     one: Path | None = images[0] if images else None
+    from prismcore.io.video_decode import is_video
+
     try:
         selection = selection_from_flags(every, start, end, frame_list, sharpest)
         if spec_file is not None:
@@ -326,6 +368,9 @@ def scan(
             if side_face is not None:
                 raise InputError(f"--side-face {side_face!r} goes with IMAGE and --points; "
                                  "in a spec file, set side_face")
+            if points_frame is not None or fit is not None:
+                raise InputError("--points-frame and --fit go with IMAGE and --points; in a spec file, "
+                                 "set points_frame and fit")
             for flag, value in (("--nominal", nominal), ("--tolerance-mm", tolerance_mm),
                                 ("--spacing-mm", spacing_mm)):
                 if value is not None:
@@ -346,7 +391,17 @@ def scan(
                 formats=formats, csv_header=csv_header, csv_colors=csv_colors,
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
                 side_face=side_face or "auto", spacing_mm=spacing_mm, nominal=nominal,
-                tolerance_mm=tolerance_mm, hint=hint, roi=roi), Path(".")
+                tolerance_mm=tolerance_mm, hint=hint, roi=roi, points_frame=points_frame, fit=fit), Path(".")
+        if spec.points_frame is not None:
+            if camera is not None and spec.fit == "joint":
+                raise InputError("--camera does not go with a joint fit: it finds one focal length and "
+                                 "lens distortion from the views (give --focal-px if known)")
+            if camera is not None:
+                spec = spec.model_copy(update={"camera": _camera_file(camera)})
+            from .tracked_scan import scan_tracked
+
+            scan_tracked(spec, base, out, tiles=tiles, max_frames=max_frames)
+            return
         if spec.views is not None or spec.fit == "joint":
             if camera is not None:
                 raise InputError("--camera does not go with a joint fit: it finds one focal length and "
@@ -355,13 +410,23 @@ def scan(
                 raise InputError("fit \"joint\" (a video's frames as one box) is measured by the "
                                  "service (prism submit); here, give the frames as photos: prism scan "
                                  "A.png B.png --points-file points.json")
+            from .joint_scan import scan_spec_views
+
             scan_spec_views(spec, base, out)
             return
         if camera is not None:
             spec = spec.model_copy(update={"camera": _camera_file(camera)})
         if spec.is_video or is_video(base / spec.image):
+            from .video_scan import scan_video
+
             scan_video(spec, base, out, tiles=tiles, max_frames=max_frames)
             return
+        from prismcore.io.exif import exif_focal
+        from prismcore.io.images import load_image
+        from prismcore.locate.auto_points import scan_found
+
+        from .outputs import report_path, write_outputs, write_overlays
+
         load_start = time.perf_counter()
         front = load_image(base / spec.image, max_pixels=spec.max_pixels)
         side_img = (load_image(base / spec.side_image, max_pixels=spec.max_pixels)
@@ -370,6 +435,8 @@ def scan(
         load_ms = (time.perf_counter() - load_start) * 1000
         auto = None
         if spec.auto_points is not None:
+            from prismcore.locate.search import resolve_points
+
             spec, auto = resolve_points(spec, front)
         result = scan_found(spec, auto.report() if auto else None, front, side_img, tiles=tiles,
                             exif_focal_px=found.focal_px if found else None)

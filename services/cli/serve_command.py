@@ -10,21 +10,23 @@ from __future__ import annotations
 import base64
 import json
 import os
-import secrets
 import shlex
 import shutil
 import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 
-from prismcore import InputError
+from prismcore.errors import InputError
 
-from .stack import ManagedProcess, free_port, port_is_free, start_api, start_redis, start_s3, start_worker
+if TYPE_CHECKING:
+    from .stack import ManagedProcess
+
+# .stack (sockets, the HTTP client) and secrets are imported when serve runs, not for every prism.
 
 __all__ = ["ready_line", "serve", "try_line"]
 
@@ -39,6 +41,8 @@ def _credentials(data_dir: Path) -> dict[str, str]:
     if path.exists():
         saved: dict[str, str] = json.loads(path.read_text())
         return saved
+    import secrets
+
     creds = {"api_key": "k-" + secrets.token_urlsafe(24),
              # The Standard Webhooks form, which receivers' verifiers take as it is.
              "webhook_secret": "whsec_" + base64.b64encode(secrets.token_bytes(32)).decode(),
@@ -52,6 +56,8 @@ def _credentials(data_dir: Path) -> dict[str, str]:
 def _s3_port(data_dir: Path) -> int:
     """The object store's port, the same across restarts: download links handed out before a
     restart are signed for it and must keep working for their lifetime."""
+    from .stack import free_port, port_is_free
+
     path = data_dir / "ports.json"
     kept = json.loads(path.read_text()).get("s3") if path.exists() else None
     if isinstance(kept, int) and port_is_free(kept):
@@ -124,6 +130,8 @@ def serve(
     workers: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 2,
 ) -> None:
     """Run the API, workers, Redis and S3 storage locally until Ctrl-C."""
+    from .stack import port_is_free, start_api, start_redis, start_s3, start_worker
+
     console = Console()
     if not port_is_free(port):
         # Checked first: the health check would otherwise reach whatever holds the port and

@@ -17,8 +17,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import httpx
-
 __all__ = ["ManagedProcess", "free_port", "free_ports", "port_is_free", "start_api", "start_redis",
            "start_s3", "start_worker", "wait_for_port"]
 
@@ -237,6 +235,8 @@ def start_api(workdir: Path, env: dict[str, str], port: int | None = None) -> Ma
 
 def _wait_http(url: str, codes: tuple[int, ...], proc: ManagedProcess, timeout: float = 60) -> None:
     # The port opens before the server behind it is ready; a known reply means it answers.
+    import httpx  # here: `prism --help` and the other commands need no HTTP client
+
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if proc.proc is not None and proc.proc.poll() is not None:

@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
-from pydantic import ValidationError
 from rich.console import Console
 
 from prismcore import InputError
@@ -40,6 +39,8 @@ def _squares(text: str) -> tuple[int, int]:
 
 def load_board(path: Path) -> BoardSpec:
     """board.json as a BoardSpec; a bad file exits 2 naming the field."""
+    from pydantic import ValidationError
+
     from prismcore.station.board import BoardSpec
 
     try:
@@ -53,6 +54,8 @@ def load_board(path: Path) -> BoardSpec:
 
 
 def load_station(path: Path) -> Station:
+    from pydantic import ValidationError
+
     from prismcore.station.calibrate import Station
 
     try:
@@ -155,6 +158,8 @@ def calibrate(
     ] = None,
 ) -> None:
     """Calibrate a station: the camera's intrinsics and lens, the support plane, the plate."""
+    from pydantic import ValidationError
+
     from prismcore.camera import CameraModel
     from prismcore.io.images import load_image
     from prismcore.station.calibrate import calibrate_station

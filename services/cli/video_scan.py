@@ -29,22 +29,9 @@ from prismcore.video.summary import DIMENSIONS, frame_info, summarize
 
 from .outputs import report_path, write_outputs, write_overlays
 
-__all__ = ["scan_video", "selection_from_flags"]
+__all__ = ["scan_video"]
 
 console = Console()
-
-
-def selection_from_flags(every: int | None, start: float | None, end: float | None,
-                         frames: str | None, sharpest: int | None) -> dict | None:
-    """The spec's `frames` from the CLI flags; None when no flag was given."""
-    selection: dict = {"every": every, "start_s": start, "end_s": end, "sharpest": sharpest}
-    if frames is not None:
-        try:
-            selection["indices"] = [int(v) for v in frames.split(",") if v.strip()]
-        except ValueError:
-            raise InputError(f"--frames {frames!r}: expected frame indices like 0,5,9") from None
-    given = {k: v for k, v in selection.items() if v is not None}
-    return given or None
 
 
 class _FrameSpecs:

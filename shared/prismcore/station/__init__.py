@@ -8,9 +8,9 @@ support plane, plate); ``segment`` re-registers a photo on the plate and outline
 
 from __future__ import annotations
 
-from prismcore.station.board import BoardSpec, board_image, default_board, find_board_corners
-from prismcore.station.calibrate import Station, calibrate_station
-from prismcore.station.measure import StationMeasurement, measure_on_station
+from typing import TYPE_CHECKING
+
+from prismcore._lazy import lazy_exports
 
 __all__ = [
     "BoardSpec",
@@ -22,3 +22,23 @@ __all__ = [
     "find_board_corners",
     "measure_on_station",
 ]
+
+# Imported on first use (`prismcore._lazy`), like the other subpackages: `prism board` or the
+# API reading a station.json loads neither the part's segmentation nor the box fit (scipy).
+_EXPORTS = {
+    "BoardSpec": "board",
+    "Station": "calibrate",
+    "StationMeasurement": "measure",
+    "board_image": "board",
+    "calibrate_station": "calibrate",
+    "default_board": "board",
+    "find_board_corners": "board",
+    "measure_on_station": "measure",
+}
+
+if TYPE_CHECKING:
+    from prismcore.station.board import BoardSpec, board_image, default_board, find_board_corners
+    from prismcore.station.calibrate import Station, calibrate_station
+    from prismcore.station.measure import StationMeasurement, measure_on_station
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
