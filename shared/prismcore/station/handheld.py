@@ -13,6 +13,7 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
+from prismcore.station.background import TABLE_ZONE, board_cover, shadow_difference, with_table
 from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
@@ -21,6 +22,7 @@ from prismcore.station.segment import Registration, undistorter
 __all__ = ["board_camera", "expected_board", "measure_on_board"]
 
 _LEVEL_SQUARES = 0.7  # the light's level is smoothed over this many squares
+_DIFFERS = 25.0  # RGB levels (after the shadow's scale): a pixel this far from the board is not the board's
 _PATTERN_PX = 3.0  # the pattern is drawn at this many of its pixels per photo pixel, then averaged
 
 
@@ -112,6 +114,7 @@ def expected_board(
     sigma = max(2.0, float(_LEVEL_SQUARES * square_px))
     P = photo_u.astype(np.float32)
     inner = cv2.erode(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    weights = []
     levels = []
     for sel in (pattern > 0.85, pattern < 0.15):
         m = (sel & inner).astype(np.float32)
@@ -119,9 +122,15 @@ def expected_board(
         # Again without the pixels far from that first level: the part's own colour, where it
         # covers white (or black) squares, is not the squares' light.
         close = np.linalg.norm(P - level, axis=2) < 0.25 * (np.linalg.norm(level, axis=2) + 40)
-        level = _smooth(P, m * close, sigma)
-        levels.append(level)
+        weights.append(m * close)
+        levels.append(_smooth(P, m * close, sigma))
     white, black = levels
+    plate = black + (white - black) * pattern[..., None]
+    # And again without what that board differs from (a part large against the squares pulls
+    # their light towards its colour): the squares' light from the squares alone.
+    differs = shadow_difference(P, plate) > _DIFFERS
+    differs = cv2.dilate(differs.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    white, black = (_smooth(P, wgt * differs, sigma) for wgt in weights)
     plate = black + (white - black) * pattern[..., None]
     plate = np.where(region[..., None], plate, P)
     return np.clip(plate, 0, 255).astype(np.uint8), region
@@ -169,13 +178,28 @@ def measure_on_board(
     pose_h = K @ np.column_stack([R[:, 0], R[:, 1], t])
     t1 = time.perf_counter()
     plate_u, region = expected_board(photo_u, board, cam, pose_h)
+    # The table round the board from the photo itself: a part rising past the board's edge in
+    # the photo is outlined against the table there.
+    corners_mm = np.array([[0, 0], [board.size_mm[0], 0], [board.size_mm[0], board.size_mm[1]],
+                           [0, board.size_mm[1]]], np.float64)
+    corners_px = cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
+    plate_u, region = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)))
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {
         "undistort": 0.0,
         "register": (t1 - t0) * 1e3,
         "expected_board": (time.perf_counter() - t1) * 1e3,
     }
-    measured = measure_registered(photo_u, plate_u, cam, reg, timings, region=region)
+    try:
+        measured = measure_registered(photo_u, plate_u, cam, reg, timings, region=region)
+    except InputError as exc:
+        if "reaches past the board" not in str(exc):
+            raise
+        raise InputError(
+            "the part's outline reaches past the board and the table modelled round it in the photo "
+            f"(up to {TABLE_ZONE:.0%} of the board's size beyond it): lay the part on the board with "
+            "the board all round it, and photograph from higher up or use a larger board"
+        ) from None
     if camera is None:
         measured.warnings.append(
             f"focal length {cam.fx:.0f} px found from the board in the photo (no --camera; "

@@ -1,48 +1,96 @@
 """Hand-held, no station: the board around the part gives the plane, the scale and the focal
-length; the part is found against the board's own pattern."""
+length; the part is found against the board's own pattern and, where it rises past the board in
+the photo, against the table round it read from the photo itself."""
 
 from __future__ import annotations
 
+from functools import cache
+
+import cv2
 import pytest
 
 from prismcore.errors import InputError
+from prismcore.station import background
 from prismcore.station.handheld import board_camera, measure_on_board
 from prismsynth.station import StationScene, station_scene, station_setup
 
 from .conftest import true_camera
 
-# Seeds whose part lies within the board's area in the photo (others are refused: see below).
-INSIDE = (2, 4, 9)
+# Seeds measured with the camera known as well; seed 0's part (66 mm tall, seen from 32 degrees
+# up) rises past the board's far edge in the photo.
+KNOWN = (0, 2, 9)
+MANY = range(12)
 
 
+@cache
 def _scene(seed: int) -> StationScene:
     return station_scene(5000 + seed, station_setup(5000 + seed), nudge=False, inside_board=True,
                          max_size_mm=80)
 
 
-@pytest.mark.parametrize("seed", INSIDE)
-@pytest.mark.parametrize("known_camera", [True, False])
-def test_a_part_on_the_board_is_measured_from_the_board_alone(seed, known_camera) -> None:
+def _off_unwarned(m, true: dict[str, float]) -> list[str]:
+    warned = [w for w in m.warnings if "found from the board" not in w]
+    return [k for k, v in true.items() if abs(m.dimensions[k] - v) > 0.05 * v and not warned]
+
+
+def test_hand_held_photos_meet_the_station_targets_with_a_margin() -> None:
+    """Over 12 renders (the benchmark's first 12; its 40 give the figures): found, within
+    max(1 %, 1 mm), within 3 sigma, none over 5 % off without a warning."""
+    found, within, in3, total, silent = 0, 0, 0, 0, []
+    for seed in MANY:
+        sc = _scene(seed)
+        assert sc.box is not None
+        try:
+            m = measure_on_board(sc.photo, sc.setup.board)
+        except InputError:
+            continue
+        found += 1
+        for key, true in sc.box.dimensions.items():
+            err = abs(m.dimensions[key] - true)
+            total += 1
+            within += err <= max(0.01 * true, 1.0)
+            in3 += err <= 3 * m.uncertainty[key]
+        silent += _off_unwarned(m, sc.box.dimensions)
+    assert found >= 10, found
+    assert within >= 0.85 * total, (within, total)
+    assert in3 >= 0.9 * total, (in3, total)
+    assert not silent
+
+
+@pytest.mark.parametrize("seed", KNOWN)
+def test_a_part_on_the_board_is_measured_with_the_camera_known(seed) -> None:
     sc = _scene(seed)
-    m = measure_on_board(sc.photo, sc.setup.board, true_camera(sc) if known_camera else None)
+    m = measure_on_board(sc.photo, sc.setup.board, true_camera(sc))
     assert sc.box is not None
     for key, true in sc.box.dimensions.items():
         assert abs(m.dimensions[key] - true) <= max(0.015 * true, 1.0), (key, m.dimensions, true)
         assert abs(m.dimensions[key] - true) <= 3 * m.uncertainty[key] + 0.3
-    if not known_camera:
-        assert any("found from the board" in w for w in m.warnings)
+    assert not any("found from the board" in w for w in m.warnings)
 
 
-@pytest.mark.parametrize("seed", INSIDE)
+@pytest.mark.parametrize("seed", (2, 4, 9))
 def test_the_focal_length_found_from_the_board_is_within_1_percent(seed) -> None:
     sc = _scene(seed)
     assert abs(board_camera(sc.photo, sc.setup.board).fx / sc.setup.K[0, 0] - 1) < 0.01
 
 
-def test_a_part_whose_outline_reaches_past_the_board_is_refused_naming_it() -> None:
+def test_a_part_reaching_past_what_is_modelled_is_refused_naming_it(monkeypatch) -> None:
+    """With no table modelled round the board (as before the table's model), seed 0's part rises
+    past what is known: refused, saying so."""
+    monkeypatch.setattr(background, "TABLE_ZONE", 0.0)
     sc = _scene(0)
     with pytest.raises(InputError, match="reaches past the board"):
         measure_on_board(sc.photo, sc.setup.board, true_camera(sc))
+
+
+def test_a_part_cut_by_the_photo_s_edge_is_refused() -> None:
+    sc = _scene(0)
+    assert sc.box is not None
+    su = sc.setup
+    rows = cv2.projectPoints(sc.box.corners(), cv2.Rodrigues(su.R)[0], su.t, su.K, su.dist)[0][:, 0, 1]
+    top = int((rows.min() + rows.max()) / 2)  # the photo cut across the part
+    with pytest.raises(InputError, match="cut by the photo's edge"):
+        measure_on_board(sc.photo[top:].copy(), sc.setup.board)
 
 
 def test_a_photo_without_the_board_is_refused() -> None:

@@ -1,0 +1,117 @@
+"""Hand-held: the table around the board, modelled from the photo itself.
+
+A part lying on a board bigger than it, seen from low, rises past the board's far edge in the
+photo: there its outline lies against the table, which no plate shows. The table's look without
+the part is read from the photo's own surroundings: its colour, median-filtered over a window
+wider than the part (a median keeps a table's or a paper's straight edges and ignores a blob
+that fills under half its window), the board's area filled with the table's colour around it
+first so the median near the board's edge is the table's. The board's edge itself is modelled as
+the photo shows it: a pixel there mixes the board's pattern and the table by the part of it the
+board covers. What the table's texture leaves over (grain, streaks) is noise the segmentation
+measures; a part whose colour is the table's is flagged there as on the board.
+"""
+
+from __future__ import annotations
+
+from typing import cast
+
+import cv2
+import numpy as np
+
+from prismcore.station.segment import _SHADOW_RANGE
+
+__all__ = ["TABLE_ZONE", "board_cover", "shadow_difference", "with_table"]
+
+_COARSE = 4  # the table's level is found in a photo this many times smaller
+TABLE_ZONE = 0.6  # the table is modelled this far round the board, of the board's longer side in the photo
+_MEDIAN = 0.35  # the median's window, of the board's longer side in the photo
+_TEXTURE = 3.0  # the table's texture reaches this many times its local median difference
+
+
+def board_cover(corners_px: np.ndarray, shape: tuple[int, int], blur_px: float = 0.7) -> np.ndarray:
+    """The share (float32, 0..1) of each pixel the board covers: its four corners (4, 2) image
+    (x, y) px, convex, in order round it; the edge blurred as the photo's is."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    centre = corners_px.mean(axis=0)
+    inside = np.full((h, w), np.inf, np.float32)
+    for a, b in zip(corners_px, np.roll(corners_px, -1, axis=0), strict=True):
+        n = np.array([a[1] - b[1], b[0] - a[0]], np.float64) / max(float(np.linalg.norm(b - a)), 1e-9)
+        if n @ (centre - a) < 0:
+            n = -n  # towards the board's inside
+        d = (xs - np.float32(a[0])) * np.float32(n[0]) + (ys - np.float32(a[1])) * np.float32(n[1])
+        np.minimum(inside, d, out=inside)
+    cover = np.clip(inside + 0.5, 0.0, 1.0).astype(np.float32)
+    return cast("np.ndarray", cv2.GaussianBlur(cover, (0, 0), blur_px)) if blur_px > 0 else cover
+
+
+def with_table(
+    photo_u: np.ndarray, board_plate: np.ndarray, cover: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The support as it would look without the part, the board's model (`board_plate`, valid
+    where `cover` > 0) joined to the table's read from the photo round the board.
+
+    Returns (plate (H, W, 3) uint8, known (H, W) bool: where the support is modelled, the board
+    and the table up to TABLE_ZONE of the board's size round it; elsewhere the plate is the photo).
+    """
+    h, w = photo_u.shape[:2]
+    small = (max(1, w // _COARSE), max(1, h // _COARSE))
+    P = cv2.resize(photo_u, small, interpolation=cv2.INTER_AREA).astype(np.float32)
+    on_board = cv2.resize(cover, small, interpolation=cv2.INTER_AREA) > 0.02
+    on_board = cv2.dilate(on_board.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    ys, xs = np.nonzero(on_board)
+    if len(xs) == 0:
+        return board_plate, cover > 0.5
+    extent = float(max(xs.max() - xs.min(), ys.max() - ys.min()) + 1)
+    # The board's area filled with the table's colour nearby (normalised convolution).
+    table = (~on_board).astype(np.float32)
+    sigma = max(2.0, 0.1 * extent)
+    num = cv2.GaussianBlur(P * table[..., None], (0, 0), sigma)
+    den = cv2.GaussianBlur(table, (0, 0), sigma)
+    wide_num = cv2.GaussianBlur(P * table[..., None], (0, 0), 4 * sigma)
+    wide_den = cv2.GaussianBlur(table, (0, 0), 4 * sigma)
+    fill = np.where((den > 0.05)[..., None], num / np.maximum(den, 1e-6)[..., None],
+                    wide_num / np.maximum(wide_den, 1e-6)[..., None])
+    filled = np.where(on_board[..., None], fill, P)
+    k = int(max(5, round(_MEDIAN * extent))) | 1
+    k = min(k, 2 * (min(small) // 2) - 1)
+    level = cv2.medianBlur(np.clip(filled, 0, 255).astype(np.uint8), k) if k >= 3 else filled.astype(np.uint8)
+    level_full = cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
+    table_plate = _texture_allowed(photo_u.astype(np.float32), level_full, small, k)
+    dist = cv2.distanceTransform((~on_board).astype(np.uint8), cv2.DIST_L2, 3)
+    zone_s = (dist <= TABLE_ZONE * extent).astype(np.uint8)
+    known = cv2.resize(zone_s, (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) | (cover > 0.5)
+    c = cover[..., None]
+    plate = c * board_plate.astype(np.float32) + (1 - c) * table_plate
+    plate = np.where(known[..., None], plate, photo_u.astype(np.float32))
+    return np.clip(plate, 0, 255).astype(np.uint8), known
+
+
+def _texture_allowed(P: np.ndarray, level: np.ndarray, small: tuple[int, int], k: int) -> np.ndarray:
+    """The table's level with its own texture let through: each pixel's difference from the level
+    (after the shadow's scale, as the segmentation compares) shortened by the texture's local
+    amplitude, so the table's grain and streaks differ from the plate by nothing while a part
+    differs by all but that amplitude."""
+    s = _shadow_scale(P, level)
+    r = P - s * level
+    D = np.linalg.norm(r, axis=2)
+    # the texture's amplitude: the local median of the difference (a part filling under half the
+    # window leaves it), _TEXTURE times over
+    Dc = cv2.resize(D, small, interpolation=cv2.INTER_AREA)
+    amp = cv2.medianBlur(np.clip(Dc, 0, 255).astype(np.uint8), k).astype(np.float32) * _TEXTURE
+    A = cv2.resize(amp, (P.shape[1], P.shape[0]), interpolation=cv2.INTER_LINEAR)
+    keep = np.minimum(1.0, A / np.maximum(D, 1e-6))[..., None]
+    return cast("np.ndarray", s * level + r * keep)
+
+
+def _shadow_scale(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    """(H, W, 1): the scale of `bg` nearest `P` at each pixel, within a shadow's range."""
+    dot = np.einsum("ijc,ijc->ij", P, bg)
+    nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
+    return cast("np.ndarray", np.clip(dot / nb, *_SHADOW_RANGE)[..., None])
+
+
+def shadow_difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the distance (RGB levels) of `P` from `bg` scaled as a shadow scales it."""
+    P, bg = P.astype(np.float32), bg.astype(np.float32)
+    return cast("np.ndarray", np.linalg.norm(P - _shadow_scale(P, bg) * bg, axis=2))
