@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 __all__ = ["RadiusEstimate", "estimate_edge_radius", "fold_profile_radius"]
 
@@ -80,17 +79,35 @@ class RadiusEstimate:
     was fitted to (where `to_image` puts it) to where the shading puts the sharp edge."""
 
 
+def _arc_table(tan_phi: float) -> tuple[np.ndarray, np.ndarray]:
+    """The arc's in-face distance per unit radius, s / r = 1 - sin a - (1 - cos a) tan phi, over
+    the arc angles a while it stays >= 0, in increasing order, and those angles."""
+    h = 1 - np.sin(_ARC) - (1 - np.cos(_ARC)) * tan_phi  # decreasing in a while >= 0
+    end = int(np.argmax(h < 0)) if np.any(h < 0) else _ARC.size
+    end = max(end, 2)
+    order = np.argsort(h[:end])
+    return h[:end][order], _ARC[:end][order]
+
+
+def _arcs(s: np.ndarray, radii: np.ndarray, tan_phi: float) -> np.ndarray:
+    """`_arc_of` for every radius at once: (len(radii), len(s)); the table of the arc is the same
+    for every radius (s scales with r), so one interpolation serves them all."""
+    radii = np.asarray(radii, dtype=np.float64)
+    out = np.zeros((radii.size, s.size))
+    round_ = radii > 0
+    if np.any(round_):
+        table, angle = _arc_table(tan_phi)
+        r = radii[round_, None]
+        out[round_] = np.where(s >= r, 0.0, np.interp(s / r, table, angle))
+    return out
+
+
 def _arc_of(s: np.ndarray, r: float, tan_phi: float) -> np.ndarray:
     """Arc angle a (rad) seen at in-face distance s (mm) from the sharp edge; 0 where s >= r
     (flat face) and nan where the neighbour's side of the arc is seen (s < 0 there)."""
-    if r <= 0:
-        return np.zeros_like(s)
-    sa = r * (1 - np.sin(_ARC) - (1 - np.cos(_ARC)) * tan_phi)  # decreasing in a while >= 0
-    end = int(np.argmax(sa < 0)) if np.any(sa < 0) else _ARC.size
-    end = max(end, 2)
-    order = np.argsort(sa[:end])
-    a = np.interp(s, sa[:end][order], _ARC[:end][order])
-    return np.where(s >= r, 0.0, a)
+    out: np.ndarray = _arcs(np.asarray(s, dtype=np.float64), np.array([r]), tan_phi)[0]
+    return out
+
 
 
 def _gauss(sigma_px: float) -> np.ndarray:
@@ -99,11 +116,6 @@ def _gauss(sigma_px: float) -> np.ndarray:
     k = np.exp(-0.5 * (x / sigma_px) ** 2)
     out: np.ndarray = k / k.sum()
     return out
-
-
-_COND_LIMIT = 1e6
-"""A design matrix this ill-conditioned (none of a fold's is past 300) is solved by lstsq itself:
-its normal equations would lose the digits that rank the candidates."""
 
 
 _CHUNK_VALUES = 1 << 21
@@ -117,34 +129,95 @@ def _window_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.nd
     columns : (B, M, K) float64, K column signals of length M per batch entry;
     starts : (S,) int, window starts (each window M' = len(y) rows);
     y : (M', C). Returns (B, S): for each entry and start, the RSS of fitting y by
-    columns[b, start:start + M']. The normal equations' sums come from prefix sums (every
-    window at once) and one batched solve replaces a lstsq call per window: equal to
-    `np.linalg.lstsq` to ~1e-14 on these well-conditioned designs, and lstsq itself is used
+    columns[b, start:start + M']. See `_window_rss_t`.
+    """
+    return _window_rss_t(np.ascontiguousarray(np.asarray(columns).transpose(0, 2, 1)), starts, y)
+
+
+def _window_rss_t(columns_t: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """`_window_rss` of columns given as (B, K, M), each column's signal contiguous.
+
+    Each window's normal equations come from one product over the rows every window shares
+    plus prefix sums over the few rows the offsets add, and a Cholesky solve vectorised over
+    every window replaces a lstsq call per window; the residual is then computed itself: equal
+    to `np.linalg.lstsq` to ~1e-14 on these well-conditioned designs, and lstsq itself is used
     for any ill-conditioned one. Entries are taken in chunks of bounded memory.
     """
     y = np.asarray(y, dtype=np.float64)  # a profile comes as float32: its sums need the digits
-    b, m, k = columns.shape
-    per_entry = max(m * k * k, starts.size * y.shape[0] * max(k, y.shape[1]))
+    b, k, m = columns_t.shape
+    span = int(starts.max() - starts.min()) + 1
+    per_entry = max(m * k, 2 * span * k * k, y.shape[0] * max(k, y.shape[1]))
     step = max(1, _CHUNK_VALUES // per_entry)
-    return np.concatenate([_chunk_rss(columns[i:i + step], starts, y) for i in range(0, b, step)])
+    return np.concatenate([_chunk_rss(columns_t[i:i + step], starts, y) for i in range(0, b, step)])
 
 
-def _chunk_rss(columns: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
+_PIVOT_LIMIT = 1e-6
+"""A window whose Gram matrix has a Cholesky pivot under this share of its diagonal entry (a
+column that the others explain to one part in a million; none of a fold's designs comes near)
+is solved by lstsq itself: its normal equations would lose the digits that rank the candidates."""
+
+
+def _window_grams(columns_t: np.ndarray, starts: np.ndarray, n: int) -> np.ndarray:
+    """Gram matrices of every window [start, start + n) of `columns_t` (B, K, M): (B, S, K, K).
+
+    The windows share their middle rows; that part is one product, and each window adds the
+    rows before and after it (prefix sums of the few rows' outer products the offsets span)."""
+    lo, hi = int(starts.min()), int(starts.max())
+    if hi >= lo + n:  # windows that share nothing: each on its own
+        return np.stack([w @ w.transpose(0, 2, 1) for w in (columns_t[..., s:s + n] for s in starts)], axis=1)
+    core = columns_t[..., hi:lo + n]
+    gram_core = core @ core.transpose(0, 2, 1)  # (B, K, K)
+    b, k = columns_t.shape[:2]
+    # head[:, i]: rows lo .. lo + i - 1 (window lo + i leaves them out); tail[:, i]: rows
+    # lo + n .. lo + n + i - 1 (window lo + i adds them).
+    head = np.zeros((b, hi - lo + 1, k, k))
+    rows = columns_t[..., lo:hi].transpose(0, 2, 1)  # (B, hi - lo, K)
+    np.cumsum(rows[..., :, None] * rows[..., None, :], axis=1, out=head[:, 1:])
+    tail = np.zeros_like(head)
+    rows = columns_t[..., lo + n:hi + n].transpose(0, 2, 1)
+    np.cumsum(rows[..., :, None] * rows[..., None, :], axis=1, out=tail[:, 1:])
+    offset = starts - lo
+    out: np.ndarray = (gram_core + head[:, -1])[:, None] - head[:, offset] + tail[:, offset]
+    return out
+
+
+def _cholesky_solve(gram: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve gram @ x = rhs for a batch of small SPD matrices (..., K, K), (..., K, C) by a
+    Cholesky factorisation vectorised over the batch; also returns which were ill-conditioned
+    (a pivot under _PIVOT_LIMIT of its diagonal entry; their x is not to be used)."""
+    k = gram.shape[-1]
+    low = np.zeros_like(gram)
+    ill = np.zeros(gram.shape[:-2], dtype=bool)
+    for j in range(k):
+        pivot = gram[..., j, j] - (low[..., j, :j] ** 2).sum(axis=-1)
+        ill |= ~(pivot > _PIVOT_LIMIT * gram[..., j, j])
+        d = np.sqrt(np.where(ill, 1.0, pivot))
+        low[..., j, j] = d
+        below = gram[..., j + 1:, j] - np.einsum("...ik,...k->...i", low[..., j + 1:, :j], low[..., j, :j])
+        low[..., j + 1:, j] = below / d[..., None]
+    z = np.empty_like(rhs)
+    for j in range(k):  # forward: low z = rhs
+        done = np.einsum("...k,...kc->...c", low[..., j, :j], z[..., :j, :])
+        z[..., j, :] = (rhs[..., j, :] - done) / low[..., j, j, None]
+    x = np.empty_like(rhs)
+    for j in reversed(range(k)):  # back: low' x = z
+        done = np.einsum("...k,...kc->...c", low[..., j + 1:, j], x[..., j + 1:, :])
+        x[..., j, :] = (z[..., j, :] - done) / low[..., j, j, None]
+    return x, ill
+
+
+def _chunk_rss(columns_t: np.ndarray, starts: np.ndarray, y: np.ndarray) -> np.ndarray:
     n = y.shape[0]
-    outer = np.einsum("bmk,bml->bmkl", columns, columns)
-    prefix = np.concatenate([np.zeros_like(outer[:, :1]), np.cumsum(outer, axis=1)], axis=1)
-    del outer
-    gram = prefix[:, starts + n] - prefix[:, starts]  # (B, S, K, K)
-    del prefix
-    eig = np.linalg.eigvalsh(gram)
-    ill = eig[..., 0] <= eig[..., -1] / _COND_LIMIT ** 2
-    gram[ill] = np.eye(gram.shape[-1])  # solved below by lstsq; a singular one would stop solve
-    designs = columns[:, starts[:, None] + np.arange(n)]  # (B, S, M', K)
-    coef = np.linalg.solve(gram, np.einsum("bsnk,nc->bskc", designs, y))  # (B, S, K, C)
+    gram = _window_grams(columns_t, starts, n)  # (B, S, K, K)
+    # Each window's design is a view into the columns: no copy of every window's rows.
+    windows = [columns_t[..., start:start + n] for start in starts]  # S x (B, K, M')
+    rhs = np.stack([w @ y for w in windows], axis=1)  # (B, S, K, C)
+    coef, ill = _cholesky_solve(gram, rhs)
     # The residual itself, not y'y - b'coef: that difference keeps only ~1e-11 of the RSS.
-    out: np.ndarray = ((np.einsum("bsnk,bskc->bsnc", designs, coef) - y) ** 2).sum(axis=(2, 3))
+    out = np.stack([((coef[:, j].transpose(0, 2, 1) @ w - y.T) ** 2).sum(axis=(1, 2))
+                    for j, w in enumerate(windows)], axis=1)
     for b, s in zip(*np.nonzero(ill), strict=True):
-        design = columns[b, starts[s]:starts[s] + n]
+        design = columns_t[b, :, starts[s]:starts[s] + n].T
         got, *_ = np.linalg.lstsq(design, y, rcond=None)
         out[b, s] = float(((design @ got - y) ** 2).sum())
     return out
@@ -183,23 +256,25 @@ def fold_profile_radius(profile: np.ndarray, x_px: np.ndarray, px_per_mm: tuple[
     starts = pad + np.round(np.asarray(_SHIFTS_PX) / _STEP_PX).astype(int)
     # Every radius's three shading columns at once; the blurs as one filter each over all of
     # them (edge values repeated past the ends).
-    arcs = [(_arc_of(np.clip(-fine, 0, None) / px_per_mm[0], float(r), tan_phi[0]),
-             _arc_of(np.clip(fine, 0, None) / px_per_mm[1], float(r), tan_phi[1])) for r in _RADII_MM]
-    a, b = np.array([x for x, _ in arcs]), np.array([x for _, x in arcs])  # (radii, fine)
+    a = _arcs(np.clip(-fine, 0, None) / px_per_mm[0], _RADII_MM, tan_phi[0])  # (radii, fine)
+    b = _arcs(np.clip(fine, 0, None) / px_per_mm[1], _RADII_MM, tan_phi[1])
     turn = np.where(on_a, a, b)
     basis = np.stack([np.where(on_a, np.cos(a), np.sin(b)), np.where(on_a, np.sin(a), np.cos(b)),
-                      1 - np.cos(turn) - np.sin(turn)], axis=-1)  # (radii, fine, 3)
-    # Every (blur, offset) pair of every radius solved at once: (radii x blurs, fine, 5) columns.
-    columns = np.concatenate([
-        np.concatenate([ndimage.convolve1d(basis, _gauss(sigma), axis=1, mode="nearest"),
-                        np.broadcast_to(slopes, (*basis.shape[:2], 2))], axis=-1)[:, None]
-        for sigma in _BLURS_PX], axis=1).reshape(-1, fine.size, 5)
+                      1 - np.cos(turn) - np.sin(turn)], axis=1).reshape(-1, fine.size)  # (radii x 3, fine)
+    # Every (blur, offset) pair of every radius solved at once: (radii x blurs, 5, fine) columns.
+    columns_t = np.empty((_RADII_MM.size, len(_BLURS_PX), 5, fine.size))
+    for i, sigma in enumerate(_BLURS_PX):
+        blurred = cv2.sepFilter2D(basis, cv2.CV_64F, _gauss(sigma), np.ones(1),
+                                  borderType=cv2.BORDER_REPLICATE)
+        columns_t[:, i, :3] = blurred.reshape(_RADII_MM.size, 3, fine.size)
+    columns_t[:, :, 3:] = slopes.T
+    columns_t = columns_t.reshape(-1, 5, fine.size)
     n_pairs = len(_BLURS_PX) * len(_SHIFTS_PX)
     rss_all = np.empty((_RADII_MM.size, n_pairs))
     sharp = np.repeat(_RADII_MM == 0, len(_BLURS_PX))  # no turn: its third column is zero, left out
-    rss_all[_RADII_MM == 0] = _window_rss(columns[sharp][..., [0, 1, 3, 4]], starts,
-                                          profile).reshape(-1, n_pairs)
-    rss_all[_RADII_MM != 0] = _window_rss(columns[~sharp], starts, profile).reshape(-1, n_pairs)
+    rss_all[_RADII_MM == 0] = _window_rss_t(np.ascontiguousarray(columns_t[sharp][:, [0, 1, 3, 4]]), starts,
+                                            profile).reshape(-1, n_pairs)
+    rss_all[_RADII_MM != 0] = _window_rss_t(columns_t[~sharp], starts, profile).reshape(-1, n_pairs)
     pick = np.argmin(rss_all, axis=1)  # the first of equals, as the (blur, offset) order runs
     rss = rss_all[np.arange(_RADII_MM.size), pick]
     best_shift = np.asarray(_SHIFTS_PX)[pick % len(_SHIFTS_PX)]
@@ -245,6 +320,44 @@ def _sample(image: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return out
 
 
+def _luma(image: np.ndarray) -> np.ndarray:
+    """(H, W, 1) float32 luma (or the single channel) of an image.
+
+    Luma only: a JPEG keeps colour at half resolution, which would pass for a ramp."""
+    if image.ndim == 2:
+        return image[..., None]
+    out: np.ndarray = image[..., :3].astype(np.float32) @ np.array([[0.299], [0.587], [0.114]], np.float32)
+    return out
+
+
+def _sample_luma(image: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """`_sample` of the image's luma at (x, y) points (..., 2): (..., 1) float32.
+
+    Only the pixels the points reach are converted (a fold's strip, not the whole photo): the
+    crop has one pixel beyond every point's bilinear neighbours, and where it meets the photo's
+    border the border is the photo's, so the samples are those of the whole photo's luma."""
+    h, w = image.shape[:2]
+    flat = pts.reshape(-1, 2)
+    if flat.size == 0 or not np.all(np.isfinite(flat)):
+        return _sample(_luma(image), pts)
+    x0 = int(np.clip(np.floor(flat[:, 0].min()) - 1, 0, w - 1))
+    x1 = int(np.clip(np.ceil(flat[:, 0].max()) + 2, x0 + 1, w))
+    y0 = int(np.clip(np.floor(flat[:, 1].min()) - 1, 0, h - 1))
+    y1 = int(np.clip(np.ceil(flat[:, 1].max()) + 2, y0 + 1, h))
+    return _sample(_luma(image[y0:y1, x0:x1]), pts - np.array([x0, y0], dtype=pts.dtype))
+
+
+def _no_radius_whatever_follows(ramps_px: list[float], left: int) -> bool:
+    """Whether the folds' ramps read so far (px) already give no radius, whatever the `left`
+    folds still to read show: even were each of them kept with the widest ramp, the median
+    ramp would stay under RESOLVED_PX (a fold read later can only lower it or leave it)."""
+    if len(ramps_px) + left < MIN_FOLDS:
+        return True
+    if not ramps_px:
+        return False
+    return float(np.median([*ramps_px, *([math.inf] * left)])) < RESOLVED_PX
+
+
 def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.ndarray],
                          size_mm: np.ndarray, camera_centre_mm: np.ndarray) -> RadiusEstimate | None:
     """The box's edge radius from the shading across its fold edges.
@@ -268,22 +381,24 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         MIN_FOLDS folds seen large enough to read, their ramps spanning less than RESOLVED_PX
         (median over folds), or a radius under MIN_SIGNIFICANCE standard deviations.
     """
-    # Luma only: a JPEG keeps colour at half resolution, which would pass for a ramp.
-    img = image[..., None] if image.ndim == 2 else (image[..., :3].astype(np.float32)
-                                                    @ np.array([[0.299], [0.587], [0.114]], np.float32))
     size = np.asarray(size_mm, dtype=np.float64)
     centre = np.asarray(camera_centre_mm, dtype=np.float64)
     radii: list[float] = []
     resolution: list[float] = []
     offsets: list[tuple[np.ndarray, np.ndarray]] = []
+    readable = []
     for start, end, n_a, n_b in _folds(size, centre):
         mid = (start + end) / 2
-        ray = centre - mid
-        tan_phi = (float(ray @ n_b / (ray @ n_a)), float(ray @ n_a / (ray @ n_b)))
         p0 = to_image(mid[None])[0]
         g = tuple(float(np.linalg.norm(to_image((mid - n)[None])[0] - p0)) for n in (n_b, n_a))
-        if min(g) < _MIN_PX_PER_MM:
-            continue
+        if min(g) >= _MIN_PX_PER_MM:
+            readable.append((start, end, n_a, n_b, mid, p0, g))
+    for done, (start, end, n_a, n_b, mid, p0, g) in enumerate(readable):
+        if _no_radius_whatever_follows([r * q for r, q in zip(radii, resolution, strict=True)],
+                                       len(readable) - done):
+            return None  # the folds read so far decide it: no need to read the others
+        ray = centre - mid
+        tan_phi = (float(ray @ n_b / (ray @ n_a)), float(ray @ n_a / (ray @ n_b)))
         x = np.arange(-_HALF_WIDTH_MM * g[0], _HALF_WIDTH_MM * g[1], _STEP_PX)
         s = np.where(x < 0, -x / g[0], x / g[1])
         # World points: along the fold, then into face A (away from B's normal) or face B.
@@ -291,7 +406,7 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         along = start + _ALONG[:, None] * (end - start)
         world = along[:, None, :] + s[None, :, None] * into[None, :, :]
         pts = to_image(world.reshape(-1, 3)).reshape(_ALONG.size, x.size, 2)
-        profile = np.median(_sample(img, pts), axis=0)
+        profile = np.median(_sample_luma(image, pts), axis=0)
         r, shift, _ = fold_profile_radius(profile, x, g, tan_phi)  # type: ignore[arg-type]
         if r >= _RADII_MM[-1]:
             continue  # the widest ramp tried: something else (print, a shadow), not a rounding
