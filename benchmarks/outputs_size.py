@@ -28,7 +28,7 @@ from rich.table import Table
 
 from prismcore import ScanSpec, run_scan
 from prismcore.io.images import load_image
-from prismcore.outputs.overlay import overlay_from_report
+from prismcore.outputs.overlay_report import overlay_from_report
 from prismcore.outputs.writers import encode_png, write_format, write_ply
 from prismcore.scan.cloud import decimate
 from prismsynth import Box, render_oblique_view

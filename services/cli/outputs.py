@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.outputs.overlay import OVERLAY_NAME, SIDE_OVERLAY_NAME, overlay_from_report
+from prismcore.outputs.overlay_report import OVERLAY_NAME, SIDE_OVERLAY_NAME, overlay_from_report
 from prismcore.outputs.writers import FILE_NAMES, encode_png, write_format
 
 __all__ = ["report_path", "write_outputs", "write_overlays"]

@@ -46,7 +46,7 @@ from prismcore import ScanPlan, ScanResult, ScanSpec
 from prismcore.geometry.edges import EdgeFit
 from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.io.images import load_image
-from prismcore.outputs.overlay import given_dimension, overlay_from_report
+from prismcore.outputs.overlay_report import given_dimension, overlay_from_report
 from prismcore.outputs.writers import FILE_NAMES, encode_png, write_format, write_ply
 from prismcore.scan.cloud import decimate
 from prismcore.scan.colour_scan import FacePlan, row_tiles

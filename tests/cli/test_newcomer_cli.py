@@ -16,7 +16,7 @@ from typer.main import get_command
 from typer.testing import CliRunner
 
 from prism_cli.main import cli
-from prismcore.outputs import overlay
+from prismcore.outputs import overlay_report
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 # P1..P5 of samples/job.json: measured with the paper's colour scan, the front face's colour
@@ -80,14 +80,14 @@ def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, m
     assert " 120.00 (given) x 79.99 ± " in line and "± 0.00" not in line, line
     assert line.endswith("points found (confidence 0.99)"), line
     report = json.loads((tmp_path / "report.json").read_text())
-    notes = overlay.report_notes(report)
+    notes = overlay_report.report_notes(report)
     assert "width 120.00 mm (given)" in notes and "points found (confidence 0.99)" in notes, notes
     # The overlay's key calls the crosses found points, not clicks.
     keys = []
-    monkeypatch.setattr(overlay, "draw_overlay", lambda *a, **k: keys.append(k["points_key"]))
+    monkeypatch.setattr(overlay_report, "draw_overlay", lambda *a, **k: keys.append(k["points_key"]))
     image = np.zeros((1024, 1280, 3), np.uint8)
-    overlay.overlay_from_report(image, report)
-    overlay.overlay_from_report(image, {**report, "points_source": "clicked"})
+    overlay_report.overlay_from_report(image, report)
+    overlay_report.overlay_from_report(image, {**report, "points_source": "clicked"})
     assert keys == ["found point", "click"]
 
 

@@ -16,9 +16,8 @@ from prismcore.outputs.overlay import (
     LABEL_COLOR,
     RESIDUAL_COLOR,
     draw_overlay,
-    overlay_from_report,
-    report_notes,
 )
+from prismcore.outputs.overlay_report import overlay_from_report, report_notes
 
 SIZES = [(240, 320), (480, 640), (1024, 1280), (3000, 4000)]
 # single-photo geometry as fractions of (width, height): the box sits left of centre, so the

@@ -22,7 +22,7 @@ __all__ = [
 _EXPORTS = {
     "box_glb": "glb",
     "draw_overlay": "overlay",
-    "overlay_from_report": "overlay",
+    "overlay_from_report": "overlay_report",
     "write_csv": "writers",
     "write_format": "writers",
     "write_las": "las",
@@ -32,7 +32,8 @@ _EXPORTS = {
 if TYPE_CHECKING:
     from prismcore.outputs.glb import box_glb
     from prismcore.outputs.las import write_las
-    from prismcore.outputs.overlay import draw_overlay, overlay_from_report
+    from prismcore.outputs.overlay import draw_overlay
+    from prismcore.outputs.overlay_report import overlay_from_report
     from prismcore.outputs.writers import write_csv, write_format, write_ply
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,0 +1,239 @@
+"""The overlay of a scan from its report.json: which clicks and faces belong on which photo, the
+legend's notes (dimensions with their uncertainty, focal length, fit RMS, method, frame), the
+photo undistorted when the fit was; the drawing itself is `prismcore.outputs.overlay`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from prismcore.errors import InputError
+from prismcore.outputs.overlay import CORNER_OF, SECOND_FACE_CORNERS, _as_rgb8, draw_overlay
+from prismcore.spec import FILE_NAMES
+
+__all__ = [
+    "OVERLAY_NAME",
+    "SIDE_OVERLAY_NAME",
+    "given_dimension",
+    "overlay_from_report",
+    "photo_points",
+    "points_found",
+    "report_notes",
+]
+
+OVERLAY_NAME = FILE_NAMES["overlay"]
+"""File name of the overlay of the front photo (the only photo in single-photo mode)."""
+SIDE_OVERLAY_NAME = FILE_NAMES["overlay_side"]
+"""File name of the side photo's overlay in two-photo mode."""
+_SIDE_PHOTO_POINTS = ("p4", "p5", "p7")  # two-photo mode: the clicks made on the side photo
+_DIMENSIONS = ("width", "height", "depth")
+
+
+def _number(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) else None
+
+
+def _sigma(uncertainty: object, name: str) -> float | None:
+    if not isinstance(uncertainty, Mapping):
+        return None
+    value = uncertainty.get(name, uncertainty.get(f"{name}_mm"))
+    if isinstance(value, Mapping):
+        value = next((value[k] for k in ("std", "sigma", "std_mm", "sigma_mm") if k in value), None)
+    return _number(value)
+
+
+def given_dimension(report: Mapping[str, Any]) -> str | None:
+    """The dimension the scale gave rather than measured: a known edge's (``inputs.scale`` of
+    kind ``edge``), shown as "120.00 mm (given)", never as a measurement "± 0.00"."""
+    if report.get("scale_source") in ("station", "board"):
+        return None  # measured on a station (board): its height is only the derived points' scale
+    inputs = report.get("inputs")
+    scale = inputs.get("scale") if isinstance(inputs, Mapping) else None
+    if isinstance(scale, Mapping) and scale.get("kind") == "edge" and scale.get("edge") in _DIMENSIONS:
+        return str(scale["edge"])
+    return None
+
+
+def points_found(report: Mapping[str, Any]) -> str | None:
+    """'points found (confidence 0.99)' when the zero-click search placed the points, else None."""
+    if report.get("points_source") != "auto":
+        return None
+    found = report.get("auto_points")
+    confidence = _number(found.get("confidence")) if isinstance(found, Mapping) else None
+    return "points found" + (f" (confidence {confidence:.2f})" if confidence is not None else "")
+
+
+def report_notes(report: Mapping[str, Any]) -> list[str]:
+    """The legend's lines for a report: dimensions (± one standard deviation when the report
+    has `uncertainty`; a known edge's "(given)"), focal length (`camera`), fit RMS (`fit`),
+    method, video frame and points found by the search.
+
+    Fields the report lacks are left out; nothing here fails on a report of an older engine.
+    """
+    notes: list[str] = []
+    dims = report.get("dimensions")
+    given = given_dimension(report)
+    if isinstance(dims, Mapping):
+        unit = dims.get("unit", "")
+        for name in _DIMENSIONS:
+            value = _number(dims.get(name))
+            if value is None:
+                continue
+            if name == given:
+                notes.append(f"{name} {value:.2f} {unit} (given)")
+                continue
+            sigma = _sigma(report.get("uncertainty"), name)
+            spread = f" ± {sigma:.2f}" if sigma is not None else ""
+            notes.append(f"{name} {value:.2f}{spread} {unit}".rstrip())
+    camera = report.get("camera")
+    if isinstance(camera, Mapping) and (focal := _number(camera.get("focal_px"))) is not None:
+        source = camera.get("focal_source", camera.get("source"))
+        notes.append(f"focal {focal:.0f} px" + (f" ({source})" if isinstance(source, str) else ""))
+    fit = report.get("fit")
+    if isinstance(fit, Mapping) and (rms := _number(fit.get("rms_px"))) is not None:
+        notes.append(f"fit RMS {rms:.2f} px")
+    if report.get("method") == "paper":
+        notes.append("paper method (no perspective correction)")
+    frame = report.get("frame")
+    if isinstance(frame, Mapping) and _number(frame.get("index")) is not None:
+        time_s = _number(frame.get("time_s"))
+        notes.append(f"frame {int(frame['index'])}" + (f" at {time_s:.2f} s" if time_s is not None else ""))
+    if (found := points_found(report)) is not None:
+        notes.append(found)
+    return notes
+
+
+def _residuals(fit: object, given: list[str]) -> dict[str, float] | None:
+    value = fit.get("point_residuals_px") if isinstance(fit, Mapping) else None
+    if isinstance(value, Mapping):
+        return {str(k): v for k, v in value.items() if _number(v) is not None}
+    if isinstance(value, Sequence) and not isinstance(value, str) and len(value) == len(given):
+        return {n: v for n, v in zip(given, value, strict=True) if _number(v) is not None}
+    return None
+
+
+def _undistorted(
+    image: np.ndarray, clicks: dict[str, Any], model: object
+) -> tuple[np.ndarray, dict[str, Any]]:
+    from pydantic import ValidationError
+
+    from prismcore.camera import CameraModel, undistort_image, undistort_points
+
+    if not isinstance(model, Mapping):
+        raise InputError("the report says the photos were undistorted but has no inputs.camera")
+    rgb = _as_rgb8(image)
+    try:
+        camera = CameraModel.model_validate(model).for_size(rgb.shape[1], rgb.shape[0])
+    except ValidationError as exc:
+        raise InputError("inputs.camera of the report is not a camera model: "
+                         f"{exc.errors()[0]['msg']}") from None
+    names = list(clicks)
+    moved = (undistort_points(np.array([clicks[n] for n in names], np.float64), camera) if names
+             else np.zeros((0, 2)))
+    return undistort_image(rgb, camera), dict(zip(names, moved, strict=True))
+
+
+def photo_points(two_photo: bool, photo: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The click names and face names that belong on `photo` ("front" or "side").
+
+    Raises
+    ------
+    InputError
+        `photo` is neither, or is "side" in single-photo mode.
+    """
+    if photo not in ("front", "side"):
+        raise InputError(f"photo must be 'front' or 'side', got {photo!r}")
+    if not two_photo:
+        if photo == "side":
+            raise InputError("photo 'side' asked of a single-photo report (it has no side photo)")
+        return tuple(CORNER_OF), ("front", "side")
+    if photo == "side":
+        return _SIDE_PHOTO_POINTS, ("side",)
+    return tuple(n for n in CORNER_OF if n not in _SIDE_PHOTO_POINTS), ("front",)
+
+
+def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: str = "front",
+                        warn_px: float = 3.0) -> np.ndarray:
+    """The overlay of one photo of a scan, from the scan's report.json content.
+
+    Reads ``inputs.points`` (the clicks), ``faces.<name>.corners`` (the fitted quads),
+    ``warnings``, ``images`` (to check `image` is the photo meant) and, when present,
+    ``fit.point_residuals_px`` (a mapping name -> px, or a list in the order of the clicks
+    given), ``fit.rms_px``, ``uncertainty.<dimension>``, ``camera.focal_px`` and ``frame``.
+    When ``camera.undistorted`` is true the fit is in the coordinates of the undistorted photo:
+    the photo and the clicks are undistorted with ``inputs.camera`` first, and a note says so.
+
+    Parameters
+    ----------
+    image : ndarray, (H, W, 3) or (H, W), uint8 or float 0..255
+        The photo `photo` of the scan (a video frame: the frame).
+    report : mapping
+        The report of the scan.
+    photo : "front" or "side"
+        Which photo `image` is; in two-photo mode each shows only its own clicks and face.
+    warn_px : float
+        See :func:`draw_overlay`.
+
+    Returns
+    -------
+    ndarray, (H, W, 3) uint8 RGB
+
+    Raises
+    ------
+    InputError
+        The report lacks points or face corners, `image` is not the size the report says the
+        photo has, or `photo` does not exist in this scan.
+    """
+    inputs = report.get("inputs")
+    points = inputs.get("points") if isinstance(inputs, Mapping) else None
+    if not isinstance(points, Mapping):
+        raise InputError("report has no inputs.points (the clicked reference points)")
+    assert isinstance(inputs, Mapping)  # points came from it
+    two_photo = bool(inputs.get("side_image"))
+    names, face_names = photo_points(two_photo, photo)
+    sizes = report.get("images")
+    index = 1 if photo == "side" else 0
+    if isinstance(sizes, Sequence) and len(sizes) > index and isinstance(sizes[index], Mapping):
+        want = (sizes[index].get("width"), sizes[index].get("height"))
+        got = (np.asarray(image).shape[1], np.asarray(image).shape[0])
+        if want != got:
+            raise InputError(f"the {photo} photo is {got[0]}x{got[1]} px but the report's is "
+                             f"{want[0]}x{want[1]}")
+    faces_in = report.get("faces")
+    if not isinstance(faces_in, Mapping):
+        raise InputError("report has no faces")
+    faces = {}
+    for name in face_names:
+        face = faces_in.get(name)
+        if not isinstance(face, Mapping) or "corners" not in face:
+            raise InputError(f"report has no corners for the {name} face")
+        faces[name] = face["corners"]
+    given = [n for n in CORNER_OF if points.get(n) is not None]
+    clicks = {n: points[n] for n in given if n in names}
+    notes = report_notes(report)
+    camera = report.get("camera")
+    if isinstance(camera, Mapping) and camera.get("undistorted"):
+        # the fit lives in the undistorted photo's coordinates: draw it there, clicks moved alike
+        image, clicks = _undistorted(image, clicks, inputs.get("camera"))
+        notes.append("drawn on the undistorted photo")
+    residuals = _residuals(report.get("fit"), sorted(given, key=lambda n: int(n[1:])))
+    if residuals is None and report.get("method") == "paper":
+        residuals = {}  # paper regions are axis-aligned boxes, not corners fitted to the clicks
+    warnings = report.get("warnings")
+    count = len(warnings) if isinstance(warnings, Sequence) and not isinstance(warnings, str) else 0
+    alerts = [f"{count} warning{'s' if count != 1 else ''} (see report.json)"] if count else []
+    if not count:
+        notes.append("no warnings")
+    title = "PrismCloud fit" + (f" - {photo} photo" if two_photo else "")
+    side_face = report.get("side_face", "right")
+    if side_face not in SECOND_FACE_CORNERS:
+        side_face = "right"  # a report from before the choice existed, or a side photo's
+    return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
+                        title=title, warn_px=warn_px, side_face=side_face,
+                        points_key="found point" if points_found(report) else "click")
