@@ -13,7 +13,8 @@ export function saveKey(key: string | null): void {
 }
 
 export class ApiError extends Error {
-  constructor(message: string, readonly status: number) {
+  /** The problem document the service answered with, when it sent one. */
+  constructor(message: string, readonly status: number, readonly problem?: Problem) {
     super(message);
   }
 }
@@ -80,7 +81,7 @@ export async function call(path: string, init: RequestInit = {}, key = savedKey(
     } catch {
       problem = undefined;
     }
-    throw new ApiError(plainWords(response.status, problem), response.status);
+    throw new ApiError(plainWords(response.status, problem), response.status, problem);
   }
   return response;
 }

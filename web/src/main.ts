@@ -1,5 +1,6 @@
-// The page's wiring: log in, then the four steps (photos, points, settings, run), the result
-// and the list of recent jobs. Each step lives in its own module; this file only connects them.
+// The page's wiring: log in, then the four steps (photos, points, settings, run), or in station
+// mode the station, a folder of photos and the job's table; the result and the list of recent
+// jobs. Each step lives in its own module; this file only connects them.
 
 import "./style.css";
 
@@ -9,12 +10,15 @@ import { FramePicker } from "./frame-picker";
 import { FrameSelectionForm } from "./frame-selection";
 import { History } from "./history";
 import { Marking } from "./marking";
+import { ModeSwitch } from "./mode";
 import { inPart } from "./part";
 import { PartViews } from "./part-views";
 import { Photos } from "./photos";
 import { ResultPanel } from "./result";
 import { Runner } from "./run";
 import { SettingsForm } from "./settings";
+import { StationPhotos } from "./station-photos";
+import { Stations } from "./stations";
 import { clear, clearAll, photoShown, state } from "./state";
 import type { JobList } from "./types";
 
@@ -34,6 +38,9 @@ const frames = new FrameSelectionForm(() => photoShown("front")?.video?.info ?? 
 const runner = new Runner(() => settings.read(), (info, marked) => frames.read(info, marked));
 const result = new ResultPanel();
 const history = new History();
+const mode = new ModeSwitch();
+const stations = new Stations();
+const stationPhotos = new StationPhotos();
 
 // A video's frame picker and frame selection, and the list of a part's photos, follow the points
 // and the photo or frame shown.
@@ -65,8 +72,21 @@ $("method").addEventListener("change", () => marking.refresh());
 runner.onAdded = () => marking.changed(clearAll);
 runner.onFinished = (job) => {
   settings.collapse(true); // the result takes the settings' place beside the photo
-  result.show(job);
+  // A station's job is read as its table (whatever its size), each part's fit on the photo large.
+  result.show(job, mode.mode === "station");
   void history.load();
+};
+
+stationPhotos.station = () => stations.chosen;
+stationPhotos.submit = (items, reference) => runner.run(items, reference);
+stations.onChoose = () => stationPhotos.render();
+mode.onChange = (m) => {
+  result.overlayLarge(m === "station");
+  if (m === "station") void stations.load();
+  else {
+    marking.refresh(); // the photo's canvas was hidden: fit it again
+    marking.marker.fit();
+  }
 };
 history.onOpen = (job) => runner.follow(job);
 
@@ -83,10 +103,12 @@ async function logIn(key: string): Promise<boolean> {
   $("login-form").hidden = true;
   $("intro").hidden = true;
   $("session").hidden = false;
+  $("work-mode").hidden = false;
   $("main").hidden = false;
   settings.render();
   marking.refresh();
   marking.marker.fit();
+  mode.set(); // the mode this tab was in
   void history.load();
   return true;
 }

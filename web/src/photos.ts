@@ -3,6 +3,7 @@
 // A video is uploaded first, then shown frame by frame as the service decodes it (video.ts).
 
 import { call, message } from "./api";
+import { nameInput } from "./results-table";
 import { state, type PhotoEntry } from "./state";
 import type { Upload } from "./types";
 import { describeVideo, isVideo, videoFrame, videoInfo } from "./video";
@@ -138,8 +139,11 @@ export class Photos {
   }
 }
 
-async function upload(file: File): Promise<Upload> {
+/** Stream `file` to POST /v1/uploads (stored and probed by the service). */
+export async function upload(file: File): Promise<Upload> {
   const form = new FormData();
   form.append("file", file, file.name);
-  return (await (await call("/v1/uploads", { method: "POST", body: form })).json()) as Upload;
+  const stored = (await (await call("/v1/uploads", { method: "POST", body: form })).json()) as Upload;
+  nameInput(stored.reference, file.name); // the job's table shows the file's name
+  return stored;
 }

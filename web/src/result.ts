@@ -42,18 +42,23 @@ export class ResultPanel {
       this.viewer?.pointSize(Number((e.target as HTMLInputElement).value)));
     $("reset-view").addEventListener("click", () => this.viewer?.reset());
     // The fit on the photo: a thumbnail beside the dimensions, the whole width when asked.
-    $("overlay-zoom").addEventListener("click", () => {
-      const large = $("overlay-figure").classList.toggle("large");
-      $("overlay-zoom").setAttribute("aria-expanded", String(large));
-      $("overlay-zoom").setAttribute("aria-label", `The fit on the photo: show it ${large ? "smaller" : "larger"}`);
-    });
+    $("overlay-zoom").addEventListener("click", () =>
+      this.overlayLarge(!$("overlay-figure").classList.contains("large")));
+  }
+
+  /** The fit on the photo at the column's width (`large`), or a thumbnail beside the dimensions. */
+  overlayLarge(large: boolean): void {
+    $("overlay-figure").classList.toggle("large", large);
+    $("overlay-zoom").setAttribute("aria-expanded", String(large));
+    $("overlay-zoom").setAttribute("aria-label", `The fit on the photo: show it ${large ? "smaller" : "larger"}`);
   }
 
   private mode(): ColourMode {
     return $<HTMLSelectElement>("color-mode").value as ColourMode;
   }
 
-  show(job: Job): void {
+  /** Show `job`'s result; `table`: its table even for one scan (a station's job). */
+  show(job: Job, table = false): void {
     this.job = job;
     $("result").hidden = false;
     const select = $<HTMLSelectElement>("result-item");
@@ -61,7 +66,7 @@ export class ResultPanel {
     select.replaceChildren(...job.items.map((i) =>
       new Option(`Scan ${i.index + 1}: ${i.state}${i.result?.quality ? `, ${i.result.quality.verdict}` : ""}`,
         String(i.index), false, i === first)));
-    void this.table.load(job);
+    void this.table.load(job, table);
     void this.showItem();
   }
 
@@ -118,6 +123,7 @@ export class ResultPanel {
       return;
     }
     if (frame === undefined || (frame === null && item.state !== "succeeded")) {
+      $("overlay-figure").hidden = true; // never the fit of the scan shown before
       status.textContent = "No cloud for this scan.";
       return;
     }
@@ -269,6 +275,7 @@ function summary(item: Item): Summary {
   }
   if (r.fit_rms_px !== undefined && r.fit_rms_px !== null) add("Fit", `${r.fit_rms_px.toFixed(2)} px RMS`);
   if (r.side_face) add("Second face", r.side_face);
+  if (r.points_source === "station") add("Measured", "on the station: found against its support, no points, no scale");
   if (r.points_source === "auto") {
     const c = r.points_confidence;
     add("Reference points", `found automatically${c !== undefined && c !== null ? ` (confidence ${c.toFixed(2)})` : ""}`);

@@ -1,6 +1,8 @@
 // The job's table (GET /v1/jobs/{id}/results.json): a row per scan and per video frame, sortable
 // by any column, filtered by text and verdict, failed scans first on demand, exported as the
 // service's CSV (results.csv, fetched with the key), each row opening its scan in the result.
+// An input the page uploaded is shown by its file name (the reference in its title), and each
+// row's warnings come from the job's items (results.json has none).
 
 import { apiUrl, call, getJson, message } from "./api";
 import type { Job, ResultRow, ResultsTable, Verdict } from "./types";
@@ -33,15 +35,41 @@ function dimension(d: "width" | "height" | "depth"): Column {
   };
 }
 
+/** File names of the uploads the page made, by reference ("upload:..."): the table's inputs. */
+const inputNames = new Map<string, string>();
+
+export function nameInput(reference: string, name: string): void {
+  inputNames.set(reference, name);
+}
+
+const inputName = (r: ResultRow): string => {
+  const ref = String(r.input ?? "");
+  return inputNames.get(ref) ?? ref;
+};
+
+/** Each row's warnings ("item:frame"), from the job's items and frames. */
+let rowWarnings = new Map<string, string[]>();
+const warningsOf = (r: ResultRow): string[] => rowWarnings.get(`${r.item}:${r.frame ?? ""}`) ?? [];
+
+function warningsCell(r: ResultRow): string | Node {
+  const list = warningsOf(r);
+  if (!list.length) return "";
+  const ol = document.createElement("ol");
+  ol.className = "row-warnings";
+  for (const text of list) ol.append(Object.assign(document.createElement("li"), { textContent: `⚠ ${text}` }));
+  return ol;
+}
+
 const COLUMNS: Column[] = [
   { id: "scan", title: "Scan", key: (r) => r.item * 1e6 + (r.frame ?? -1) + 1,
     cell: (r) => `${r.item + 1}${r.frame === null ? "" : `, frame ${r.frame}`}` },
-  { id: "input", title: "Input", key: (r) => String(r.input ?? ""), cell: (r) => String(r.input ?? "") },
+  { id: "input", title: "Input", key: inputName, cell: inputName },
   { id: "state", title: "State", key: (r) => r.state,
     cell: (r) => (r.error ? `${r.state}: ${r.error}` : r.state) },
   dimension("width"), dimension("height"), dimension("depth"),
   { id: "verdict", title: "Verdict", key: (r) => (r.verdict ? VERDICT_ORDER[r.verdict] : 3),
     cell: (r) => (r.verdict ? badge(r.verdict) : "") },
+  { id: "warnings", title: "Warnings", key: (r) => warningsOf(r).length || null, cell: warningsCell },
   { id: "points", title: "Points", numeric: true, key: (r) => n(r.cloud_points),
     cell: (r) => n(r.cloud_points)?.toLocaleString("en") ?? "" },
   { id: "loss", title: "Point loss", numeric: true, key: (r) => n(r.point_loss),
@@ -66,12 +94,18 @@ export class ResultsTableView {
     });
   }
 
-  /** Read the job's table and show it when the job has more than one row (a batch, a video). */
-  async load(job: Job): Promise<void> {
+  /** Read the job's table and show it when the job has more than one row (a batch, a video),
+   *  or `always` (a station's job: its table is the result, however many photos). */
+  async load(job: Job, always = false): Promise<void> {
     const section = $("table-section");
     this.table = null;
     section.hidden = true;
-    if (job.item_count < 2 && !job.items.some((i) => i.frames.length)) return;
+    if (!always && job.item_count < 2 && !job.items.some((i) => i.frames.length)) return;
+    rowWarnings = new Map();
+    for (const item of job.items) {
+      rowWarnings.set(`${item.index}:`, item.result?.warnings ?? []);
+      for (const f of item.frames) rowWarnings.set(`${item.index}:${f.index}`, f.result?.warnings ?? []);
+    }
     try {
       const table = await getJson<ResultsTable>(`/v1/jobs/${job.id}/results.json`);
       this.table = table;
@@ -106,7 +140,8 @@ export class ResultsTableView {
       if (verdict === "failed" && r.state !== "failed") return false;
       if (verdict && !["none", "failed"].includes(verdict) && r.verdict !== verdict) return false;
       if (!text) return true;
-      const words = [r.input, r.state, r.error, r.verdict, r.client_reference, `scan ${r.item + 1}`];
+      const words = [r.input, inputName(r), r.state, r.error, r.verdict, r.client_reference, `scan ${r.item + 1}`,
+        ...warningsOf(r)];
       return words.some((w) => w !== null && w !== undefined && String(w).toLowerCase().includes(text));
     });
     const compare = (a: ResultRow, b: ResultRow): number => {
@@ -171,6 +206,7 @@ export class ResultsTableView {
         td.title = `${dv}${dev === null ? "" : `, deviation ${dev >= 0 ? "+" : ""}${dev.toFixed(2)} mm`}`;
       }
       td.append(c.cell(r));
+      if (c.id === "input" && inputName(r) !== String(r.input ?? "")) td.title = String(r.input);
       if (typeof dv === "string") {
         // The dimension's own verdict as a symbol and (for screen readers) a word, not colour alone.
         const mark = Object.assign(document.createElement("span"), { className: "dim-verdict", textContent:

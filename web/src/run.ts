@@ -4,7 +4,7 @@
 import { getJson, message, postJson } from "./api";
 import { currentScan, hasMarks, type Scan, type SelectFrames } from "./scan";
 import type { Settings } from "./settings";
-import { FINAL, type Job } from "./types";
+import { FINAL, type Job, type ScanSpec } from "./types";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const POLL_MS = 600;
@@ -71,6 +71,14 @@ export class Runner {
     } finally {
       button.disabled = false;
     }
+  }
+
+  /** Submit `items` as one job (station mode: an item per photo) and follow it. */
+  async run(items: ScanSpec[], reference: string): Promise<Job> {
+    window.clearTimeout(this.timer);
+    const job = await postJson<Job>("/v1/jobs", { items, client_reference: reference });
+    this.follow(job);
+    return job;
   }
 
   /** Show `job` and poll it until it ends. */

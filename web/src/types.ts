@@ -8,6 +8,30 @@ export interface Upload {
   reference: string;
   size: number;
   name: string;
+  /** What the service found the file to be when it stored it (null: not read). */
+  probe?: { kind: "image" | "video"; width: number | null; height: number | null; error: string | null } | null;
+}
+
+/** A stored station (prism_common.stations.StationPublic): its summary, never the plate. */
+export interface Station {
+  id: string;
+  name: string | null;
+  created_at: string;
+  image_width: number;
+  image_height: number;
+  board: { type?: string; dictionary?: string; squares_x?: number; squares_y?: number; square_mm?: number;
+    size_mm?: [number, number] } & Record<string, unknown>;
+  camera: { fx: number; fy: number; cx: number; cy: number; dist: number[] };
+  calibration: { source?: string; rms_px?: number; views?: number; corners?: number } & Record<string, unknown>;
+  plane_rms_px: number;
+  plane_corners: number;
+  camera_height_mm: number;
+  has_plate: boolean;
+  size: number;
+}
+
+export interface StationList {
+  stations: Station[];
 }
 
 export interface VideoInfo {
@@ -218,4 +242,6 @@ export interface ScanSpec {
   nominal?: [number, number, number];
   tolerance_mm?: number | [number, number, number];
   formats?: string[];
+  /** A stored station's id: the part on its support measured with no points and no scale. */
+  station?: string;
 }
