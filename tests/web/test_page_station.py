@@ -173,14 +173,18 @@ def test_a_station_and_a_folder_of_photos_measured_in_one_job(page, station_json
     expect(page.locator("#overlay-figure")).to_be_hidden()
 
 
-def test_photos_dropped_on_the_page(page, station_json, folder):
-    """Photos dragged onto the drop zone (as a file manager drops them) join the list."""
+def test_photos_dropped_on_the_page(page, station_json, folder, tmp_path):
+    """Photos dragged onto the drop zone (as a file manager drops them) join the list; one of
+    another size than the station's camera is flagged and left out before anything is sent."""
     root, _ = folder
     _station_mode(page)
     if not page.locator("#stations tbody tr").count():
         _store(page, station_json, "line 1")
+    small = cv2.resize(cv2.imread(str(root / "part-1.jpg")), (640, 512))
+    cv2.imwrite(str(tmp_path / "small.jpg"), small)
     names = ["part-1.jpg", "part-2.jpg"]
     files = [{"name": n, "data": list((root / n).read_bytes())} for n in names]
+    files.append({"name": "small.jpg", "data": list((tmp_path / "small.jpg").read_bytes())})
     page.locator("#drop-zone").evaluate("""(zone, files) => {
         const data = new DataTransfer();
         for (const f of files) {
@@ -189,8 +193,12 @@ def test_photos_dropped_on_the_page(page, station_json, folder):
         zone.dispatchEvent(new DragEvent('dragover', {dataTransfer: data, bubbles: true, cancelable: true}));
         zone.dispatchEvent(new DragEvent('drop', {dataTransfer: data, bubbles: true, cancelable: true}));
     }""", files)
-    expect(page.locator("#station-photos-summary")).to_contain_text("2 photos · all uploaded")
-    expect(page.locator("#station-photo-list li")).to_have_text([f"{n}: uploaded" for n in names])
+    summary = page.locator("#station-photos-summary")
+    expect(summary).to_contain_text("3 photos · all uploaded · 1 cannot be measured on this station")
+    expect(page.locator("#station-photo-list li")).to_have_text([
+        *(f"{n}: uploaded" for n in names),
+        f"small.jpg: left out: 640 {TIMES} 512 px, the station's camera takes 1280 {TIMES} 1024 px"])
+    expect(page.locator("#station-photo-details")).to_have_attribute("open", "")
     expect(page.get_by_role("button", name=re.compile(r"^Measure 2 photos on "))).to_be_visible()
 
 

@@ -8,6 +8,7 @@ import { FINAL, type Job, type ScanSpec } from "./types";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const POLL_MS = 600;
+const LIGHT_POLL_ITEMS = 50;
 const WORDS: Record<string, string> = {
   queued: "Queued: waiting for a worker.", running: "Running.", succeeded: "Done.",
   failed: "Failed.", cancelled: "Cancelled.",
@@ -119,7 +120,10 @@ export class Runner {
 
   private async poll(id: string): Promise<void> {
     try {
-      const job = await getJson<Job>(`/v1/jobs/${id}`);
+      // A large batch (a station's folder) is polled without its items, read once when it ends.
+      const light = (this.job?.item_count ?? 0) > LIGHT_POLL_ITEMS;
+      let job = await getJson<Job>(`/v1/jobs/${id}${light ? "?item_limit=0" : ""}`);
+      if (light && FINAL.includes(job.state)) job = await getJson<Job>(`/v1/jobs/${id}`);
       if ($("form-error").textContent?.startsWith("Lost track")) $("form-error").textContent = "";
       this.update(job);
     } catch (err) {
