@@ -8,20 +8,22 @@ its eight projected corners; the fit moves the six until that hull lies on the o
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-__all__ = ["BoxFit", "box_corners", "fit_box", "project"]
+__all__ = ["BoxFit", "box_corners", "fit_box", "project", "visible_faces"]
 
 _CORRELATION = 4.0  # outline pixels within this many share their error (the JPEG block, the blur)
 _MIN_SIGMA_PX = 0.35  # an outline is not known better than this, however smooth it looks
 _EDGE_BIAS_PX = 0.5  # the outline's pixel centres lie half a pixel inside the true edge
 _COARSE_POINTS = 40  # outline points while choosing among the starts
 _DENSE_POINTS = 200
-_FITTED_STARTS = 8
+_FITTED_STARTS = 8  # at most
+_AGREEING = 3  # fits of the starts ending at the best cost: the multi-start stops there
+_AGREE = 0.02  # relative cost: the same minimum
 _WEAK_STEP = 20.0  # RGB levels
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 
@@ -48,13 +50,23 @@ def _hull(pts: np.ndarray) -> np.ndarray:
     return cv2.convexHull(pts.astype(np.float32), returnPoints=False).ravel()
 
 
+def _next(a: np.ndarray) -> np.ndarray:
+    """np.roll(a, -1) of a 1-D array (without np.roll's overhead: the fit calls this thousands of times)."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def _clip(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """np.clip, without its overhead on small arrays."""
+    return cast("np.ndarray", np.minimum(np.maximum(a, lo), hi))
+
+
 def _signed_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Distance of each point (N, 2) to a convex polygon's outline (M, 2), negative inside."""
     ax, ay = poly[:, 0], poly[:, 1]
-    bx, by = np.roll(ax, -1), np.roll(ay, -1)
+    bx, by = _next(ax), _next(ay)
     ex, ey = bx - ax, by - ay
     px, py = points[:, 0:1] - ax, points[:, 1:2] - ay  # (N, M)
-    t = np.clip((px * ex + py * ey) / np.maximum(ex * ex + ey * ey, 1e-12), 0.0, 1.0)
+    t = _clip((px * ex + py * ey) / np.maximum(ex * ex + ey * ey, 1e-12), 0.0, 1.0)
     dx, dy = px - t * ex, py - t * ey
     dist = np.sqrt((dx * dx + dy * dy).min(axis=1))
     cross = ex * py - ey * px
@@ -106,18 +118,23 @@ _FOLD_SAMPLES = np.linspace(0.15, 0.85, 8)
 _FOLD_CAP_PX = 4.0  # a fold farther than this from any edge pixel is not pulled further
 
 
-def visible_folds(corners: np.ndarray, camera_centre: np.ndarray) -> list[tuple[int, int]]:
-    """Box edges between two faces the camera sees (the folds inside the silhouette)."""
+def visible_faces(
+    corners: np.ndarray, camera_centre: np.ndarray, image_pts: np.ndarray | None = None
+) -> dict[str, tuple[tuple[int, ...], float]]:
+    """The box's faces the camera sees: {name: (corner indices, area in the image px^2)}, names as
+    _FACES ("top", "s0".."s3"). corners : (8, 3) board frame. image_pts : (8, 2) their pixels
+    (the areas are 0 without them)."""
     mid = corners.mean(axis=0)
-    seen = []
-    for idx in _FACES.values():
+    seen: dict[str, tuple[tuple[int, ...], float]] = {}
+    for name, idx in _FACES.items():
         F = corners[list(idx)]
         n = np.cross(F[1] - F[0], F[2] - F[0])
         if n @ (F.mean(axis=0) - mid) < 0:
-            n = -n
+            n = -n  # outward
         if n @ (camera_centre - F.mean(axis=0)) > 0:
-            seen.append(set(idx))
-    return [(i, j) for i, j in _EDGES if sum({i, j} <= f for f in seen) == 2]
+            area = 0.0 if image_pts is None else abs(cv2.contourArea(image_pts[list(idx)].astype(np.float32)))
+            seen[name] = (idx, float(area))
+    return seen
 
 
 # The side faces s0..s3 as (their top fold, the vertical fold shared with the next side).
@@ -125,7 +142,9 @@ _SIDE_FOLDS = (((4, 5), (1, 5)), ((5, 6), (2, 6)), ((6, 7), (3, 7)), ((7, 4), (0
 
 
 def _folds(params: np.ndarray, camera_centre: np.ndarray) -> list[tuple[int, int]]:
-    """:func:`visible_folds` from the box's parameters directly (it runs at every step of the fit)."""
+    """The box edges between two faces the camera sees (the folds inside the silhouette), from the
+    box's parameters directly (it runs at every step of the fit; tests compare it with
+    :func:`visible_faces`)."""
     x, y, yaw, a, b, c = params
     hl, hw = np.exp(a) / 2, np.exp(b) / 2
     dx, dy = camera_centre[0] - x, camera_centre[1] - y
@@ -161,6 +180,7 @@ class _Problem:
     t: np.ndarray
     centre: np.ndarray
     fold_dt: np.ndarray | None  # distance (px) to the nearest edge pixel inside the part, capped
+    maps_origin: np.ndarray  # the photo pixel of fold_dt's (0, 0)
     vertex_weight: float
     fold_weight: float
     edge_bias: float = _EDGE_BIAS_PX
@@ -168,9 +188,9 @@ class _Problem:
 
 def _lookup(dt: np.ndarray, pts: np.ndarray) -> np.ndarray:
     h, w = dt.shape
-    x = np.clip(pts[:, 0], 0, w - 1.001)
-    y = np.clip(pts[:, 1], 0, h - 1.001)
-    x0, y0 = x.astype(int), y.astype(int)
+    x = _clip(pts[:, 0], 0, w - 1.001)
+    y = _clip(pts[:, 1], 0, h - 1.001)
+    x0, y0 = x.astype(np.intp), y.astype(np.intp)
     fx, fy = x - x0, y - y0
     return cast(
         "np.ndarray",
@@ -193,25 +213,38 @@ def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
     r2[hull] = _lookup(p.signed, pts[hull] - p.origin) - _EDGE_BIAS_PX
     r3 = np.zeros(3 * len(_FOLD_SAMPLES))
     if p.fold_dt is not None:
-        for k, (i, j) in enumerate(_folds(params, p.centre)[:3]):
-            seg = pts[i] + _FOLD_SAMPLES[:, None] * (pts[j] - pts[i])
-            r3[k * len(_FOLD_SAMPLES) : (k + 1) * len(_FOLD_SAMPLES)] = _lookup(p.fold_dt, seg)
+        folds = _fold_ends(params, p.centre)
+        if len(folds):
+            r3[: len(folds) * len(_FOLD_SAMPLES)] = _lookup(p.fold_dt,
+                                                             _fold_samples(pts, folds) - p.maps_origin)
     return np.concatenate([r1, p.vertex_weight * r2, p.fold_weight * r3])
+
+
+def _fold_ends(params: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(F, 2) corner indices of the (at most three) folds the camera sees."""
+    return np.array(_folds(params, centre)[:3], np.intp).reshape(-1, 2)
+
+
+def _fold_samples(pts: np.ndarray, folds: np.ndarray) -> np.ndarray:
+    """(F * S, 2): each fold's _FOLD_SAMPLES points between its projected ends, fold by fold."""
+    a, b = pts[folds[:, 0]], pts[folds[:, 1]]
+    samples = a[:, None, :] + _FOLD_SAMPLES[None, :, None] * (b - a)[:, None, :]
+    return cast("np.ndarray", samples.reshape(-1, 2))
 
 
 def _lookup_grad(dt: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear value and gradient (d/dx, d/dy) of `dt` at `pts` (N, 2)."""
     h, w = dt.shape
-    x = np.clip(pts[:, 0], 0, w - 1.001)
-    y = np.clip(pts[:, 1], 0, h - 1.001)
-    x0, y0 = x.astype(int), y.astype(int)
+    x = _clip(pts[:, 0], 0, w - 1.001)
+    y = _clip(pts[:, 1], 0, h - 1.001)
+    x0, y0 = x.astype(np.intp), y.astype(np.intp)
     fx, fy = x - x0, y - y0
     v00, v01, v10, v11 = dt[y0, x0], dt[y0, x0 + 1], dt[y0 + 1, x0], dt[y0 + 1, x0 + 1]
     top, bottom = v00 + (v01 - v00) * fx, v10 + (v11 - v10) * fx
     value = top + (bottom - top) * fy
     gx = (v01 - v00) * (1 - fy) + (v11 - v10) * fy
     gy = bottom - top
-    return value, np.column_stack([gx, gy])
+    return value, np.stack([gx, gy], axis=1)
 
 
 def _corner_jacobian(params: np.ndarray, p: _Problem) -> tuple[np.ndarray, np.ndarray]:
@@ -253,14 +286,14 @@ def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
     hull = _hull(pts)
     poly = pts[hull]
     ax, ay = poly[:, 0], poly[:, 1]
-    ex, ey = np.roll(ax, -1) - ax, np.roll(ay, -1) - ay
+    ex, ey = _next(ax) - ax, _next(ay) - ay
     px, py = p.outline[:, 0:1] - ax, p.outline[:, 1:2] - ay
     length2 = np.maximum(ex * ex + ey * ey, 1e-12)
-    t = np.clip((px * ex + py * ey) / length2, 0.0, 1.0)
+    t = _clip((px * ex + py * ey) / length2, 0.0, 1.0)
     dx, dy = px - t * ex, py - t * ey
     k = np.argmin(dx * dx + dy * dy, axis=1)
     rows = np.arange(n)
-    orient = 1.0 if float(np.sum(ax * np.roll(ay, -1) - np.roll(ax, -1) * ay)) >= 0 else -1.0
+    orient = 1.0 if float(np.sum(ax * _next(ay) - _next(ax) * ay)) >= 0 else -1.0
     tk = t[rows, k]
     ek = np.column_stack([ex[k], ey[k]])
     el = np.sqrt(length2[k])
@@ -289,12 +322,14 @@ def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
     _, g = _lookup_grad(p.signed, pts[hull] - p.origin)
     J[n + hull] = p.vertex_weight * np.einsum("nk,nkp->np", g, dpts[hull])
     if p.fold_dt is not None:
-        for f, (i, j) in enumerate(_folds(params, p.centre)[:3]):
-            s = _FOLD_SAMPLES[:, None]
-            seg = pts[i] + s * (pts[j] - pts[i])
-            _, g = _lookup_grad(p.fold_dt, seg)
-            block = np.einsum("nk,kp->np", g * (1 - s), dpts[i]) + np.einsum("nk,kp->np", g * s, dpts[j])
-            J[n + 8 + f * len(_FOLD_SAMPLES): n + 8 + (f + 1) * len(_FOLD_SAMPLES)] = p.fold_weight * block
+        folds = _fold_ends(params, p.centre)
+        if len(folds):
+            _, g = _lookup_grad(p.fold_dt, _fold_samples(pts, folds) - p.maps_origin)
+            g = g.reshape(len(folds), len(_FOLD_SAMPLES), 2)
+            s = _FOLD_SAMPLES[None, :, None]
+            block = (np.einsum("fnk,fkp->fnp", g * (1 - s), dpts[folds[:, 0]])
+                     + np.einsum("fnk,fkp->fnp", g * s, dpts[folds[:, 1]]))
+            J[n + 8: n + 8 + len(folds) * len(_FOLD_SAMPLES)] = p.fold_weight * block.reshape(-1, 6)
     return J
 
 
@@ -395,6 +430,7 @@ def fit_box(
     t: np.ndarray,
     fold_dt: np.ndarray | None = None,
     difference: np.ndarray | None = None,
+    origin: tuple[int, int] = (0, 0),
 ) -> BoxFit:
     """The box resting on the plane z = 0 whose silhouette (and folds) best match the photo.
 
@@ -405,8 +441,13 @@ def fit_box(
     K : (3, 3) intrinsics. R, t : the plane's pose (board frame -> camera), t in mm.
     fold_dt : ndarray, shape (H, W), float32, optional
         :func:`fold_distance` of the photo: the folds between visible faces are drawn to its edges.
+    difference : ndarray, shape (H, W), float32, optional
+        The photo's distance from the support (:class:`~prismcore.station.segment.Silhouette`'s):
+        the outline is refined to where it steps.
+    origin : the photo pixel (x, y) of `fold_dt`'s and `difference`'s (0, 0) (a window of the photo).
     """
     centre = -R.T @ t
+    maps_o = np.asarray(origin, np.float64)
     lo = np.floor(outline.min(axis=0)) - 20
     hi = np.ceil(outline.max(axis=0)) + 20
     signed = _signed_map(outline - lo, (int(hi[1] - lo[1]), int(hi[0] - lo[0])))
@@ -414,7 +455,7 @@ def fit_box(
     def problem(n_points: int, pts: np.ndarray | None = None, edge_bias: float = _EDGE_BIAS_PX) -> _Problem:
         if pts is None:
             pts = outline[:: max(1, len(outline) // n_points)]
-        return _Problem(pts, signed, lo, K, R, t, centre, fold_dt,
+        return _Problem(pts, signed, lo, K, R, t, centre, fold_dt, maps_o,
                         vertex_weight=float(np.sqrt(len(pts) / 8) * 0.5),
                         fold_weight=float(np.sqrt(len(pts) / 24) * 0.5), edge_bias=edge_bias)
 
@@ -423,9 +464,15 @@ def fit_box(
     coarse = problem(_COARSE_POINTS)
     starts = _start(outline, K, R, t)
     costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
-    fits = [least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm", x_scale="jac",
-                          max_nfev=25)
-            for i in np.argsort(costs)[:_FITTED_STARTS]]
+    # Fitted best first, until _AGREEING of them end at the best cost yet (the same minimum
+    # reached from different starts), or _FITTED_STARTS are fitted.
+    fits: list[Any] = []
+    for i in np.argsort(costs)[:_FITTED_STARTS]:
+        fits.append(least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm",
+                                  x_scale="jac", max_nfev=25))
+        lowest = min(f.cost for f in fits)
+        if sum(f.cost <= lowest * (1 + _AGREE) for f in fits) >= _AGREEING:
+            break
     best_x = min(fits, key=lambda f: f.cost).x
     dense = problem(_DENSE_POINTS)
     best = least_squares(_residuals, best_x, jac=_jacobian, args=(dense,), method="lm", x_scale="jac",
@@ -434,7 +481,7 @@ def fit_box(
     step = max(1, len(outline) // _DENSE_POINTS)
     if difference is not None:
         hull_pts = project(box_corners(best.x), K, R, t)
-        fine = refine_outline(pts, hull_pts[_hull(hull_pts)], difference)
+        fine = refine_outline(pts - maps_o, hull_pts[_hull(hull_pts)] - maps_o, difference) + maps_o
         if len(fine) >= 0.5 * len(pts):
             pts = fine
             dense = problem(0, fine, 0.0)
@@ -460,7 +507,8 @@ def fit_box(
     # label's corner): what says whether the part is a box at all.
     trimmed = np.sort(np.abs(r1))[: max(1, int(0.9 * len(r1)))]
     missing = float(np.mean(r1 < -3 * sigma))
-    weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t), difference)
+    weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t) - maps_o,
+                                                         difference)
     return BoxFit(
         missing_fraction=missing,
         weak_fraction=weak,

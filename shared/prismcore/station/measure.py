@@ -6,6 +6,7 @@ other outputs are made from the photo as for clicked points.
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, field
 
@@ -14,7 +15,7 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
-from prismcore.station.boxfit import _FACES, BoxFit, fit_box, fold_distance, project
+from prismcore.station.boxfit import _FACES, BoxFit, fit_box, fold_distance, project, visible_faces
 from prismcore.station.calibrate import Station
 from prismcore.station.segment import Registration, register, segment_part, undistorter
 
@@ -33,27 +34,32 @@ _MIN_SIDE_PX = 4.0  # a fitted side shorter than this in the photo is no side
 
 def _sides_seen(corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.ndarray) -> int:
     """How many side faces the camera sees at _SIDE_SEEN of the largest one's area or more."""
-    mid = corners.mean(axis=0)
-    areas = []
-    for name, idx in _FACES.items():
-        F = corners[list(idx)]
-        n = np.cross(F[1] - F[0], F[2] - F[0])
-        if n @ (F.mean(axis=0) - mid) < 0:
-            n = -n
-        if name != "top" and n @ (camera_centre - F.mean(axis=0)) > 0:
-            areas.append(abs(cv2.contourArea(image_pts[list(idx)].astype(np.float32))))
+    areas = [area for name, (_, area) in visible_faces(corners, camera_centre, image_pts).items()
+             if name != "top"]
     return sum(a >= _SIDE_SEEN * max(areas) for a in areas) if areas else 0
 
 
 _PLATES: dict[tuple[str, str], np.ndarray] = {}
+_PLATE_SHA1: list[tuple[str, str]] = []  # (a plate's text, its SHA-1): the last station's
+
+
+def _plate_sha1(plate_png: str) -> str:
+    """The SHA-1 of a station's plate, hashed once per plate (the same text object again is known)."""
+    for text, digest in _PLATE_SHA1:
+        if text is plate_png:
+            return digest
+    digest = hashlib.sha1(plate_png.encode("ascii")).hexdigest()
+    _PLATE_SHA1[:] = [(plate_png, digest)]
+    return digest
 
 
 def _undistorted_plate(station: Station) -> np.ndarray | None:
     """The station's plate decoded and undistorted once for a batch of photos (the last station's
-    kept: a worker measures one station's photos in a row)."""
+    kept: a worker measures one station's photos in a row), keyed on the camera and the plate's
+    content."""
     if station.plate_png is None:
         return None
-    key = (station.camera.model_dump_json(), f"{len(station.plate_png)}:{hash(station.plate_png)}")
+    key = (station.camera.model_dump_json(), _plate_sha1(station.plate_png))
     if key not in _PLATES:
         plate = station.plate()
         assert plate is not None
@@ -89,6 +95,7 @@ class StationMeasurement:
     side_face: str
     warnings: list[str] = field(default_factory=list)
     timings_ms: dict[str, float] = field(default_factory=dict)
+    cpu_ms: dict[str, float] = field(default_factory=dict)  # each stage's CPU time (this thread's)
     camera: CameraModel | None = None  # the camera measured with (a hand-held photo's, found)
 
     def report(self) -> dict[str, object]:
@@ -133,19 +140,8 @@ def reference_points(
     The front face is the side face the camera sees largest; the second face the larger, as
     seen, of the other side it sees (right or left) and the top.
     """
-    mid = corners.mean(axis=0)
-    sides = []
-    for name, idx in _FACES.items():
-        if name == "top":
-            continue
-        F = corners[list(idx)]
-        n = np.cross(F[1] - F[0], F[2] - F[0])
-        if n @ (F.mean(axis=0) - mid) < 0:
-            n = -n
-        facing = float(n @ (camera_centre - F.mean(axis=0)))
-        if facing > 0:
-            area = abs(cv2.contourArea(image_pts[list(idx)].astype(np.float32)))
-            sides.append((area, idx))
+    sides = [(area, idx) for name, (idx, area) in visible_faces(corners, camera_centre, image_pts).items()
+             if name != "top"]
     if not sides:
         raise InputError("the fitted box shows no side face to the camera: the camera looks straight down")
     sides.sort(key=lambda s: -s[0])
@@ -187,7 +183,8 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
         two parts, a part cut by the photo's edge, a part that is not a box resting flat.
     """
     timings: dict[str, float] = {}
-    t0 = time.perf_counter()
+    cpu: dict[str, float] = {}
+    t0, c0 = time.perf_counter(), time.thread_time()
     cam = station.camera
     h, w = photo.shape[:2]
     if (w, h) != (cam.image_width, cam.image_height):
@@ -199,23 +196,26 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
         raise InputError("the station has no plate (a photo of the empty support): calibrate it with --plate")
     und = undistorter(cam)
     photo_u = und.image(photo)
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.thread_time()
     reg = register(photo_u, plate_u, photo, station.board, cam, station.plane)
     timings.update(undistort=(t1 - t0) * 1e3, register=(time.perf_counter() - t1) * 1e3)
-    return measure_registered(photo_u, plate_u, cam, reg, timings)
+    cpu.update(undistort=(c1 - c0) * 1e3, register=(time.thread_time() - c1) * 1e3)
+    return measure_registered(photo_u, plate_u, cam, reg, timings, cpu=cpu)
 
 
 def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraModel, reg: Registration,
-                       timings: dict[str, float] | None = None, *, region: np.ndarray | None = None
-                       ) -> StationMeasurement:
+                       timings: dict[str, float] | None = None, *, region: np.ndarray | None = None,
+                       cpu: dict[str, float] | None = None) -> StationMeasurement:
     """The part measured in an undistorted photo whose support's pose is known (`reg`), against
     `plate_u` (the support as it looks without the part, registered by `reg.homography`).
 
     region : (H, W) bool, optional. Where the support is known (a hand-held board's area): a part
-    reaching out of it is refused.
+    reaching out of it is refused. timings, cpu : each stage's wall and CPU (this thread's) ms are
+    added to them.
     """
     timings = {} if timings is None else timings
-    t2 = time.perf_counter()
+    cpu = {} if cpu is None else cpu
+    t2, c2 = time.perf_counter(), time.thread_time()
     sil = segment_part(photo_u, plate_u, reg.homography)
     if region is not None:
         edge = sil.mask & ~cv2.erode(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
@@ -223,12 +223,14 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
             raise InputError("the part's outline reaches past the board in the photo (only the board's "
                              "area is known): lay the part on the board with the board all round it, and "
                              "photograph from higher up or use a larger board")
-    t3 = time.perf_counter()
+    t3, c3 = time.perf_counter(), time.thread_time()
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
-    gray = cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY)
-    fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask), sil.difference)
-    t4 = time.perf_counter()
+    # the folds and the outline's steps looked for in the part's window only
+    gray = cv2.cvtColor(photo_u[sil.window], cv2.COLOR_RGB2GRAY)
+    fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask[sil.window]), sil.difference, sil.origin)
+    t4, c4 = time.perf_counter(), time.thread_time()
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
+    cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)
     if fit.residual_px > MAX_RESIDUAL_PX:
         raise InputError(
             f"the part is not a box resting flat on the support: its outline is "
@@ -308,4 +310,5 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         camera=cam,
         warnings=warnings,
         timings_ms=timings,
+        cpu_ms=cpu,
     )

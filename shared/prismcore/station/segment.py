@@ -190,16 +190,17 @@ def _track_plate(plate_u: np.ndarray, photo_u: np.ndarray) -> np.ndarray | None:
     return None if H is None else cast("np.ndarray", H)
 
 
+def _gray_scaled(image: np.ndarray, f: float) -> np.ndarray:
+    """`image` (RGB) in gray, reduced by `f` (area-averaged), float32."""
+    gray = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+    return cv2.resize(gray, None, fx=f, fy=f, interpolation=cv2.INTER_AREA).astype(np.float32)
+
+
 def _ecc_plate(plate_u: np.ndarray, photo_u: np.ndarray) -> np.ndarray | None:
     """The plate -> photo homography by ECC on the support's texture (what changed masked out):
     slower than tracking (~0.4 s), for a support with too few corners to track."""
     small = 0.25
-    a = cv2.resize(
-        cv2.cvtColor(plate_u, cv2.COLOR_RGB2GRAY), None, fx=small, fy=small, interpolation=cv2.INTER_AREA
-    ).astype(np.float32)
-    b = cv2.resize(
-        cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY), None, fx=small, fy=small, interpolation=cv2.INTER_AREA
-    ).astype(np.float32)
+    a, b = _gray_scaled(plate_u, small), _gray_scaled(photo_u, small)
     (dx, dy), _ = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_32F))
     # ECC on the support alone: what changed (the part, its shadow) is left out.
     shifted = cv2.warpAffine(
@@ -227,12 +228,7 @@ def _ecc_plate(plate_u: np.ndarray, photo_u: np.ndarray) -> np.ndarray | None:
         # Refined at half size: a quarter-size pixel is two pixels of the photo, and the board's
         # squares show a pixel's misregistration as a part.
         half = 0.5
-        a2 = cv2.resize(
-            cv2.cvtColor(plate_u, cv2.COLOR_RGB2GRAY), None, fx=half, fy=half, interpolation=cv2.INTER_AREA
-        ).astype(np.float32)
-        b2 = cv2.resize(
-            cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY), None, fx=half, fy=half, interpolation=cv2.INTER_AREA
-        ).astype(np.float32)
+        a2, b2 = _gray_scaled(plate_u, half), _gray_scaled(photo_u, half)
         up = np.diag([2.0, 2.0, 1.0])
         warp2: np.ndarray = (up @ warp.astype(np.float64) @ np.linalg.inv(up)).astype(np.float32)
         valid2 = cv2.resize(valid, a2.shape[::-1], interpolation=cv2.INTER_NEAREST)
@@ -262,6 +258,7 @@ class Silhouette:
 
     contour : (N, 2) float64 image (x, y) px, the outline's pixels in order. mask : (H, W) bool.
     contrast : median RGB distance of the part's pixels from the support (levels).
+    origin : (x, y) px of the part's window in the photo: `difference` and `window_mask` cover it.
     """
 
     contour: np.ndarray
@@ -269,33 +266,79 @@ class Silhouette:
     contrast: float
     area_px: int
     warnings: list[str]
-    difference: np.ndarray  # (H, W) float32: the photo's distance from the shadow-scaled support
+    difference: np.ndarray  # (h, w) float32, the window: the photo's distance from the shadow-scaled support
+    origin: tuple[int, int] = (0, 0)
+
+    @property
+    def window(self) -> tuple[slice, slice]:
+        """The part's window as (rows, columns) slices of the photo."""
+        x0, y0 = self.origin
+        h, w = self.difference.shape
+        return slice(y0, y0 + h), slice(x0, x0 + w)
 
 
-def _difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
-    """The photo's distance (RGB levels) from the support scaled by the best shadow factor."""
-    dot = np.einsum("ijc,ijc->ij", P, bg)
-    nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
-    s = np.clip(dot / nb, *_SHADOW_RANGE)
-    # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
-    return cast("np.ndarray", np.linalg.norm(P - np.minimum(s[..., None] * bg, 255.0), axis=2))
+def _planes(image: np.ndarray) -> list[np.ndarray]:
+    return [image[..., c] for c in range(image.shape[2])]
 
 
-def _gain(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
-    """The light's change: one gain per channel, the median ratio (the part is a minority)."""
-    bs, ps = bg.reshape(-1, 3), P.reshape(-1, 3)
-    ok = (bs.min(axis=1) > 30) & (bs.max(axis=1) < 245) & (ps.max(axis=1) < 245)  # no clipped channel
-    return np.median(ps[ok] / bs[ok], axis=0) if ok.sum() > 100 else np.ones(3)
+def _norm2(planes: list[np.ndarray]) -> np.ndarray:
+    out: np.ndarray = planes[0] * planes[0]
+    for q in planes[1:]:
+        out += q * q
+    return out
+
+
+def _difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray) -> np.ndarray:
+    """The squared distance of photo planes `p` from support planes `b` (`b2` their squared norm)
+    scaled by the best shadow factor, per pixel, float32: a channel-plane loop (numpy reduces a
+    last axis of 3 slowly)."""
+    dot = p[0] * b[0]
+    for pc, bc in zip(p[1:], b[1:], strict=True):
+        dot += pc * bc
+    s = np.clip(dot / (b2 + 1.0), *_SHADOW_RANGE, out=dot).astype(np.float32, copy=False)
+    out: np.ndarray | None = None
+    for pc, bc in zip(p, b, strict=True):
+        # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
+        e = pc - np.minimum(s * bc, 255.0)
+        e *= e
+        out = e if out is None else np.add(out, e, out=out)
+    assert out is not None
+    return out
+
+
+_LIGHT_MIN_PIXELS = 100  # unclipped support pixels needed to measure the light's change
+
+
+def _gain(P: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """The light's change: one gain per channel, the median ratio (the part is a minority), and a
+    warning when too few of the support's pixels are unclipped to measure it (gain 1 then)."""
+    b, p = _planes(bg), _planes(P)
+    ok = (np.minimum(np.minimum(b[0], b[1]), b[2]) > 30) & (np.maximum(np.maximum(b[0], b[1]), b[2]) < 245)
+    ok &= np.maximum(np.maximum(p[0], p[1]), p[2]) < 245  # no clipped channel
+    count = int(ok.sum())
+    if count <= _LIGHT_MIN_PIXELS:
+        return np.ones(3, np.float32), (
+            f"the light's change since the plate could not be measured ({count} of the support's pixels "
+            "unclipped, at most 100): taken as none; the part's outline may be off")
+    return np.array([np.median(pc[ok] / bc[ok]) for pc, bc in zip(p, b, strict=True)], np.float32), None
 
 
 def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     """A shadow scales the support; the part does not. The support is also compared shifted by a
     pixel each way and the least difference kept: the registration's last fraction of a pixel
-    then shows no difference along the board's edges, while the part differs from every shift."""
-    resid = _difference(P, bg)
-    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        np.minimum(resid, _difference(P, np.roll(bg, (dy, dx), axis=(0, 1))), out=resid)
-    return resid
+    then shows no difference along the board's edges, while the part differs from every shift.
+    (The shifts wrap round the window, as np.roll.)"""
+    h, w = P.shape[:2]
+    p = [np.ascontiguousarray(q) for q in _planes(P)]
+    padded = [np.ascontiguousarray(q) for q in _planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
+    padded2 = _norm2(padded)
+    best: np.ndarray | None = None
+    for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
+        rows, cols = slice(1 - dy, 1 - dy + h), slice(1 - dx, 1 - dx + w)
+        d2 = _difference2(p, [q[rows, cols] for q in padded], padded2[rows, cols])
+        best = d2 if best is None else np.minimum(best, d2, out=best)
+    assert best is not None
+    return cast("np.ndarray", np.sqrt(best, out=best))
 
 
 def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
@@ -336,13 +379,18 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
         No part, more than one, or a part cut by the photo's edge.
     """
     h, w = photo_u.shape[:2]
-    bg_full = cv2.warpPerspective(
-        plate_u, homography, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
     small = (w // _COARSE, h // _COARSE)
+    # The plate warped onto the photo at a quarter of the size (the plate reduced, the homography
+    # scaled: pixel centres x_s = (x + 0.5) / f - 0.5), and at full size in the part's window only.
+    to_small = np.array([[small[0] / w, 0, 0.5 * small[0] / w - 0.5],
+                         [0, small[1] / h, 0.5 * small[1] / h - 0.5], [0, 0, 1.0]])
     Ps = cv2.resize(photo_u, small, interpolation=cv2.INTER_AREA).astype(np.float32)
-    Bs = cv2.resize(bg_full, small, interpolation=cv2.INTER_AREA).astype(np.float32)
-    gain = _gain(Ps, Bs)
+    Bs = cv2.warpPerspective(
+        cv2.resize(plate_u, small, interpolation=cv2.INTER_AREA),
+        to_small @ homography @ np.linalg.inv(to_small),
+        small, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,
+    ).astype(np.float32)
+    gain, light_warning = _gain(Ps, Bs)
     resid_s = _residual(Ps, Bs * gain)
     noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
     mask_s = _mask(resid_s, noise_s, 1 / _COARSE)
@@ -373,11 +421,15 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     X0, Y0 = max(0, (x0 - m) * _COARSE), max(0, (y0 - m) * _COARSE)
     X1, Y1 = min(w, (x0 + bw + m) * _COARSE), min(h, (y0 + bh + m) * _COARSE)
     P = photo_u[Y0:Y1, X0:X1].astype(np.float32)
-    bg = bg_full[Y0:Y1, X0:X1].astype(np.float32) * gain
+    window_h = np.array([[1, 0, -X0], [0, 1, -Y0], [0, 0, 1.0]]) @ homography
+    bg = cv2.warpPerspective(
+        plate_u, window_h, (X1 - X0, Y1 - Y0), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    ).astype(np.float32) * gain
     resid = _residual(P, bg)
-    near = cv2.resize(np.isin(labels, pieces).astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)[
-        Y0:Y1, X0:X1
-    ]
+    # the coarse blob at full size in the window (nearest: each coarse pixel's full-size pixels)
+    cols = np.minimum(np.arange(X0, X1) * small[0] // w, small[0] - 1)
+    rows = np.minimum(np.arange(Y0, Y1) * small[1] // h, small[1] - 1)
+    near: np.ndarray = np.isin(labels[np.ix_(rows, cols)], pieces).astype(np.uint8)
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
     noise = float(np.median(outside)) * 1.4826 + 1.0 if outside.size > 100 else noise_s
@@ -385,7 +437,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise InputError("no part found on the support (nothing differs from the plate)")
-    warnings = []
+    warnings = [] if light_warning is None else [light_warning]
     largest = int(np.max(st[1:, cv2.CC_STAT_AREA]))
     in_part = [j for j in range(1, count) if st[j, cv2.CC_STAT_AREA] >= _SECOND_PART * largest
                and near[lab == j].any()]
@@ -414,13 +466,12 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
         )
     inside = np.zeros((h, w), bool)
     inside[Y0:Y1, X0:X1] = inside_roi
-    difference = np.zeros((h, w), np.float32)
-    difference[Y0:Y1, X0:X1] = resid
     return Silhouette(
         contour=contour + np.array([X0, Y0], np.float64),
         mask=inside,
         contrast=contrast,
         area_px=int(inside_roi.sum()),
         warnings=warnings,
-        difference=difference,
+        difference=resid,
+        origin=(X0, Y0),
     )
