@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 # The engine as issue 28 found it (the subpackage layout, before any speed work).
 BASE_COMMIT = "773c537"
@@ -45,8 +47,8 @@ SAMPLE_FLAGS = ["--focal-px", "1400", "--width-mm", "120"]
 # pyproject's [tool.setuptools] package-dir: package -> folder in a tree.
 PACKAGES = {"prismcore": "shared/prismcore", "prismsynth": "shared/prismsynth", "prism_cli": "services/cli",
             "prism_common": "services/common", "prism_api": "services/api", "prism_worker": "services/worker"}
-SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-                     "POLARS_MAX_THREADS": "1"}
+# The writers keep their own threads (polars' CSV): their earlier figures were measured so.
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -259,26 +261,110 @@ def engine_photo_like_measure(ctx: Ctx) -> float:
 # 2. Outputs
 # ---------------------------------------------------------------------------------------------
 
+def sample_result(ctx: Ctx) -> Any:
+    """The sample's scan (its cloud and report), made once per child."""
+    def make() -> Any:
+        from prismcore import run_scan
+        from prismcore.io.images import load_image
+        image = load_image(SAMPLE)
+        return run_scan(sample_spec(), image), image
+    return ctx.once("sample_result", make)
+
+
+def _overlay_encoder() -> tuple[Callable[[np.ndarray], bytes], str]:
+    """The tree's default overlay encoder and its format (PNG before issue 28)."""
+    from prismcore.outputs import writers
+    encode = getattr(writers, "encode_overlay", None)
+    if encode is not None:
+        fmt = writers.DEFAULT_OVERLAY_FORMAT
+        return (lambda rgb: encode(rgb, fmt)), fmt
+    return writers.encode_png, "png"
+
+
+def _overlay_drawer() -> Callable[..., np.ndarray]:
+    try:
+        from prismcore.outputs.overlay_report import overlay_from_report
+    except ImportError:  # before the overlay's split
+        from prismcore.outputs.overlay import overlay_from_report  # type: ignore[no-redef]
+    return overlay_from_report
+
+
+def overlay_figures(ctx: Ctx) -> dict[str, float]:
+    def make() -> dict[str, float]:
+        single_thread()
+        result, image = sample_result(ctx)
+        draw, (encode, fmt) = _overlay_drawer(), _overlay_encoder()
+        runs = 5 if ctx.quick else 15
+        drawn = draw(image, result.report, photo="front")
+        return {"draw": median_cpu_ms(lambda: draw(image, result.report, photo="front"), runs),
+                "encode": median_cpu_ms(lambda: encode(drawn), runs),
+                "bytes": float(len(encode(drawn))), "format": fmt}
+    return ctx.once("overlay", make)
+
+
 @figure("out.overlay", "2 outputs", "overlay, default format (draw + encode)", unit="ms",
         target="<= 20", limit=20.0)
-def out_overlay(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 2)
+def out_overlay(ctx: Ctx) -> Measured:
+    o = overlay_figures(ctx)
+    return Measured(o["draw"] + o["encode"],
+                    f"{o['format']}: draw {o['draw']:.0f} + encode {o['encode']:.0f} ms, "
+                    f"{o['bytes'] / 1e6:.2f} MB")
 
 
-@figure("out.csv_4m", "2 outputs", "CSV, 4 M points", unit="s", target="<= 0.63", limit=0.63, quick=False)
-def out_csv(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 2)
+def writer_rows(ctx: Ctx) -> dict[str, dict]:
+    def make() -> dict[str, dict]:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        import writers_bench
+        rows = writers_bench.run(2_000_000 if ctx.quick else 4_000_000, repeat=1 if ctx.quick else 3)
+        return {r["name"]: r for r in rows}
+    return ctx.once("writers", make)
 
 
-@figure("out.ply_vs_open3d", "2 outputs", "binary PLY, 4 M points: Open3D / ours", unit="x",
+@figure("out.csv_4m", "2 outputs", "CSV writer, 4 M points (wall, best of 3)", unit="s",
+        target="<= 0.63", limit=0.63, quick=False)
+def out_csv(ctx: Ctx) -> Measured:
+    rows = writer_rows(ctx)
+    ours = rows["prismcore.write_csv"]
+    return Measured(ours["seconds"], f"{ours['ratio_vs_baseline']:.1f}x numpy.savetxt (earlier: 12x)")
+
+
+@figure("out.ply_vs_open3d", "2 outputs", "binary PLY writer, 4 M points: Open3D / ours", unit="x",
         target=">= 6.5", limit=6.5, at_least=True, quick=False)
-def out_ply(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 2)
+def out_ply(ctx: Ctx) -> Measured:
+    rows = writer_rows(ctx)
+    ours = rows["prismcore.write_ply (binary)"]
+    ratio = ours.get("ratio_vs_baseline")
+    return Measured(ratio, f"ours {ours['seconds']:.3f} s" if ratio else "open3d not installed")
 
 
-@figure("out.laz_sample", "2 outputs", "LAZ, the sample's cloud", unit="ms", target="<= 60", limit=60.0)
-def out_laz(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 2)
+def sample_writer_ms(ctx: Ctx, kind: str) -> Measured:
+    def make() -> Measured:
+        from prismcore.outputs.writers import write_format
+        result, _ = sample_result(ctx)
+        spec = sample_spec(formats=[kind])
+        with tempfile.TemporaryDirectory(prefix="speed_out_") as tmp:
+            path = Path(tmp) / f"cloud.{kind}"
+            ms = median_cpu_ms(lambda: write_format(kind, path, result.cloud, spec, report=result.report),
+                               3 if ctx.quick else 7)
+            size = path.stat().st_size
+        return Measured(ms, f"{len(result.cloud.points):,} points, {size / 1e6:.1f} MB (CPU)")
+    return ctx.once(f"write:{kind}", make)
+
+
+@figure("out.laz_sample", "2 outputs", "LAZ writer, the sample's cloud", unit="ms", target="<= 60",
+        limit=60.0)
+def out_laz(ctx: Ctx) -> Measured:
+    return sample_writer_ms(ctx, "laz")
+
+
+@figure("out.csv_sample", "2 outputs", "CSV writer, the sample's cloud", unit="ms")
+def out_csv_sample(ctx: Ctx) -> Measured:
+    return sample_writer_ms(ctx, "csv")
+
+
+@figure("out.ply_sample", "2 outputs", "PLY writer, the sample's cloud", unit="ms")
+def out_ply_sample(ctx: Ctx) -> Measured:
+    return sample_writer_ms(ctx, "ply")
 
 
 @figure("cmd.scan_inside", "2 outputs", "prism scan of the sample: in-command total / engine", unit="x",
