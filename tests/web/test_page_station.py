@@ -223,8 +223,8 @@ def test_a_calibration_refused_in_words_and_a_station_deleted(page, setup, stati
     good.write_text(json.dumps(setup.board.describe()))
     page.get_by_label("Board (board.json)").set_input_files(str(good))
     page.get_by_role("button", name="Calibrate and store").click()
-    expect(error).to_contain_text("Plane photo (grey.jpg): ")
-    expect(error).to_contain_text("board corners found")
+    expect(error).to_contain_text("Plane photo (grey.jpg): 0 board corners found")  # the file named once
+    expect(page.locator("#station-status")).to_contain_text("Not stored.")
     _shot(page, "station-refused.png")
 
     # Delete one from its row (after the confirmation).

@@ -151,7 +151,7 @@ export class StationPhotos {
     const refused = this.entries.filter((e) => misfit(e, station) !== null);
     const ready = this.entries.filter((e) => e.status === "uploaded" && !misfit(e, station));
     const parts: string[] = [];
-    if (!this.entries.length) parts.push("No photos yet.");
+    if (!this.entries.length) parts.push("No photos yet");
     else parts.push(`${this.entries.length} photo${this.entries.length > 1 ? "s" : ""}`);
     if (left) parts.push(`${count("uploaded") + count("failed")} of ${this.entries.length} uploaded`);
     else if (this.entries.length) parts.push("all uploaded");
@@ -168,6 +168,7 @@ export class StationPhotos {
       if (why) li.className = "error";
       return li;
     }));
+    $("station-photo-details").hidden = !this.entries.length;
     if (refused.length) $<HTMLDetailsElement>("station-photo-details").open = true;
     const button = $<HTMLButtonElement>("station-submit");
     button.textContent = !ready.length ? "Measure the photos"

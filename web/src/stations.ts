@@ -51,7 +51,8 @@ export function refusal(err: unknown, files: Record<string, string[]> = {}): str
     if (field === "calibration" && name) where = `Calibration photo ${k + 1}`;
     if (name) where += ` (${name})`;
     if (FIELDS[field] && rest.length) where += `, ${rest.join("/")}`;
-    const detail = (e.detail ?? "invalid").replace(/^./, (c) => c.toUpperCase());
+    let detail = e.detail ?? "invalid";
+    if (name && detail.startsWith(`${name}: `)) detail = detail.slice(name.length + 2); // named once
     return where ? `${where}: ${detail}` : detail;
   });
   return `The station was refused. ${lines.join("; ")}`;
@@ -160,6 +161,7 @@ export class Stations {
       $<HTMLDetailsElement>("new-station").open = false;
       await this.load(`Stored ${stationLabel(made)}; the photos are measured on it.`);
     } catch (err) {
+      $("station-status").textContent = "Not stored.";
       $("station-error").textContent = refusal(err, this.sent);
     } finally {
       b.disabled = false;
