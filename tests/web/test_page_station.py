@@ -3,8 +3,9 @@ through the page (listed with its camera, board, plane fit and plate), a folder 
 on it (a file that is not a photo left out), ONE job with an item per photo and nothing else, its
 table with each part's width, height and depth within max(2 %, 1.5 mm) of the rendered box and
 the empty support refused "no part found", and a part's fit on the photo opened from its row. The
-calibration from photos refuses a bad board.json and a plane photo without the board in words, at
-the file at fault; a station is deleted from its row. Screenshots go to test-artifacts/web/.
+service calibrates a station from its photos sent through the page, and refuses a bad board.json
+and a plane photo without the board in words, at the file at fault; a station is deleted from its
+row. Screenshots go to test-artifacts/web/.
 
 The photos are `prismsynth.station` renders of one station setup (as tests/service/
 test_stations.py makes them), calibrated with the true camera from one plate; a few photos only,
@@ -200,6 +201,34 @@ def test_photos_dropped_on_the_page(page, station_json, folder, tmp_path):
         f"small.jpg: left out: 640 {TIMES} 512 px, the station's camera takes 1280 {TIMES} 1024 px"])
     expect(page.locator("#station-photo-details")).to_have_attribute("open", "")
     expect(page.get_by_role("button", name=re.compile(r"^Measure 2 photos on "))).to_be_visible()
+
+
+def test_a_station_calibrated_by_the_service_from_its_photos(page, setup, tmp_path):
+    """board.json, the plane photo, the board in 8 poses and the empty support: the service
+    calibrates the camera and the plane, and the page lists the station it stored and uses it."""
+    plate = station_scene(100, setup).plate
+    (tmp_path / "board.json").write_text(json.dumps(setup.board.describe()))
+    (tmp_path / "plane.jpg").write_bytes(_jpeg(plate))
+    poses = []
+    for k, view in enumerate(calibration_views(setup, 8, seed=5)):
+        poses.append(tmp_path / f"pose{k}.jpg")
+        poses[-1].write_bytes(_jpeg(view))
+    _station_mode(page)
+    if page.locator("#new-station").get_attribute("open") is None:
+        page.get_by_text("Add a station").click()
+    page.get_by_label("Name (optional)").fill("calibrated here")
+    page.get_by_label("Board (board.json)").set_input_files(str(tmp_path / "board.json"))
+    page.get_by_label("Plane photo").set_input_files(str(tmp_path / "plane.jpg"))
+    page.get_by_label("Calibration photos: the board").set_input_files([str(p) for p in poses])
+    page.get_by_label("Empty support").set_input_files(str(tmp_path / "plane.jpg"))
+    page.get_by_role("button", name="Calibrate and store").click()
+    expect(page.locator("#station-status")).to_contain_text("Stored calibrated here", timeout=120_000)
+    row = page.locator("#stations tbody tr.current")
+    expect(row).to_contain_text("calibrated here")
+    # the 8 poses and the plane photo: the board's views the intrinsics were fitted to
+    expect(row).to_contain_text(re.compile(r"calibrated on 9 views of the board, RMS 0\.\d\d px"))
+    expect(row).to_contain_text("stored")
+    expect(page.locator("#station-error")).to_be_empty()
 
 
 def test_a_calibration_refused_in_words_and_a_station_deleted(page, setup, station_json, tmp_path):

@@ -25,7 +25,7 @@ function boardText(s: Station): string {
 function cameraText(s: Station): string {
   const c = s.calibration;
   const how = c.source === "camera" ? "given camera.json"
-    : `calibrated from ${Array.isArray(c.views) ? c.views.length : "its"} photos`;
+    : `calibrated on ${Array.isArray(c.views) ? c.views.length : "its"} views of the board`;
   const rms = typeof c.rms_px === "number" ? `, RMS ${c.rms_px.toFixed(2)} px` : "";
   return `${s.image_width} × ${s.image_height} px, f ${s.camera.fx.toFixed(0)} px (${how}${rms})`;
 }
