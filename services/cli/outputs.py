@@ -8,8 +8,14 @@ from pathlib import Path
 import numpy as np
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.outputs.overlay_report import OVERLAY_NAME, SIDE_OVERLAY_NAME, overlay_from_report
-from prismcore.outputs.writers import FILE_NAMES, encode_png, write_format
+from prismcore.outputs.overlay_report import overlay_from_report
+from prismcore.outputs.writers import (
+    DEFAULT_OVERLAY_FORMAT,
+    FILE_NAMES,
+    encode_overlay,
+    overlay_name,
+    write_format,
+)
 
 __all__ = ["report_path", "write_outputs", "write_overlays"]
 
@@ -33,19 +39,21 @@ def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path,
 
 
 def write_overlays(report: dict, front: np.ndarray, side: np.ndarray | None,
-                   out_dir: Path) -> dict[str, Path]:
-    """Draw the fit on the photo (and on the side photo in two-photo mode) and write the PNGs.
+                   out_dir: Path, fmt: str = DEFAULT_OVERLAY_FORMAT) -> dict[str, Path]:
+    """Draw the fit on the photo (and on the side photo in two-photo mode) and write the pictures
+    in `fmt` (overlay.jpg by default; png or webp on request).
 
     Returns {"overlay": path} plus {"overlay_side": path} with two photos; the time taken goes
     into the report's `timings_ms["write_overlay"]`.
     """
     started = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"overlay": out_dir / OVERLAY_NAME}
-    paths["overlay"].write_bytes(encode_png(overlay_from_report(front, report, photo="front")))
+    paths = {"overlay": out_dir / overlay_name("overlay", fmt)}
+    paths["overlay"].write_bytes(encode_overlay(overlay_from_report(front, report, photo="front"), fmt))
     if side is not None and report["inputs"].get("side_image"):
-        paths["overlay_side"] = out_dir / SIDE_OVERLAY_NAME
-        paths["overlay_side"].write_bytes(encode_png(overlay_from_report(side, report, photo="side")))
+        paths["overlay_side"] = out_dir / overlay_name("overlay_side", fmt)
+        side_picture = overlay_from_report(side, report, photo="side")
+        paths["overlay_side"].write_bytes(encode_overlay(side_picture, fmt))
     report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
     return paths
 

@@ -247,7 +247,7 @@ def _spec_from_file(path: Path) -> tuple[ScanSpec, Path]:
 
 
 def scan(
-    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply, report.json and overlay.png "
+    out: Annotated[Path, typer.Option(help="Folder for cloud.csv, cloud.ply, report.json and overlay.jpg "
                                            "(a video: one folder per frame and summary.json).")],
     image: Annotated[list[Path] | None, typer.Argument(
         help="Front photo (or the only photo), or a video; several photos of one part with "
@@ -293,6 +293,9 @@ def scan(
     csv_header: Annotated[bool, typer.Option(help="Header line in the CSV.")] = False,
     csv_colors: Annotated[bool, typer.Option(help="r,g,b columns in the CSV.")] = False,
     ply_ascii: Annotated[bool, typer.Option(help="ASCII PLY instead of binary.")] = False,
+    overlay_format: Annotated[str, typer.Option(
+        help="The fit drawn on the photo as jpeg (overlay.jpg), png (lossless, overlay.png) or webp.",
+        metavar="jpeg|png|webp")] = "jpeg",
     max_pixels: Annotated[int, typer.Option(help="Refuse larger images.")] = 50_000_000,
     tiles: Annotated[int, typer.Option(help="Row bands per face (same result).", min=1)] = 1,
     every: Annotated[int | None, typer.Option(help="Video: every Nth frame.")] = None,
@@ -320,6 +323,8 @@ def scan(
     from pydantic import ValidationError
 
     images = image or []
+    if overlay_format not in ("jpeg", "png", "webp"):
+        raise InputError(f"--overlay-format {overlay_format!r}: expected jpeg, png or webp")
     if station is not None or board is not None:
         flag = "--station" if station is not None else "--board"
         if station is not None and board is not None:
@@ -444,7 +449,7 @@ def scan(
         raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
     paths = write_outputs(result, spec, out, [front] + ([side_img] if side_img is not None else []))
-    paths.update(write_overlays(result.report, front, side_img, out))
+    paths.update(write_overlays(result.report, front, side_img, out, overlay_format))
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")

@@ -1,7 +1,7 @@
 """`prism scan VIDEO`: measure the selected frames of a video, one output folder per frame.
 
 Each frame is measured as a photo (`frame_spec` + `run_scan`) and written to `frame_NNNNNN/`
-like a photo's outputs (overlay.png included); `summary.json` beside them says how repeatable
+like a photo's outputs (overlay.jpg included); `summary.json` beside them says how repeatable
 each dimension is.
 A frame that cannot be measured is reported and the others go on. With points "auto", a first
 pass finds each frame's points in frame order (`prismcore.video.point_search.FrameSearch`); a frame

@@ -1,4 +1,5 @@
-"""`prism scan` writes overlay.png beside the clouds: the sample photo, two photos, a video's frames."""
+"""`prism scan` writes overlay.jpg (overlay.png with --overlay-format png) beside the clouds: the
+sample photo, two photos, a video's frames."""
 
 from __future__ import annotations
 
@@ -45,9 +46,10 @@ def _on_edges(picture: np.ndarray, corners: list, color: tuple[int, int, int],
 
 def test_the_sample_photo_gets_its_overlay(tmp_path):
     out = tmp_path / "out"
-    run = prism("scan", "--spec", str(ROOT / "samples" / "job.json"), "--out", str(out))
+    run = prism("scan", "--spec", str(ROOT / "samples" / "job.json"), "--out", str(out),
+                "--overlay-format", "png")
     assert run.returncode == 0, run.stderr
-    assert str(out / "overlay.png") in run.stdout
+    assert str(out / "overlay.png") in run.stdout and not (out / "overlay.jpg").exists()
     report = json.loads((out / "report.json").read_text())
     picture = _rgb(out / "overlay.png")
     assert picture.shape == (1024, 1280, 3)
@@ -58,6 +60,28 @@ def test_the_sample_photo_gets_its_overlay(tmp_path):
     assert _on_edges(picture, report["faces"]["side"]["corners"], FACE_COLORS["side"], (0, 1, 2)) == 1.0
     photo = cv2.cvtColor(cv2.imread(str(ROOT / "samples" / "box.jpg")), cv2.COLOR_BGR2RGB)
     assert np.mean(np.all(picture == photo, axis=2)) > 0.7  # an overlay, not a new picture
+
+
+def test_the_overlay_is_a_jpeg_by_default(tmp_path):
+    png, jpeg = tmp_path / "png", tmp_path / "jpeg"
+    for out, flags in ((png, ["--overlay-format", "png"]), (jpeg, [])):
+        run = prism("scan", "--spec", str(ROOT / "samples" / "job.json"), "--out", str(out), *flags)
+        assert run.returncode == 0, run.stderr
+    assert str(jpeg / "overlay.jpg") in run.stdout and not (jpeg / "overlay.png").exists()
+    assert (jpeg / "overlay.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
+    lossless, picture = _rgb(png / "overlay.png"), _rgb(jpeg / "overlay.jpg")
+    # the same picture, a sixth of the bytes: JPEG's error is a grey level or two on average
+    assert picture.shape == lossless.shape
+    assert np.abs(picture.astype(int) - lossless).mean() < 2.0
+    assert (jpeg / "overlay.jpg").stat().st_size < (png / "overlay.png").stat().st_size / 4
+    report = json.loads((jpeg / "report.json").read_text())
+    assert _on_edges(picture, report["faces"]["front"]["corners"], FACE_COLORS["front"]) == 1.0
+
+
+def test_an_unknown_overlay_format_is_refused(tmp_path):
+    run = prism("scan", "--spec", str(ROOT / "samples" / "job.json"), "--out", str(tmp_path / "o"),
+                "--overlay-format", "gif")
+    assert run.returncode == 2 and "--overlay-format 'gif'" in run.stderr + run.stdout
 
 
 def test_two_photos_get_one_overlay_each(tmp_path):
@@ -71,7 +95,7 @@ def test_two_photos_get_one_overlay_each(tmp_path):
     out = tmp_path / "out"
     run = prism("scan", str(folder / "front.png"), "--side", str(folder / "side.png"),
                 "--points", "61,51 258,49 259,198 62,52 258,50 61,198 258,198",
-                "--mm-per-px", "0.5,0.5", "--out", str(out))
+                "--mm-per-px", "0.5,0.5", "--out", str(out), "--overlay-format", "png")
     assert run.returncode == 0, run.stderr
     report = json.loads((out / "report.json").read_text())
     front, side = _rgb(out / "overlay.png"), _rgb(out / "overlay_side.png")
@@ -96,7 +120,7 @@ def test_every_measured_video_frame_gets_its_overlay(tmp_path):
     for index in (0, 3):
         folder = out / f"frame_{index:06d}"
         report = json.loads((folder / "report.json").read_text())
-        picture = _rgb(folder / "overlay.png")
+        picture = _rgb(folder / "overlay.jpg")
         assert picture.shape == (h, w, 3)
         assert _on_edges(picture, report["faces"]["front"]["corners"], FACE_COLORS["front"]) == 1.0
     assert not (out / "frame_000001").exists()
@@ -111,4 +135,4 @@ def test_the_paper_method_writes_the_overlay_too(tmp_path):
     spec_path.write_text(json.dumps(spec))
     run = prism("scan", "--spec", str(spec_path), "--out", str(out))
     assert run.returncode == 0, run.stderr
-    assert _rgb(out / "overlay.png").shape == (1024, 1280, 3)
+    assert _rgb(out / "overlay.jpg").shape == (1024, 1280, 3)

@@ -114,4 +114,4 @@ def test_a_photo_without_any_focal_length_has_it_fitted(tmp_path):
     assert report["camera"]["focal_source"] == "fitted"
     assert report["camera"]["focal_px"] == pytest.approx(scene.focal_px, rel=0.02)
     close(report, 0.01)
-    assert Path(tmp_path / "o" / "overlay.png").stat().st_size > 0
+    assert Path(tmp_path / "o" / "overlay.jpg").stat().st_size > 0

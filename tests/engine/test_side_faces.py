@@ -369,7 +369,7 @@ def test_cli_measures_a_top_face_and_reports_it(top_photo, tmp_path, flag):
     assert report["side_face"] == "top" and report["inputs"]["side_face"] == (flag[1] if flag else "auto")
     dims = report["dimensions"]
     assert (dims["height"], dims["depth"]) == pytest.approx((80.0, 60.0), rel=0.02)
-    assert (tmp_path / "o" / "overlay.png").exists()
+    assert (tmp_path / "o" / "overlay.jpg").exists()
 
 
 @pytest.mark.parametrize(("flag", "needle"), [

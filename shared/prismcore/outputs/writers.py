@@ -38,7 +38,8 @@ if TYPE_CHECKING:
     from prismcore.scan.cloud import Cloud
     from prismcore.spec import ScanSpec
 
-__all__ = ["CHUNK_ROWS", "FILE_NAMES", "MAX_DECIMALS", "encode_png", "write_csv", "write_format", "write_ply"]
+__all__ = ["CHUNK_ROWS", "DEFAULT_OVERLAY_FORMAT", "FILE_NAMES", "MAX_DECIMALS", "OVERLAY_FORMATS",
+           "encode_overlay", "encode_png", "overlay_name", "write_csv", "write_format", "write_ply"]
 
 CHUNK_ROWS = 1 << 17
 """Rows formatted per block: about 3.5 MB of CSV text at 3 decimals."""
@@ -385,3 +386,42 @@ def encode_png(rgb: np.ndarray) -> bytes:
     if not ok:
         raise InputError(f"could not encode a {rgb.shape[1]}x{rgb.shape[0]} picture as PNG")
     return data.tobytes()
+
+
+OVERLAY_FORMATS = {"jpeg": ".jpg", "png": ".png", "webp": ".webp"}
+"""The overlay's picture formats and their file suffixes."""
+DEFAULT_OVERLAY_FORMAT = "jpeg"
+"""A picture a person looks at: JPEG (quality 90, colour kept at full resolution so the thin
+coloured lines stay sharp) is encoded in ~5 ms and ~0.25 MB for a 1280x1024 overlay, where PNG
+took ~40 ms and 1.4 MB; PNG (lossless) on request."""
+_JPEG_QUALITY = 90
+
+
+def overlay_name(kind: str = "overlay", fmt: str = DEFAULT_OVERLAY_FORMAT) -> str:
+    """The overlay's file name in `fmt`: FILE_NAMES' (overlay.png, overlay_side.png) with the
+    format's suffix (overlay.jpg by default)."""
+    if fmt not in OVERLAY_FORMATS:
+        raise InputError(f"overlay format {fmt!r}: expected one of {', '.join(OVERLAY_FORMATS)}")
+    return os.path.splitext(FILE_NAMES[kind])[0] + OVERLAY_FORMATS[fmt]
+
+
+def encode_overlay(rgb: np.ndarray, fmt: str = DEFAULT_OVERLAY_FORMAT) -> bytes:
+    """The overlay picture's bytes in `fmt` (jpeg, png or webp).
+
+    rgb : (H, W, 3) uint8 RGB.
+    """
+    if fmt == "png":
+        return encode_png(rgb)
+    if fmt not in OVERLAY_FORMATS:
+        raise InputError(f"overlay format {fmt!r}: expected one of {', '.join(OVERLAY_FORMATS)}")
+    import cv2  # here: writing clouds needs no OpenCV
+
+    if fmt == "jpeg":
+        params = [cv2.IMWRITE_JPEG_QUALITY, _JPEG_QUALITY, cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+                  cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    else:
+        params = [cv2.IMWRITE_WEBP_QUALITY, _JPEG_QUALITY]
+    ok, data = cv2.imencode(OVERLAY_FORMATS[fmt], cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
+    if not ok:
+        raise InputError(f"could not encode a {rgb.shape[1]}x{rgb.shape[0]} picture as {fmt}")
+    return bytes(data.tobytes())
