@@ -114,39 +114,41 @@ def assemble(front: tuple[np.ndarray, np.ndarray], side: tuple[np.ndarray, np.nd
     layers = [(f_uv[first], f_rgb[first]), (f_uv[last], f_rgb[last])]
     n = 2 * len(f_uv) + 2 * len(s_uv) + sum(len(uv) for uv, _ in layers) * zs.size
     _check_size(int(n), max_points, kind)
+    # Every face written straight into the cloud's arrays (no parts joined afterwards).
+    points = np.empty((int(n), 3), dtype=np.float32)
+    colors = np.empty((int(n), 3), dtype=np.uint8)
+    at = 0
+
+    def face(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float, rgb: np.ndarray) -> None:
+        nonlocal at
+        block = points[at:at + len(rgb)]
+        block[:, 0], block[:, 1], block[:, 2] = x, y, z
+        colors[at:at + len(rgb)] = rgb
+        at += len(rgb)
+
     f32 = f_uv.astype(np.float32)
     s32 = s_uv.astype(np.float32)
-
-    def face(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float, count: int) -> np.ndarray:
-        block = np.empty((count, 3), dtype=np.float32)
-        block[:, 0], block[:, 1], block[:, 2] = x, y, z
-        return block
-
-    parts = [
-        face(f32[:, 0], f32[:, 1], 0.0, len(f32)),  # front
-        face(f32[:, 0], f32[:, 1], depth, len(f32)),  # back
-    ]
+    face(f32[:, 0], f32[:, 1], 0.0, f_rgb)  # front
+    face(f32[:, 0], f32[:, 1], depth, f_rgb)  # back
     if side_face == "right":
-        parts += [face(width, s32[:, 1], s32[:, 0], len(s32)),  # right side, as seen
-                  face(0.0, s32[:, 1], s32[:, 0], len(s32))]  # left side
+        face(width, s32[:, 1], s32[:, 0], s_rgb)  # right side, as seen
+        face(0.0, s32[:, 1], s32[:, 0], s_rgb)  # left side
     elif side_face == "left":
         z = np.float32(depth) - s32[:, 0]
-        parts += [face(0.0, s32[:, 1], z, len(s32)),  # left side, as seen
-                  face(width, s32[:, 1], z, len(s32))]  # right side
+        face(0.0, s32[:, 1], z, s_rgb)  # left side, as seen
+        face(width, s32[:, 1], z, s_rgb)  # right side
     else:
         assert height is not None  # a top face's height was checked on entry
         z = np.float32(depth) - s32[:, 1]
-        parts += [face(s32[:, 0], 0.0, z, len(s32)),  # top, as seen
-                  face(s32[:, 0], height, z, len(s32))]  # bottom
-    rgbs = [f_rgb, f_rgb, s_rgb, s_rgb]
+        face(s32[:, 0], 0.0, z, s_rgb)  # top, as seen
+        face(s32[:, 0], height, z, s_rgb)  # bottom
     for uv, rgb in layers:  # top and bottom (left and right beside a top face), at every depth step
-        block = np.empty((zs.size, len(uv), 3), dtype=np.float32)
+        count = zs.size * len(uv)
+        block = points[at:at + count].reshape(zs.size, len(uv), 3)
         block[..., :2] = uv
         block[..., 2] = zs[:, None]
-        parts.append(block.reshape(-1, 3))
-        rgbs.append(np.tile(rgb, (zs.size, 1)))
-    points = np.concatenate(parts)
-    colors = np.concatenate(rgbs)
+        colors[at:at + count].reshape(zs.size, len(uv), 3)[:] = rgb
+        at += count
     return Cloud(points, colors)
 
 
