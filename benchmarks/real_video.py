@@ -56,12 +56,12 @@ def clicks_as_edges() -> Iterator[None]:
                 for n, q in (("front", clicked.front), ("side", clicked.side))}
         return clicked, fits
 
-    saved = prismcore.scan.pipeline._refine
-    prismcore.scan.pipeline._refine = unrefined
+    saved = prismcore.scan.pipeline.refine_faces
+    prismcore.scan.pipeline.refine_faces = unrefined
     try:
         yield
     finally:
-        prismcore.scan.pipeline._refine = saved
+        prismcore.scan.pipeline.refine_faces = saved
 
 
 def frame_spec(frame: dict, camera: dict | None = None, focal_px: float | None = None) -> ScanSpec:

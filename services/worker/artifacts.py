@@ -50,8 +50,8 @@ from prismcore.outputs.overlay_report import given_dimension, overlay_from_repor
 from prismcore.outputs.writers import FILE_NAMES, encode_png, write_format, write_ply
 from prismcore.scan.cloud import decimate
 from prismcore.scan.colour_scan import FacePlan, row_tiles
+from prismcore.scan.focal import prepare_images
 from prismcore.scan.measure import Dimensions
-from prismcore.scan.pipeline import prepare_images
 from prismcore.spec import frame_folder
 
 from .context import WorkerContext

@@ -13,7 +13,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from prismcore.scan.pipeline import PooledFocal, plan_scan
+from prismcore.scan.focal import PooledFocal
+from prismcore.scan.pipeline import plan_scan
 from prismcore.spec import ScanSpec
 
 __all__ = ["PooledFocal", "focal_estimate", "pool_focal"]

@@ -1,0 +1,245 @@
+"""The box measured from the faces the points mark: each face's edges refined to sub-pixel lines,
+the dimensions from the default method's perspective fit (or the square-on model, or the paper's),
+and the checks that the fit is the box the points mark (edges that snapped to a printed border
+give way to the clicks; a fitted corner far from its click is a warning, very far a refusal).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from prismcore.errors import InputError
+from prismcore.geometry.edges import Bound, EdgeFit, inward, line_through, refine_quad
+from prismcore.geometry.faces import FaceQuads, clicked_quads, quad_labels, shared_edges, validate_quad
+from prismcore.geometry.perspective import NOISE_CLICK_PX, FaceEvidence
+from prismcore.scan.focal import Focal
+from prismcore.scan.measure import (
+    Dimensions,
+    camera_matrix,
+    measure_affine,
+    measure_box,
+    measure_perspective,
+    obliqueness,
+    square_on_cost,
+)
+from prismcore.spec import ScanSpec
+
+__all__ = ["FIT_FAIL_FRACTION", "FIT_FAIL_PX", "FIT_WARN_PX", "FOCAL_MAX_REL_STD", "OBLIQUE_WARN",
+           "SEARCH_PX", "SNAP_CLICKS_BETTER", "SNAP_SUSPECT_RMS_PX", "fit_guard", "measure_faces",
+           "refine_faces", "unless_snapped"]
+
+FIT_WARN_PX = 3.0  # a click this far from the fitted model's corner is worth a look
+FIT_FAIL_PX = 25.0  # ... and this far (or 5 % of the face's size) means the fit is wrong
+FIT_FAIL_FRACTION = 0.05
+SNAP_SUSPECT_RMS_PX = 5.0  # a fit to the refined edges this far (RMS) from the clicks is suspect...
+SNAP_CLICKS_BETTER = 3.0  # ... and is replaced when the clicks alone fit a box this many times closer
+FOCAL_MAX_REL_STD = 0.25  # a fitted focal less sure than this is "not determined"
+OBLIQUE_WARN = 0.01  # warn when the square-on model costs more than 1 % on some dimension
+_POINT_ROLES = {
+    "p1": "the front face's upper-left corner",
+    "p2": "the front face's upper-right corner",
+    "p3": "the front face's lower-right corner",
+    "p4": "the side face's upper-left corner",
+    "p5": "the side face's upper-right corner",
+    "p6": "the front face's lower-left corner",
+    "p7": "the side face's lower-right corner",
+}
+_SECOND_FACE_ROLES = {
+    "left": {"p4": "the corner P1 marks (where the left side face starts)",
+             "p5": "the left side face's far upper corner",
+             "p7": "the left side face's far lower corner"},
+    "top": {"p4": "the corner P1 marks (where the top face starts)",
+            "p5": "the top face's far corner above P1",
+            "p7": "the top face's far corner above P2"},
+}
+SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
+
+
+def refine_faces(
+    spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]
+) -> tuple[FaceQuads, dict[str, list[EdgeFit]]]:
+    """Edge-fit both faces; the single-photo side face reuses the front's edge it shares."""
+    def search(quad: np.ndarray) -> float:
+        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+        return float(min(SEARCH_PX, 0.3 * sides.min()))
+
+    fits: dict[str, list[EdgeFit]] = {}
+    refined = {}
+    jobs = [("front", 0, clicked.front), ("side", 1 if spec.two_photo else 0, clicked.side)]
+    for name, index, quad in jobs:
+        r = search(quad)
+        known: dict[int, EdgeFit] | None = None
+        extra: dict[int, tuple[Bound, ...]] | None = None
+        if not spec.two_photo:
+            front_edge, side_edge = shared_edges(clicked.side_face)
+            if name == "side":
+                known = {side_edge: fits["front"][front_edge]}
+            else:
+                # In one photo the side face lies beyond the front's shared edge: that edge must
+                # not be taken from the side face's far side.
+                o, ref = (side_edge + 2) % 4, clicked.side[(side_edge + 1) % 4]
+                far = inward(line_through(clicked.side[o], clicked.side[(o + 1) % 4]), ref)
+                extra = {front_edge: ((far, 0.5 * float(far[:2] @ ref + far[2])),)}
+        corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known,
+                                         extra_bounds=extra)
+        moved = np.linalg.norm(corners - quad, axis=1).max() if np.isfinite(corners).all() else np.inf
+        try:
+            if moved > 3 * r + 4:
+                raise InputError("refined corners moved too far")
+            validate_quad(corners, f"refined {name} face", images[index].shape)
+        except InputError:
+            warnings.append(f"{name} face: edges not found near the clicks; clicked corners used")
+            corners = quad
+        if not all(f.fitted for f in face_fits):
+            missing = [s for s, f in zip(("top", "right", "bottom", "left"), face_fits,
+                                         strict=True) if not f.fitted]
+            warnings.append(f"{name} face: no clear edge along the {', '.join(missing)} side; "
+                            "the click was used there")
+        fits[name], refined[name] = face_fits, corners
+    return FaceQuads(refined["front"], refined["side"], clicked.front_complete,
+                     clicked.side_complete, clicked.side_face), fits
+
+
+def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warnings: list[str]) -> None:
+    """Say how oblique a single photo measured with the square-on model is, and what it costs."""
+    view = obliqueness(quads.front, quads.side, quads.side_face)
+    if view is None:
+        return
+    cost = square_on_cost(view, spec.scale)
+    if cost.max() <= OBLIQUE_WARN:
+        return
+    worst = ("width", "height", "depth")[int(np.argmax(cost))]
+    model = "the paper's method" if spec.method == "paper" else "the square-on model"
+    fix = "" if spec.method == "paper" else "; mark P6 and P7 to have perspective corrected"
+    second = "top face" if quads.side_face == "top" else "side face"
+    warnings.append(f"oblique photo measured with {model}: the front face is seen {view.front_deg:.0f}° "
+                    f"and the {second} {view.side_deg:.0f}° off square-on, which costs about "
+                    f"{cost.max():.0%} on the {worst}{fix}")
+
+
+def measure_faces(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
+             images: list[np.ndarray], focal: Focal, warnings: list[str]
+             ) -> tuple[Dimensions, FaceQuads, dict[str, Any]]:
+    """The prism's dimensions, the face quads to scan (the fitted model's, in perspective) and
+    the report's "camera" fields."""
+    complete = quads.front_complete and quads.side_complete
+    face = quads.side_face
+    camera = {"focal_px": focal.focal_px, "focal_source": focal.source,
+              "principal_point": [round(float(v), 3) for v in focal.principal[0]], **focal.extra}
+    if spec.method == "default" and complete and (focal.focal_px is not None or not spec.two_photo):
+        evidence = [FaceEvidence(getattr(quads, n), getattr(marked, n),
+                                 tuple(f.line if f.fitted else None for f in fits[n]),
+                                 tuple(f.points if f.fitted else None for f in fits[n]))
+                    for n in ("front", "side")]
+        if spec.two_photo:
+            assert focal.focal_px is not None
+            Ks = [camera_matrix(focal.focal_px, c) for c in focal.principal]
+            dims, front, side = measure_perspective(evidence[0], evidence[1], spec.scale, K_front=Ks[0],
+                                                    K_side=Ks[-1], two_photo=True)
+            return dims, FaceQuads(front, side, True, True), camera
+        free = focal.focal_px is None
+        K = camera_matrix(focal.focal_px or 1.0, focal.principal[0])
+        dims, fit = measure_box(evidence[0], evidence[1], spec.scale, K=K, free_focal=free, side_face=face,
+                                lens_known=focal.source == "camera", image=images[0])
+        if free:
+            assert fit.focal_std_px is not None
+            camera.update(focal_px=round(fit.focal_px, 3), focal_source="fitted",
+                          focal_std_px=round(fit.focal_std_px, 3))
+            if not fit.focal_std_px < FOCAL_MAX_REL_STD * fit.focal_px:
+                note = (f"the view shows too little perspective to fit the focal length "
+                        f"({fit.focal_px:.0f} ± {fit.focal_std_px:.0f} px): measured as a nearly "
+                        "square-on (weak-perspective) view; give the focal length or a camera to be sure")
+                dims = replace(dims, notes=(*dims.notes, note))
+        return dims, FaceQuads(fit.front_quad, fit.side_quad, True, True, face), camera
+    if spec.method == "default" and focal.source != "none":
+        warnings.append("perspective not corrected: it needs p6 and p7 besides the focal length")
+    camera["focal_source"] = "none" if focal.source == "none" else focal.source
+    # The paper's rectangles are axis-aligned by design: the view is read from the clicks.
+    assert spec.points is not None
+    shape = clicked_quads(spec.points, two_photo=False, side_face=face) if spec.method == "paper" else quads
+    view = None if spec.two_photo else obliqueness(shape.front, shape.side, face)
+    # A Pinhole scale's mm-per-pixel reads the focal length (given, camera or EXIF).
+    dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=focal.focal_px,
+                          two_photo=spec.two_photo, view=view,
+                          corner_noise_px=NOISE_CLICK_PX,
+                          clicked=(marked.front, marked.side) if fits else None, side_face=face)
+    if not spec.two_photo:
+        _oblique_warning(spec, shape, dims, warnings)
+    return dims, quads, camera
+
+
+def _click_rms(marked: FaceQuads, model: FaceQuads) -> float:
+    """RMS distance (px) between the clicked points and the model's corners they mark."""
+    d = [np.linalg.norm(corner - click)
+         for face in ("front", "side")
+         for label, click, corner in zip(quad_labels(marked)[face == "side"], getattr(marked, face),
+                                         getattr(model, face), strict=True) if label is not None]
+    return float(np.sqrt(np.mean(np.square(d)))) if d else 0.0
+
+
+def unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
+                    images: list[np.ndarray], focal: Focal, warnings: list[str],
+                    refined: tuple[Dimensions, FaceQuads, dict[str, Any]],
+                    ) -> tuple[Dimensions, FaceQuads, dict[str, Any], dict[str, list[EdgeFit]]]:
+    """The box fitted to the refined edges, unless the edges snapped to something else.
+
+    Edge refinement takes the consensus line near each clicked side; on a real box that can be a
+    printed border, a lid's seam or the background past a corner (a real video: 10-20 px off).
+    Its box then sits far from the clicks while the clicks alone fit a box closely. A fit
+    farther than click noise explains (SNAP_SUSPECT_RMS_PX) is compared with the clicks' own
+    fit, and the clicks win when they fit SNAP_CLICKS_BETTER times closer.
+    """
+    dims, quads, camera = refined
+    rms = _click_rms(marked, quads)
+    if not rms > SNAP_SUSPECT_RMS_PX:
+        return dims, quads, camera, fits
+    plain = {n: [EdgeFit(line_through(q[i], q[(i + 1) % 4]), 0.0, 0.0, False) for i in range(4)]
+             for n, q in (("front", marked.front), ("side", marked.side))}
+    scratch: list[str] = []
+    alt = measure_faces(spec, marked, marked, plain, images, focal, scratch)
+    alt_rms = _click_rms(marked, alt[1])
+    if not alt_rms * SNAP_CLICKS_BETTER < rms:
+        return dims, quads, camera, fits
+    warnings.extend(scratch)
+    warnings.append(f"the refined edges fit a box {rms:.1f} px (RMS) from the clicks, the clicks "
+                    f"alone one {alt_rms:.1f} px: the edges found were not the box's (printed "
+                    "borders or background?), so the clicks were used")
+    return *alt, plain
+
+
+def fit_guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: bool,
+           warnings: list[str]) -> dict[str, Any]:
+    """Distances between each click and the model's corner; warn, or refuse a clearly wrong fit.
+
+    Only a fitted pinhole model is refused: the square-on model's corners are the refined
+    clicks themselves, and the paper's rectangles ignore part of the clicks by design.
+    """
+    residuals: dict[str, float] = {}
+    limits: dict[str, float] = {}
+    for face in ("front", "side"):
+        clicks, corners = getattr(marked, face), getattr(model, face)
+        size = float(np.linalg.norm(clicks[2] - clicks[0]))
+        for label, click, corner in zip(quad_labels(marked)[face == "side"], clicks, corners,
+                                        strict=True):
+            if label is None:
+                continue
+            residuals[label] = float(np.linalg.norm(corner - click))
+            limits[label] = max(FIT_FAIL_PX, FIT_FAIL_FRACTION * size)
+    order = sorted(residuals)
+    rms = float(np.sqrt(np.mean([residuals[n] ** 2 for n in order]))) if order else 0.0
+    if spec.method == "default":
+        worst = max(order, key=lambda n: residuals[n] / limits[n])
+        if perspective and residuals[worst] > limits[worst]:
+            role = _SECOND_FACE_ROLES.get(marked.side_face, {}).get(worst, _POINT_ROLES[worst])
+            raise InputError(f"the fitted box sits {residuals[worst]:.0f} px from {worst.upper()}: "
+                             f"check that {worst.upper()} is {role}")
+        far = [n for n in order if residuals[n] > FIT_WARN_PX]
+        if far:
+            what = "fitted box's corners" if perspective else "refined face corners"
+            listed = ", ".join(f"{n.upper()} ({residuals[n]:.1f} px)" for n in far)
+            warnings.append(f"the {what} lie more than {FIT_WARN_PX:g} px from {listed}: "
+                            "check those clicks")
+    return {"rms_px": round(rms, 3), "point_residuals_px": {n: round(residuals[n], 3) for n in order}}
