@@ -29,6 +29,7 @@ from prismsynth.station import StationSetup, calibration_views, station_scene, s
 
 ARTEFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"
 SIZE = (1280, 1024)
+LAPTOP = {"width": 1366, "height": 768}
 SETUP_SEED = 3
 # The folder: three parts and the empty support (between them, so a refusal mid-batch is seen).
 TIMES = "\N{MULTIPLICATION SIGN}"
@@ -122,6 +123,14 @@ def test_a_station_and_a_folder_of_photos_measured_in_one_job(page, station_json
     expect(row).to_contain_text(f"{doc['plane']['rms_px']:.2f} px RMS")
     expect(row).to_contain_text("stored")
     expect(page.get_by_label("Use line 1", exact=False).first).to_be_checked()
+
+    # On a laptop's first screen: the station chosen and where to drop the photos.
+    page.set_viewport_size(LAPTOP)
+    page.evaluate("window.scrollTo(0, 0)")
+    for where in (row, page.get_by_text("choose a folder"), page.locator("#station-submit")):
+        box = where.bounding_box()
+        assert box and box["y"] + box["height"] <= LAPTOP["height"], (where, box)
+    _shot(page, "station-first-screen.png")
 
     # The folder, as the folder picker gives it: every photo, the notes left out.
     page.locator("#station-folder").set_input_files(str(root))

@@ -183,7 +183,11 @@ export class StationPhotos {
     if (!station) error.textContent = "Choose a station first (or add one above).";
     else if (!this.entries.length) error.textContent = "Add the photos first: drop a folder, or choose one.";
     else if (left) error.textContent = `Wait for ${left} photo${left > 1 ? "s" : ""} to finish uploading.`;
-    if (!station || !this.entries.length || left) return;
+    else if (!station.has_plate) {
+      error.textContent = `${station.name ?? "This station"} has no photo of the empty support: no part can be found `
+        + "on it. Add the station again with its empty support.";
+    }
+    if (!station || !station.has_plate || !this.entries.length || left) return;
     const ready = this.entries.filter((e) => e.status === "uploaded" && !misfit(e, station));
     if (!ready.length) {
       error.textContent = "None of these photos can be measured on this station: see each photo.";
