@@ -63,6 +63,23 @@ def _tls_cost(pts: np.ndarray) -> float:
     return float(np.linalg.eigvalsh(d.T @ d)[0])
 
 
+def _tls_costs(pts: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """`_tls_cost` of every edge at once: the edges' points (N, 2) one after another, each
+    edge from its index in `starts` to the next's. The smallest eigenvalue of each edge's 2x2
+    scatter matrix as LAPACK's dlaev2 takes it (the determinant over the largest, no
+    cancellation on a straight edge)."""
+    counts = np.diff(np.append(starts, len(pts)))
+    means = np.add.reduceat(pts, starts, axis=0) / counts[:, None]
+    d = pts - np.repeat(means, counts, axis=0)
+    a = np.add.reduceat(d[:, 0] * d[:, 0], starts)
+    b = np.add.reduceat(d[:, 0] * d[:, 1], starts)
+    c = np.add.reduceat(d[:, 1] * d[:, 1], starts)
+    big = 0.5 * ((a + c) + np.hypot(a - c, 2 * b))
+    safe = np.where(big > 0, big, 1.0)
+    small: np.ndarray = np.where(big > 0, (np.maximum(a, c) / safe) * np.minimum(a, c) - (b / safe) * b, 0.0)
+    return small
+
+
 def tls_line(pts: np.ndarray) -> np.ndarray:
     """The (a, b, c) line, (a, b) a unit normal, nearest to the points (N, 2) in total least squares."""
     m = pts.mean(axis=0)
@@ -105,21 +122,23 @@ def estimate_distortion(samples: list[np.ndarray], centre: np.ndarray, radius_px
     if not edges:
         return RadialDistortion(0.0, prior * unit, centre)
     # Work in units of the corner radius: the cost is then of order one per edge.
-    scaled = [(e - centre) / radius_px for e in edges]
+    # Every edge's samples in one array, undistorted at once (one fixed point, not one per edge).
+    scaled = (np.concatenate(edges) - centre) / radius_px
+    starts = np.cumsum([0] + [len(e) for e in edges[:-1]])
     zero = np.zeros(2)
 
     def cost(q: float) -> float:
-        return sum(_tls_cost(_undistort(e, zero, q)) for e in scaled)
+        return float(_tls_costs(_undistort(scaled, zero, q), starts).sum())
 
     bound = 0.35  # past this the fixed point stops contracting at the corners
     q_hat = float(minimize_scalar(cost, bounds=(-bound, bound), method="bounded",
                                   options={"xatol": 1e-5}).x)
-    n = sum(len(e) for e in scaled)
-    dof = n - 2 * len(scaled) - 1
+    n = len(scaled)
+    dof = n - 2 * len(edges) - 1
     if dof <= 0:
         return RadialDistortion(0.0, prior * unit, centre)
     h = 1e-3
-    per_edge = np.array([[_tls_cost(_undistort(e, zero, q)) for e in scaled]
+    per_edge = np.array([_tls_costs(_undistort(scaled, zero, q), starts)
                          for q in (q_hat - h, q_hat, q_hat + h)])
     curv = (per_edge[0] - 2 * per_edge[1] + per_edge[2]) / h**2
     grad = (per_edge[2] - per_edge[0]) / (2 * h)
