@@ -273,3 +273,51 @@ def test_a_calibration_refused_in_words_and_a_station_deleted(page, setup, stati
     page.get_by_role("button", name=re.compile(r"^Delete to delete")).click()
     expect(page.locator("#station-status")).to_contain_text("Deleted to delete")
     expect(row).to_have_count(0)
+
+
+def test_a_large_batch_is_polled_without_its_items(page, station_json, folder):
+    """A station's folder of 60 photos: while the job runs the page asks for its state and
+    progress only (item_limit=0), and reads the items once, when it has ended. The job's answers
+    are the service's shapes, played back (60 renders measured would cost CI minutes)."""
+    root, _ = folder
+    _station_mode(page)
+    if not page.locator("#stations tbody tr").count():
+        _store(page, station_json, "line 1")
+    job_id = "f" * 32
+    n = 60
+
+    def job(state: str, progress: int, items: bool) -> dict:
+        done = n if state == "succeeded" else n // 2
+        return {"id": job_id, "state": state, "progress": progress, "items_done": done, "item_count": n,
+                "created_at": "2026-01-01T00:00:00Z", "started_at": "2026-01-01T00:00:01Z",
+                "finished_at": None, "client_reference": "station", "error": None,
+                "items": [{"index": i, "state": "failed", "error": "no part found on the support",
+                           "result": None, "downloads": {}, "frames": []} for i in range(n)] if items else []}
+
+    asked: list[str] = []
+    polls = iter([job("running", 50, False), job("succeeded", 100, False)])
+
+    def answer(route) -> None:
+        url = route.request.url
+        asked.append(url)
+        if route.request.method == "POST":
+            body = job("queued", 0, True)
+        elif url.endswith("/results.json"):
+            body = {"job_id": job_id, "client_reference": "station", "state": "succeeded",
+                    "verdicts": {"pass": 0, "fail": 0, "uncertain": 0}, "columns": [],
+                    "rows": [{"item": i, "frame": None, "input": f"upload:{i}", "state": "failed",
+                              "error": "no part found on the support", "verdict": None} for i in range(n)]}
+        elif "item_limit=0" in url:
+            body = next(polls)
+        else:
+            body = job("succeeded", 100, True)
+        route.fulfill(status=202 if route.request.method == "POST" else 200, json=body)
+
+    page.route(re.compile(r"/v1/jobs(/f{32}(\?item_limit=0|/results\.json)?)?$"), answer)
+    page.locator("#station-files").set_input_files(str(root / "part-1.jpg"))
+    expect(page.locator("#station-photos-summary")).to_contain_text("1 photo · all uploaded")
+    page.get_by_role("button", name=re.compile(r"^Measure 1 photo on ")).click()
+    expect(page.locator("#job-state")).to_contain_text(f"{n} of {n} scans failed")
+    expect(page.locator("#table-count")).to_contain_text(f"{n} of {n} rows shown")
+    polled = [u for u in asked if f"/v1/jobs/{job_id}" in u and not u.endswith("results.json")]
+    assert [u.endswith("?item_limit=0") for u in polled] == [True, True, False], asked
