@@ -23,6 +23,7 @@ __all__ = ["board_camera", "expected_board", "measure_on_board"]
 
 _LEVEL_SQUARES = 0.7  # the light's level is smoothed over this many squares
 _DIFFERS = 25.0  # RGB levels (after the shadow's scale): a pixel this far from the board is not the board's
+_MAX_K1 = 0.5  # a radial distortion beyond this from one view of a board is not trusted
 _PATTERN_PX = 3.0  # the pattern is drawn at this many of its pixels per photo pixel, then averaged
 
 
@@ -37,9 +38,17 @@ def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
     return view
 
 
-def board_camera(photo: np.ndarray, board: BoardSpec, view: BoardView | None = None) -> CameraModel:
-    """The camera from one photo of the board: the focal length, the principal point at the
-    image's centre and no lens distortion (a planar target fixes the focal length, not more).
+def board_camera(
+    photo: np.ndarray, board: BoardSpec, view: BoardView | None = None, *, radial: bool = True
+) -> CameraModel:
+    """The camera from one photo of the board: the focal length and the lens's first radial
+    distortion term k1, the principal point at the image's centre (a planar target in one view
+    fixes the focal length and k1 with the centre known, not more). radial=False fixes k1 at 0.
+
+    On renders with k1 = +-0.05 (k2 = 0) the sizes found with k1 fixed at 0 differ from those of
+    a lens without distortion by under 0.1 % on average (benchmarks/station.py --hand-held, see
+    docs/explanation/accuracy.md); k1 is found (within about 0.015 there) so that a stronger lens
+    (k1 -0.15 to -0.2, whose corners missed a pose without it by over 1 px) is measured, not refused.
 
     Raises
     ------
@@ -54,30 +63,35 @@ def board_camera(photo: np.ndarray, board: BoardSpec, view: BoardView | None = N
         | cv2.CALIB_FIX_PRINCIPAL_POINT
         | cv2.CALIB_FIX_ASPECT_RATIO
         | cv2.CALIB_ZERO_TANGENT_DIST
-        | cv2.CALIB_FIX_K1
         | cv2.CALIB_FIX_K2
         | cv2.CALIB_FIX_K3
+        | (0 if radial else cv2.CALIB_FIX_K1)
     )
     obj = [view.object_points.astype(np.float32)]
     img = [view.image_points.astype(np.float32)]
-    rms, K, _, _, _, _, _, _ = cv2.calibrateCameraExtended(obj, img, (w, h), K0, np.zeros(5), flags=flags)
+    rms, K, dist, _, _, _, _, _ = cv2.calibrateCameraExtended(obj, img, (w, h), K0, np.zeros(5), flags=flags)
+    k1 = float(np.ravel(dist)[0])
     f = float(K[0, 0])
     if not (np.isfinite(f) and 0.2 * max(w, h) < f < 20 * max(w, h)):
         raise InputError(
             "the focal length could not be found from the board (seen square-on?): tilt the "
             "camera 30-60 degrees from the board, or give --camera camera.json"
         )
-    if rms > MAX_RMS_PX:
+    if rms > MAX_RMS_PX or not abs(k1) <= _MAX_K1:
         raise InputError(
-            f"the board's corners miss their fitted pose by {rms:.2f} px RMS (over {MAX_RMS_PX} px): "
-            "a lens with strong distortion needs --camera camera.json"
+            f"the board's corners miss their fitted pose by {rms:.2f} px RMS (over {MAX_RMS_PX} px) "
+            f"with the lens's distortion k1 {k1:+.3f} found from them: a lens with strong or complex "
+            "distortion needs --camera camera.json (prism calibrate)"
+            if rms > MAX_RMS_PX else
+            f"the lens's distortion found from the board (k1 {k1:+.2f}) is beyond {_MAX_K1}: a wide-angle "
+            "lens needs --camera camera.json (prism calibrate)"
         )
     return CameraModel(
         fx=f,
         fy=f,
         cx=float(K[0, 2]),
         cy=float(K[1, 2]),
-        dist=[0.0] * 5,
+        dist=[k1, 0.0, 0.0, 0.0, 0.0],
         image_width=w,
         image_height=h,
         rms_px=float(rms),
@@ -130,10 +144,23 @@ def expected_board(
     # their light towards its colour): the squares' light from the squares alone.
     differs = shadow_difference(P, plate) > _DIFFERS
     differs = cv2.dilate(differs.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
-    white, black = (_smooth(P, wgt * differs, sigma) for wgt in weights)
+    white, black = (_hue(_smooth(P, wgt * differs, sigma), P, wgt) for wgt in weights)
     plate = black + (white - black) * pattern[..., None]
     plate = np.where(region[..., None], plate, P)
     return np.clip(plate, 0, 255).astype(np.uint8), region
+
+
+def _hue(level: np.ndarray, P: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """`level` (H, W, 3) with its colour's direction made the board's own for that print, the
+    median over all its squares (a part is a minority of them), its brightness kept: a part whose
+    colour pulled the squares' light near it towards its own differs from them again."""
+    sel = weight > 0
+    if sel.sum() < 100:
+        return level
+    colours = P[sel]
+    hue = np.median(colours / (np.linalg.norm(colours, axis=1, keepdims=True) + 1.0), axis=0)
+    hue = hue / max(float(np.linalg.norm(hue)), 1e-6)
+    return cast("np.ndarray", np.linalg.norm(level, axis=2, keepdims=True) * hue.astype(np.float32))
 
 
 def _smooth(P: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
@@ -202,7 +229,7 @@ def measure_on_board(
         ) from None
     if camera is None:
         measured.warnings.append(
-            f"focal length {cam.fx:.0f} px found from the board in the photo (no --camera; "
-            "lens distortion taken as none)"
+            f"focal length {cam.fx:.0f} px and lens distortion k1 {cam.dist[0]:+.3f} found from the "
+            "board in the photo (no --camera; the principal point taken at the centre)"
         )
     return measured

@@ -4,13 +4,15 @@ the photo, against the table round it read from the photo itself."""
 
 from __future__ import annotations
 
+import dataclasses
 from functools import cache
 
 import cv2
+import numpy as np
 import pytest
 
 from prismcore.errors import InputError
-from prismcore.station import background
+from prismcore.station import background, handheld
 from prismcore.station.handheld import board_camera, measure_on_board
 from prismsynth.station import StationScene, station_scene, station_setup
 
@@ -72,6 +74,34 @@ def test_a_part_on_the_board_is_measured_with_the_camera_known(seed) -> None:
 def test_the_focal_length_found_from_the_board_is_within_1_percent(seed) -> None:
     sc = _scene(seed)
     assert abs(board_camera(sc.photo, sc.setup.board).fx / sc.setup.K[0, 0] - 1) < 0.01
+
+
+@cache
+def _lens_scene(k1: float) -> StationScene:
+    setup = station_setup(5002)
+    setup = dataclasses.replace(setup, dist=np.array([k1, 0.0, 0.0, 0.0, 0.0]))
+    return station_scene(5002, setup, nudge=False, inside_board=True, max_size_mm=80)
+
+
+def test_a_lens_s_distortion_is_found_from_the_board_and_the_part_measured() -> None:
+    """k1 -0.15 (with the focal length fixed at 0 its corners missed a pose by about 1 px): k1
+    found within 0.03, the focal length within 1 %, the part within max(2 %, 1.5 mm)."""
+    sc = _lens_scene(-0.15)
+    cam = board_camera(sc.photo, sc.setup.board)
+    assert abs(cam.dist[0] + 0.15) < 0.03, cam.dist
+    assert abs(cam.fx / sc.setup.K[0, 0] - 1) < 0.01
+    m = measure_on_board(sc.photo, sc.setup.board)
+    assert sc.box is not None
+    for key, true in sc.box.dimensions.items():
+        assert abs(m.dimensions[key] - true) <= max(0.02 * true, 1.5), (key, m.dimensions, true)
+    assert any("k1 -0.1" in w for w in m.warnings), m.warnings
+
+
+def test_a_distortion_beyond_what_one_view_can_be_trusted_for_is_refused_naming_it(monkeypatch) -> None:
+    monkeypatch.setattr(handheld, "_MAX_K1", 0.05)
+    sc = _lens_scene(-0.15)
+    with pytest.raises(InputError, match=r"distortion found from the board .* needs --camera"):
+        measure_on_board(sc.photo, sc.setup.board)
 
 
 def test_a_part_reaching_past_what_is_modelled_is_refused_naming_it(monkeypatch) -> None:
