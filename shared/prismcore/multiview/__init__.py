@@ -18,13 +18,14 @@ __all__ = [
 
 _EXPORTS = {
     "JointResult": "joint",
-    "View": "joint",
+    "View": "views",
     "fit_views": "joint",
     "joint_report": "report",
 }
 
 if TYPE_CHECKING:
-    from prismcore.multiview.joint import JointResult, View, fit_views
+    from prismcore.multiview.joint import JointResult, fit_views
     from prismcore.multiview.report import joint_report
+    from prismcore.multiview.views import View
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

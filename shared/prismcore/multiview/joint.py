@@ -31,57 +31,42 @@ fitted box sits far from) is left out with that reason.
 All views must be of one camera (one image size; the principal point is the image centre) and
 mark the same front face, P1 the same corner; each view's second face may be its right, left or
 top face (`ScanSpec.side_face`).
+
+The views measured alone are `multiview.views`; the least-squares problem they share,
+`multiview.problem`; the rounding read through the shared box and the sigma of what the model
+takes as known, `multiview.model_sigma`. Here: the fit's course, its outliers and its result.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
-from scipy.optimize import OptimizeResult, least_squares
+from scipy.optimize import OptimizeResult
 from scipy.stats import chi2
 
 from prismcore.errors import InputError
-from prismcore.geometry.faces import clicked_quads
 from prismcore.geometry.lens import RadialDistortion, estimate_distortion
-from prismcore.geometry.model_error import (
-    FOLD_FRACTION,
-    ROUNDING_RMS_MM,
-    _rows,
-    edge_shifts,
-    rounding_shifts,
+from prismcore.geometry.model_error import _rows
+from prismcore.geometry.perspective import NOISE_LINE_PX, SIGMA_LINE_PX, box_edge_samples
+from prismcore.multiview.model_sigma import (
+    _fold_sigma,
+    _mm_per_unit,
+    _model_sigma,
+    _offsets,
+    _read_rounding,
+    _Rounding,
 )
-from prismcore.geometry.perspective import (
-    _F_SCALE,
-    _FRONT_IDX,
-    _SECOND,
-    NOISE_CLICK_PX,
-    NOISE_LINE_PX,
-    SIGMA_CLICK_PX,
-    SIGMA_LINE_PX,
-    BoxFit,
-    FaceEvidence,
-    FaceTerms,
-    _camera,
-    _n_line_terms,
-    _residual_fn,
-    box_edge_samples,
-    fit_box,
-    project,
-    undistort_evidence,
-)
-from prismcore.geometry.rounding import STD_FLOOR_MM, RadiusEstimate, estimate_edge_radius
+from prismcore.multiview.problem import _covariance, _dims, _dims_sigma, _fit, _only, _Problem, _without
+from prismcore.multiview.views import View, _prepare, _Prepared
 from prismcore.scan.measure import Dimensions
-from prismcore.spec import KnownEdge, ReferencePoints, ScanSpec
+from prismcore.spec import KnownEdge
 
 __all__ = ["CLICK_WARN_PX", "OUTLIER_LEVEL", "JointResult", "LeftOut", "View", "ViewFit", "fit_views"]
 
 OUTLIER_LEVEL = 0.999
 """A view is left out when its disagreement with the others passes this chi-square quantile."""
-_MAX_NFEV = 400
 CLICK_WARN_PX = 5.0
 """A view whose clicks lie farther than this (RMS, px) from the box all views share is warned
 about: its points (or the edges that hold its pose) may be wrong. Photo-like renders with clicks
@@ -97,26 +82,6 @@ MIN_CLICK_SIGMA_PX = 1.0
 """The least per-axis noise a view's clicks are weighed by, px, however close they fit."""
 _MAX_REJECTED = 40  # a bound on the refits; the real video's twelve frames leave out about 18 lines
 _DIMENSIONS = ("width", "height", "depth")
-
-
-@dataclass(frozen=True)
-class View:
-    """One photo of the part and the seven points clicked on it.
-
-    image : ndarray, shape (H, W, 3)
-        RGB, uint8 (or float32 0-255).
-    points : ReferencePoints or sequence of seven (x, y)
-        P1..P7 in the engine's order, image px.
-    side_face : {"auto", "right", "left", "top"}
-        Which face P4, P5, P7 mark (as `ScanSpec.side_face`).
-    name : str
-        How the view is named in the result (a file name, "frame 127"); "view k" when empty.
-    """
-
-    image: np.ndarray
-    points: ReferencePoints | Sequence[Sequence[float]]
-    side_face: str = "auto"
-    name: str = ""
 
 
 @dataclass(frozen=True)
@@ -188,320 +153,8 @@ class JointResult:
     lines_left_out: int = 0
 
 
-@dataclass(frozen=True)
-class _Prepared:
-    """A view measured alone, its evidence ready for the joint fit (distortion not yet removed)."""
-
-    index: int
-    name: str
-    side_face: str
-    front: FaceEvidence
-    side: FaceEvidence
-    single: Dimensions
-    focal_px: float | None
-    image: np.ndarray
-    edges_dropped: int = 0
-    lines_rejected: int = 0
-    line_sigma_px: float = SIGMA_LINE_PX
-    click_sigma_px: float = SIGMA_CLICK_PX
-
-    def without_lines(self, drop: dict[str, set[int]] | None = None) -> _Prepared:
-        """The view with the named sides' edge lines (all, when None) taken out (its clicks stay)."""
-        faces = []
-        for name in ("front", "side"):
-            face: FaceEvidence = getattr(self, name)
-            gone = set(range(4)) if drop is None else drop.get(name, set())
-            lines = tuple(None if s in gone else line for s, line in enumerate(face.lines))
-            samples = tuple(None if s in gone else e for s, e in enumerate(face.samples))
-            faces.append(FaceEvidence(face.corners, face.clicked, lines, samples))
-        n = 0 if drop is None else sum(len(v) for v in drop.values())
-        return replace(self, front=faces[0], side=faces[1], edges_dropped=self.edges_dropped + n)
-
-
-def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None,
-             edge_agree_px: float | None = None) -> _Prepared:
-    from prismcore.scan.pipeline import plan_scan
-
-    name = view.name or f"view {k + 1}"
-    points = view.points if isinstance(view.points, ReferencePoints) else [list(map(float, p))
-                                                                           for p in view.points]
-    spec = ScanSpec.model_validate({"image": name if "." in name else f"{name}.png", "points": points,
-                                    "side_face": view.side_face, "scale": scale, "focal_px": focal_px})
-    plan = plan_scan(spec, view.image)
-    if not plan.dimensions.perspective:
-        raise InputError(f"{name}: the box was not fitted in perspective (all seven points are needed)")
-    assert spec.points is not None
-    face = plan.side_face
-    marked = clicked_quads(spec.points, two_photo=False, side_face=face)
-    evidence = [FaceEvidence(plan.faces[i].region, getattr(marked, n),
-                             tuple(f.line if f.fitted else None for f in plan.edges[n]),
-                             tuple(f.points if f.fitted else None for f in plan.edges[n]))
-                for i, n in enumerate(("front", "side"))]
-    fitted = plan.camera.get("focal_px")
-    prepared = _Prepared(k, name, face, evidence[0], evidence[1], plan.dimensions,
-                         float(fitted) if fitted is not None else None, view.image)
-    return prepared if edge_agree_px is None else _agreeing(prepared, edge_agree_px)
-
-
-def _agreeing(view: _Prepared, limit_px: float) -> _Prepared:
-    """The view without the refined edge lines its clicks disagree with: a side's line is dropped
-    when the two clicked corners at its ends lie farther than `limit_px` from it (mean distance)."""
-    drop: dict[str, set[int]] = {}
-    for name, sides in (("front", (0, 1, 2, 3)), ("side", _SECOND[view.side_face].sides)):
-        face: FaceEvidence = getattr(view, name)
-        for s in sides:
-            line = face.lines[s]
-            if line is None:
-                continue
-            ends = face.clicked[[s, (s + 1) % 4]]
-            if float(np.abs(ends @ line[:2] + line[2]).mean()) > limit_px:
-                drop.setdefault(name, set()).add(s)
-    return view.without_lines(drop) if drop else view
-
-
-def _terms(view: _Prepared, lens: RadialDistortion) -> FaceTerms:
-    front, side = view.front, view.side
-    if lens.kappa != 0.0:
-        front, side = undistort_evidence(front, lens), undistort_evidence(side, lens)
-    second = _SECOND[view.side_face]
-    return [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-
-
-class _Problem:
-    """The joint least-squares problem over some views.
-
-    x = (W, D[, log focal]) then per view (rvec, tvec): whitened residuals per view, its line terms
-    then its click terms (as `perspective._residual_fn` lays them out).
-    """
-
-    def __init__(self, views: list[_Prepared], lens: RadialDistortion, principal: np.ndarray,
-                 focal_px: float | None, offsets: dict[int, np.ndarray] | None = None) -> None:
-        self.views = views
-        self.principal = principal
-        self.offsets = [None if offsets is None else offsets.get(v.index) for v in views]
-        self.free_focal = focal_px is None
-        self.n_shared = 3 if self.free_focal else 2
-        self.terms = [_terms(v, lens) for v in views]
-        fixed = _camera(focal_px or 1.0, principal)
-
-        def intrinsics(x: np.ndarray) -> np.ndarray:
-            return _camera(float(np.exp(x[8])), principal) if self.free_focal else fixed
-
-        self.fns: list[Callable[[np.ndarray], np.ndarray]] = [
-            _residual_fn(intrinsics, _SECOND[v.side_face].corners, 2, t)
-            for v, t in zip(views, self.terms, strict=True)]
-        self.n_lines = [_n_line_terms(t) for t in self.terms]
-        self.sizes = [n + 8 * len(t) for n, t in zip(self.n_lines, self.terms, strict=True)]  # lines, clicks
-        # Each view's residuals reweighted from the solver's sigmas to the view's own measured
-        # noise (`_measured_noise`; 1 until measured).
-        self.weights: list[np.ndarray] = []
-        for v, n, size in zip(views, self.n_lines, self.sizes, strict=True):
-            w = np.full(size, SIGMA_CLICK_PX / v.click_sigma_px)
-            w[:n] = SIGMA_LINE_PX / v.line_sigma_px
-            self.weights.append(w)
-        self.focal_px = focal_px
-
-    def view_x(self, x: np.ndarray, v: int) -> np.ndarray:
-        pose = x[self.n_shared + 6 * v: self.n_shared + 6 * v + 6]
-        log_f = x[2] if self.free_focal else 0.0
-        packed: np.ndarray = np.r_[pose, x[:2], log_f]
-        return packed
-
-    def residual(self, x: np.ndarray) -> np.ndarray:
-        return np.concatenate([self.view_residual(x, v) for v in range(len(self.fns))])
-
-    def view_residual(self, x: np.ndarray, v: int) -> np.ndarray:
-        """View v's residuals as the solver sees them (whitened by the view's noise)."""
-        whitened: np.ndarray = self.view_px(x, v) * self.weights[v] / self._unit(v)
-        return whitened
-
-    def view_px(self, x: np.ndarray, v: int) -> np.ndarray:
-        """View v's residuals in px: line end points' distances, then click offsets."""
-        r: np.ndarray = self.fns[v](self.view_x(x, v))
-        offset = self.offsets[v]
-        px: np.ndarray = (r if offset is None else r - offset) * self._unit(v)
-        return px
-
-    def _unit(self, v: int) -> np.ndarray:
-        unit = np.full(self.sizes[v], SIGMA_CLICK_PX)
-        unit[:self.n_lines[v]] = SIGMA_LINE_PX
-        return unit
-
-    def focal(self, x: np.ndarray) -> float:
-        return float(np.exp(x[2])) if self.free_focal else float(self.focal_px or 0.0)
-
-    def box_fit(self, x: np.ndarray, v: int) -> BoxFit:
-        """View v at x as a single-view BoxFit (for `perspective`'s rounding patterns: no
-        covariance; its influence only sizes the residuals)."""
-        pose = x[self.n_shared + 6 * v: self.n_shared + 6 * v + 6]
-        empty = np.zeros((4, 2))
-        return BoxFit(float(x[0]), float(x[1]), pose[:3].copy(), pose[3:].copy(), self.focal(x), None,
-                      empty, empty, np.zeros((4, 4)), 0.0, np.zeros((4, self.sizes[v])), self.principal)
-
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """Forward differences, each view's block from its own residuals alone."""
-        J = np.zeros((sum(self.sizes), x.size))
-        row = 0
-        for v, fn in enumerate(self.fns):
-            base = fn(self.view_x(x, v))  # the offsets are constants: they cancel
-            cols = [*range(self.n_shared), *range(self.n_shared + 6 * v, self.n_shared + 6 * v + 6)]
-            for c in cols:
-                h = 1.49e-8 * max(1.0, abs(x[c]))
-                step = x.copy()
-                step[c] += h
-                J[row:row + base.size, c] = (fn(self.view_x(step, v)) - base) / h * self.weights[v]
-            row += base.size
-        return J
-
-    def noise(self) -> np.ndarray:
-        """Per residual, the assumed data noise over the sigma it is whitened by, squared."""
-        parts = []
-        for n_lines, size, w in zip(self.n_lines, self.sizes, self.weights, strict=True):
-            part = np.full(size, (NOISE_CLICK_PX / SIGMA_CLICK_PX) ** 2)
-            part[:n_lines] = (NOISE_LINE_PX / SIGMA_LINE_PX) ** 2
-            parts.append(part * w**2)
-        return np.concatenate(parts)
-
-    def solve(self, x0: np.ndarray) -> OptimizeResult:
-        return least_squares(self.residual, x0, jac=self.jacobian, method="trf", x_scale="jac",
-                             loss="cauchy", f_scale=_F_SCALE, max_nfev=_MAX_NFEV)
-
-    def chi_square(self, res: OptimizeResult) -> float:
-        """The robust cost in units of the assumed noise (chi-square-like)."""
-        rho = _F_SCALE**2 * np.log1p((res.fun / _F_SCALE) ** 2)
-        return float(np.sum(rho / self.noise()))
-
-    def blocks(self, fun: np.ndarray) -> list[np.ndarray]:
-        return np.split(fun, np.cumsum(self.sizes)[:-1])
-
-
-def _start(views: list[_Prepared], lens: RadialDistortion, principal: np.ndarray,
-           focal: float, free: bool) -> np.ndarray:
-    """Each view's own box fitted at the shared start focal: its pose, and the median shape."""
-    K = _camera(focal, principal)
-    poses, shapes = [], []
-    for v in views:
-        terms = _terms(v, lens)
-        fit = fit_box(K, terms[0][0], terms[1][0], side_face=v.side_face)
-        poses.append(np.r_[fit.rvec, fit.tvec])
-        shapes.append((fit.width, fit.depth))
-    W, D = np.median(np.array(shapes), axis=0)
-    shared = [W, D, math.log(focal)] if free else [W, D]
-    return np.concatenate([np.array(shared, dtype=np.float64), *poses])
-
-
-def _dims(scale: KnownEdge, shape: np.ndarray) -> np.ndarray:
-    W, D = float(shape[0]), float(shape[1])
-    k = scale.length_mm / {"width": W, "height": 1.0, "depth": D}[scale.edge]
-    return np.array([W * k, k, D * k])
-
-
-def _covariance(problem: _Problem, res: OptimizeResult) -> np.ndarray:
-    """The single-view sandwich (`perspective._covariance`) over all views' residuals."""
-    J = np.asarray(res.jac, dtype=np.float64)
-    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
-    noise = problem.noise()
-    Jw = J * w[:, None]
-    A_inv = np.linalg.pinv(J.T @ Jw, rcond=1e-12)
-    cov: np.ndarray = A_inv @ (Jw.T @ (Jw * noise[:, None])) @ A_inv
-    dof = float(w.sum()) - res.x.size
-    factor = max(1.0, float(np.sum(w * res.fun**2 / noise)) / dof) if dof >= 1.0 else 1.0
-    return cov * factor
-
-
-def _dims_sigma(scale: KnownEdge, x: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    G = _dims_gradient(scale, x)
-    sigma: np.ndarray = np.sqrt(np.clip(np.diag(G @ cov[:2, :2] @ G.T), 0.0, None))
-    return sigma
-
-
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2))) if values.size else 0.0
-
-
-def _fit(views: list[_Prepared], lens: RadialDistortion, principal: np.ndarray, focal_px: float | None,
-         x0: np.ndarray | None = None, offsets: dict[int, np.ndarray] | None = None
-         ) -> tuple[_Problem, OptimizeResult]:
-    free = focal_px is None
-    problem = _Problem(views, lens, principal, focal_px, offsets)
-    if x0 is None:
-        focals = [v.focal_px for v in views if v.focal_px is not None]
-        start_f = focal_px if focal_px is not None else float(np.median(focals)) if focals else \
-            float(2 * principal.max() + 1)
-        x0 = _start(views, lens, principal, start_f, free)
-    return problem, problem.solve(x0)
-
-
-def _without(x: np.ndarray, n_shared: int, v: int) -> np.ndarray:
-    return np.delete(x, np.arange(n_shared + 6 * v, n_shared + 6 * v + 6))
-
-
-def _only(x: np.ndarray, n_shared: int, v: int) -> np.ndarray:
-    kept: np.ndarray = np.r_[x[:n_shared], x[n_shared + 6 * v: n_shared + 6 * v + 6]]
-    return kept
-
-
-@dataclass(frozen=True)
-class _Rounding:
-    """The box's edge radius (mm), shared by every view, and each view's fold offsets.
-
-    read : whether the photos' shading gave the radius (else none is corrected and
-        ROUNDING_RMS_MM is only an uncertainty)
-    folds : per view index, the folds' (midpoint mm, image offset px) (`RadiusEstimate`)
-    """
-
-    radius_mm: float
-    std_mm: float
-    read: bool
-    folds: dict[int, tuple[tuple[np.ndarray, np.ndarray], ...]]
-
-
-def _mm_per_unit(scale: KnownEdge, x: np.ndarray) -> float:
-    return float(_dims(scale, x[:2])[1])  # the height is the model's unit
-
-
-def _read_rounding(problem: _Problem, x: np.ndarray, lens: RadialDistortion, k: float) -> _Rounding:
-    """Each view's edge radius read from its shading through the shared box (`rounding`), pooled
-    with inverse-variance weights (at least STD_FLOOR_MM)."""
-    estimates: dict[int, RadiusEstimate] = {}
-    K = _camera(problem.focal(x), problem.principal)
-    size = np.array([x[0], 1.0, x[1]]) * k
-    for v, view in enumerate(problem.views):
-        fit = problem.box_fit(x, v)
-        R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
-
-        def to_image(world_mm: np.ndarray, fit: BoxFit = fit) -> np.ndarray:
-            return lens.distort(project(K, fit.rvec, fit.tvec, world_mm / k))
-
-        found = estimate_edge_radius(view.image, to_image, size, -R.T @ fit.tvec * k)
-        if found is not None:
-            estimates[view.index] = found
-    if not estimates:
-        return _Rounding(0.0, ROUNDING_RMS_MM, False, {})
-    weights = np.array([1.0 / e.std_mm**2 for e in estimates.values()])
-    radius = float(weights @ np.array([e.radius_mm for e in estimates.values()]) / weights.sum())
-    std = max(STD_FLOOR_MM, float(1.0 / np.sqrt(weights.sum())))
-    return _Rounding(radius, std, True, {i: e.fold_offsets for i, e in estimates.items()})
-
-
-def _offsets(problem: _Problem, x: np.ndarray, rounding: _Rounding, radius_mm: float, k: float
-             ) -> dict[int, np.ndarray]:
-    """Per view index, how the rounded edges move its whitened residuals at x (silhouettes inside
-    the sharp outline by the inset `radius_mm` implies; folds where the shading put the sharp edge),
-    as `measure.measure_box` takes them out of a single view's fit."""
-    out = {}
-    for v, view in enumerate(problem.views):
-        fit = problem.box_fit(x, v)
-        front, side = problem.terms[v][0][0], problem.terms[v][1][0]
-        moved = np.zeros(problem.sizes[v])
-        if radius_mm > 0:
-            moved += rounding_shifts(fit, front, side, radius_mm / k, side_face=view.side_face)[0]
-        folds = rounding.folds.get(view.index, ())
-        if folds:
-            moved += edge_shifts(fit, front, side, [(mid / k, -offset) for mid, offset in folds],
-                                 side_face=view.side_face)
-        out[view.index] = moved
-    return out
 
 
 def _measured_noise(prepared: list[_Prepared], problem: _Problem, x: np.ndarray) -> list[_Prepared]:
@@ -593,88 +246,6 @@ def _disagreements(problem: _Problem, res: OptimizeResult, lens: RadialDistortio
     # that factor (one bad view inflates only the fits that keep it).
     limit = float(chi2.ppf(OUTLIER_LEVEL, n_shared)) * float(np.median(scales))
     return np.array(T), limit, nfev
-
-
-def _refit_spread(problem: _Problem, x: np.ndarray, scale: KnownEdge, focal_px: float | None,
-                  variants: list[tuple[RadialDistortion, dict[int, np.ndarray]]]) -> tuple[np.ndarray, int]:
-    """How far the dimensions move when refitted under each variant (lens, offsets) of the model:
-    the largest move per dimension, and the work."""
-    base = _dims(scale, x[:2])
-    moves, nfev = [np.zeros(3)], 0
-    for lens, offsets in variants:
-        _, res = _fit(problem.views, lens, problem.principal, focal_px, x, offsets)
-        nfev += int(res.nfev)
-        moves.append(np.abs(_dims(scale, res.x[:2]) - base))
-    spread: np.ndarray = np.max(np.array(moves), axis=0)
-    return spread, nfev
-
-
-def _model_sigma(problem: _Problem, x: np.ndarray, scale: KnownEdge, focal_px: float | None,
-                 lens: RadialDistortion, rounding: _Rounding, offsets: dict[int, np.ndarray]
-                 ) -> tuple[np.ndarray, int]:
-    """1-sigma (3,) of the dimensions from what the model takes as known: the lens distortion (refit
-    at +-1 sigma of it) and the edge radius (refit at +-1 sigma of the radius read, or at the prior
-    ROUNDING_RMS_MM when none was read). Each is the larger move of its refits."""
-    k = _mm_per_unit(scale, x)
-    nfev = 0
-    lens_sigma = np.zeros(3)
-    if lens.kappa_std > 0:
-        variants = [(RadialDistortion(lens.kappa + s * lens.kappa_std, 0.0, lens.centre), offsets)
-                    for s in (1.0, -1.0)]
-        lens_sigma, work = _refit_spread(problem, x, scale, focal_px, variants)
-        nfev += work
-    radii = ([rounding.radius_mm + s * rounding.std_mm for s in (1.0, -1.0)] if rounding.read
-             else [rounding.std_mm])
-    variants = [(lens, _offsets(problem, x, rounding, max(r, 0.0), k)) for r in radii]
-    round_sigma, work = _refit_spread(problem, x, scale, focal_px, variants)
-    return np.hypot(lens_sigma, round_sigma), nfev + work
-
-
-def _dims_gradient(scale: KnownEdge, x: np.ndarray) -> np.ndarray:
-    """d(width, height, depth) / d(W, D), (3, 2), by central differences."""
-    G = np.zeros((3, 2))
-    for c in range(2):
-        h = 1e-6 * max(1.0, abs(x[c]))
-        e = np.zeros(2)
-        e[c] = h
-        G[:, c] = (_dims(scale, x[:2] + e) - _dims(scale, x[:2] - e)) / (2 * h)
-    return G
-
-
-def _fold_sigma(problem: _Problem, res: OptimizeResult, scale: KnownEdge, rounding: _Rounding) -> np.ndarray:
-    """1-sigma (3,) of the dimensions from where the edge detector found each rounded fold (both
-    faces seen): anywhere on the shading ramp, FOLD_FRACTION radii (of the radius read plus its
-    sigma, or ROUNDING_RMS_MM), as `model_error.model_error_cov` takes it for one view. One
-    physical fold is found alike in every view (the same surface and light), so its shifts in
-    all views move together; different folds are independent. Carried to the shape by the joint
-    fit's linear response (robust weights frozen)."""
-    x = res.x
-    k = _mm_per_unit(scale, x)
-    radius = (rounding.radius_mm + rounding.std_mm) if rounding.read else ROUNDING_RMS_MM
-    J = np.asarray(res.jac, dtype=np.float64)
-    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
-    Jw = J * w[:, None]
-    influence = -np.linalg.pinv(J.T @ Jw, rcond=1e-12)[:2] @ Jw.T  # d(W, D) / d(residuals)
-    starts = np.r_[0, np.cumsum(problem.sizes)[:-1]]
-    by_edge: dict[tuple[int, int], np.ndarray] = {}
-    for v, view in enumerate(problem.views):
-        terms = problem.terms[v]
-        rows = _rows(terms)
-        patterns = rounding_shifts(problem.box_fit(x, v), terms[0][0], terms[1][0],
-                                   FOLD_FRACTION * radius / k, side_face=view.side_face)[1]
-        for pattern in patterns:
-            hit = np.flatnonzero(pattern)
-            if hit.size == 0:
-                continue
-            key = (rows[int(hit[0])][0], rows[int(hit[0])][1])
-            full = by_edge.setdefault(key, np.zeros(res.fun.size))
-            full[starts[v]: starts[v] + pattern.size] += pattern * problem.weights[v]
-    G = _dims_gradient(scale, x)
-    var = np.zeros(3)
-    for full in by_edge.values():
-        var += (G @ (influence @ full)) ** 2
-    sigma: np.ndarray = np.sqrt(var)
-    return sigma
 
 
 def fit_views(views: Sequence[View], scale: KnownEdge, *, focal_px: float | None = None,
