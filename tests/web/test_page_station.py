@@ -1,11 +1,12 @@
 """Station mode in the page, against the real stack: a station stored from its station.json
 through the page (listed with its camera, board, plane fit and plate), a folder of photos dropped
 on it (a file that is not a photo left out), ONE job with an item per photo and nothing else, its
-table with each part's width, height and depth within max(2 %, 1.5 mm) of the rendered box and
-the empty support refused "no part found", and a part's fit on the photo opened from its row. The
-service calibrates a station from its photos sent through the page, and refuses a bad board.json
-and a plane photo without the board in words, at the file at fault; a station is deleted from its
-row. Screenshots go to test-artifacts/web/.
+table with each part's width, height and depth within max(2 %, 1.5 mm) of the rendered box, the
+empty support refused "no part found" and two parts "2 parts found: one part per photo", and a
+part's fit on the photo opened from its row. The service calibrates a station from its photos
+sent through the page, and refuses a bad board.json and a plane photo without the board in
+words, at the file at fault; a station is deleted from its row. Screenshots go to
+test-artifacts/web/.
 
 The photos are `prismsynth.station` renders of one station setup (as tests/service/
 test_stations.py makes them), calibrated with the true camera from one plate; a few photos only,
@@ -31,9 +32,12 @@ ARTEFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"
 SIZE = (1280, 1024)
 LAPTOP = {"width": 1366, "height": 768}
 SETUP_SEED = 3
-# The folder: three parts and the empty support (between them, so a refusal mid-batch is seen).
 TIMES = "\N{MULTIPLICATION SIGN}"
-PARTS = {"part-1.jpg": 101, "part-2.jpg": 102, "part-3.jpg": None, "part-4.jpg": 104}
+# The folder: (seed, parts on the support) a photo: three parts, the empty support between them
+# (a refusal mid-batch) and two parts on it; the refusals' words.
+PARTS = {"part-1.jpg": (101, 1), "part-2.jpg": (102, 1), "part-3.jpg": (200, 0), "part-4.jpg": (104, 1),
+         "part-5.jpg": (205, 2)}
+REFUSED = {"part-3.jpg": "no part found", "part-5.jpg": "2 parts found: one part per photo"}
 
 
 def _jpeg(image: np.ndarray) -> bytes:
@@ -68,14 +72,14 @@ def station_json(setup, tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def folder(setup, tmp_path_factory) -> tuple[Path, dict[str, dict[str, float] | None]]:
     """A folder of photos as a line camera leaves it, and each photo's true dimensions (None:
-    the empty support)."""
+    refused)."""
     root = tmp_path_factory.mktemp("line") / "batch"
     root.mkdir()
     truth: dict[str, dict[str, float] | None] = {}
-    for name, seed in PARTS.items():
-        scene = station_scene(seed, setup) if seed else station_scene(200, setup, parts=0)
+    for name, (seed, parts) in PARTS.items():
+        scene = station_scene(seed, setup, parts=parts)
         (root / name).write_bytes(_jpeg(scene.photo))
-        truth[name] = scene.box.dimensions if scene.box else None
+        truth[name] = scene.box.dimensions if parts == 1 and scene.box else None
     (root / "notes.txt").write_text("shift 2\n")
     return root, truth
 
@@ -135,24 +139,24 @@ def test_a_station_and_a_folder_of_photos_measured_in_one_job(page, station_json
     # The folder, as the folder picker gives it: every photo, the notes left out.
     page.locator("#station-folder").set_input_files(str(root))
     summary = page.locator("#station-photos-summary")
-    expect(summary).to_contain_text("4 photos · all uploaded")
+    expect(summary).to_contain_text("5 photos · all uploaded")
     expect(summary).to_contain_text("1 other file left out (batch/notes.txt)")
     with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
-        page.get_by_role("button", name="Measure 4 photos on line 1").click()
+        page.get_by_role("button", name="Measure 5 photos on line 1").click()
     body = sent.value.post_data_json
     station_id = page.locator("#stations tbody tr.current").get_attribute("data-station")
-    assert [set(i) for i in body["items"]] == [{"image", "station"}] * 4, body
+    assert [set(i) for i in body["items"]] == [{"image", "station"}] * len(PARTS), body
     assert {i["station"] for i in body["items"]} == {station_id}
 
     expect(page.locator("#job-state")).to_contain_text("Done.", timeout=300_000)
-    expect(page.locator("#job-state")).to_contain_text("1 of 4 scans failed")
-    expect(page.locator("#results-table tbody tr")).to_have_count(4)
+    expect(page.locator("#job-state")).to_contain_text(f"2 of {len(PARTS)} scans failed")
+    expect(page.locator("#results-table tbody tr")).to_have_count(len(PARTS))
     rows = {r["input"]: r for r in _rows(page)}
     assert set(rows) == {f"batch/{name}" for name in PARTS}, rows
     for name, dims in truth.items():
         r = rows[f"batch/{name}"]
         if dims is None:
-            assert r["state"].startswith("failed: no part found"), r
+            assert r["state"].startswith(f"failed: {REFUSED[name]}"), r
             assert not r["width"] and not r["height"] and not r["depth"], r
             continue
         assert r["state"] == "succeeded", r
