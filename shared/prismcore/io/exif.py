@@ -54,7 +54,8 @@ from typing import Any
 from PIL import Image
 
 from prismcore.errors import InputError
-from prismcore.io.images import PIL_ERRORS, jpeg_header, probe_image
+from prismcore.io.image_structure import jpeg_header
+from prismcore.io.images import PIL_ERRORS, probe_image
 
 __all__ = [
     "FILM_35MM_DIAGONAL_MM",
@@ -487,7 +488,7 @@ def _exif_block(data: bytes, fmt: str) -> bytes | None:
     if fmt == "TIFF":
         return data
     if fmt == "JPEG":
-        return jpeg_header(data)[2]  # the same segment walk images.py reads the orientation by
+        return jpeg_header(data)[2]  # the segment walk the orientation is read by
     if fmt == "PNG":
         return _chunk(data, 8, ">I", b"eXIf", stop=(b"IDAT", b"IEND"), crc=True)
     if fmt == "WEBP":
