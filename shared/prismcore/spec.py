@@ -4,29 +4,50 @@ Image references are plain strings here: the CLI reads them as file paths (relat
 file), the service as object-store, upload or URL references. Everything the engine needs
 besides the pixels is in this model, so a spec plus its images fully determines the output.
 A spec with `frames` names a video: each selected frame is measured as a photo of its own.
+The parts it is made of (points, scales, frame selection, file names) are `prismcore.spec_fields`,
+whose public names this module names too.
 """
 
 from __future__ import annotations
 
-import math
 import re
-from collections import Counter
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
-    FiniteFloat,
     NonNegativeInt,
-    ValidationError,
     field_validator,
     model_validator,
 )
-from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from prismcore.bounds import FocalPx, MmPerPxValue, NonNegativeMm, PositiveMm
+from prismcore.bounds import FocalPx, NonNegativeMm, PositiveMm
 from prismcore.camera import CameraModel
+from prismcore.spec_fields import (
+    FILE_NAMES,
+    FORMATS,
+    JOINT_MAX_PIXELS,
+    JOINT_MAX_VIEWS,
+    JOINT_NAME,
+    SUMMARY_NAME,
+    AutoPoints,
+    CsvOptions,
+    FrameSelection,
+    KnownEdge,
+    MmPerPx,
+    OutputFormat,
+    Pinhole,
+    Point,
+    ReferencePoints,
+    Scale,
+    SideFace,
+    _field_error,
+    _Strict,
+    error_message,
+    frame_folder,
+    parse_points,
+    search_area_problem,
+)
 
 __all__ = [
     "FILE_NAMES",
@@ -39,11 +60,13 @@ __all__ = [
     "FrameSelection",
     "KnownEdge",
     "MmPerPx",
+    "OutputFormat",
     "Pinhole",
     "Point",
     "ReferencePoints",
     "Scale",
     "ScanSpec",
+    "SideFace",
     "ViewSpec",
     "error_message",
     "frame_folder",
@@ -52,166 +75,8 @@ __all__ = [
     "view_spec",
 ]
 
-Point = tuple[FiniteFloat, FiniteFloat]
-"""An image position (x, y) in pixels: x = column, y = row, origin at the image's top-left
-pixel centre."""
-
-FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
-              "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
-              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json"}
-"""The file name of each output kind, the same in the CLI's folders and the service's keys
-(here, not in writers, so the API can use it without loading numpy)."""
-
-SUMMARY_NAME = "summary.json"
-"""The file name of a video job's summary across its frames (beside the frames' folders)."""
-
-JOINT_NAME = FILE_NAMES["joint"]
-"""The file name of a joint fit's report (several views of one part measured as ONE box)."""
-
-JOINT_MAX_VIEWS = 24
-"""The most views (photos, or a video's frames) one joint fit measures together: they are held
-decoded at once, and the fit's outlier test refits once per view."""
-
-JOINT_MAX_PIXELS = 150_000_000
-"""The most pixels a joint fit's views hold together (12 photos of 12 megapixels): all are held
-decoded at once (24 views of 12 MP held 1.3 GB), and a worker process has a share of a pod's
-memory."""
-
-
-def frame_folder(index: int) -> str:
-    """The folder (CLI) or key prefix (service) of one frame's outputs: ``frame_000123``."""
-    return f"frame_{index:06d}"
-
-
-OutputFormat = Literal["csv", "ply", "las", "laz", "glb"]
-FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb")
-"""The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
-and the fitted box as a textured binary glTF model (glb)."""
 
 _DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
-
-_POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class ReferencePoints(_Strict):
-    """The paper's five reference points, plus two optional extra corners.
-
-    p1 front upper-left, p2 front upper-right, p3 front lower-right, p6 front lower-left.
-    p4, p5 and p7 mark the second face by role: p4 the front corner where the second face's top
-    (far) edge starts, p5 the second face's far corner next to p4, p7 its far corner next to
-    the other shared corner. A right side (the paper's; a side photo's): p4 = p2 (side
-    upper-left), p5 side upper-right, p7 side lower-right. In one photo also a left side:
-    p4 = p1, p5 the side's far upper corner (left of p1), p7 its far lower corner (left of p6);
-    or the top: p4 = p1, p5 the top's far corner above p1, p7 its far corner above p2 (see
-    `ScanSpec.side_face`). p6 and p7 make each face a full quadrilateral, which perspective
-    correction needs.
-    """
-
-    p1: Point
-    p2: Point
-    p3: Point
-    p4: Point
-    p5: Point
-    p6: Point | None = None
-    p7: Point | None = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _from_list(cls, data: object) -> object:
-        # A bare list [[x1, y1], ..., [x5, y5], ([x6, y6], [x7, y7])] is accepted too.
-        if isinstance(data, list | tuple):
-            if len(data) not in (5, 7):
-                raise ValueError(f"give 5 or 7 points, got {len(data)}")
-            return dict(zip(_POINT_NAMES, data, strict=False))
-        return data
-
-    def as_dict(self) -> dict[str, Point]:
-        return {n: getattr(self, n) for n in _POINT_NAMES if getattr(self, n) is not None}
-
-
-class MmPerPx(_Strict):
-    """Millimetres per pixel in the face plane; `side` is the side photo's (two-photo mode)."""
-
-    kind: Literal["mm_per_px"] = "mm_per_px"
-    front: MmPerPxValue
-    side: MmPerPxValue | None = None
-
-
-class Pinhole(_Strict):
-    """Shooting distance: depth of the photographed face's centre along the optical axis, mm.
-
-    Needs `focal_px` in the spec. For a face photographed squarely this gives
-    mm-per-pixel = distance / focal.
-    """
-
-    kind: Literal["pinhole"] = "pinhole"
-    distance_mm: PositiveMm
-    side_distance_mm: PositiveMm | None = None
-
-
-class KnownEdge(_Strict):
-    """One real edge length of the part."""
-
-    kind: Literal["edge"] = "edge"
-    edge: Literal["width", "height", "depth"] = "width"
-    length_mm: PositiveMm
-
-
-Scale = Annotated[MmPerPx | Pinhole | KnownEdge, Field(discriminator="kind")]
-
-
-class CsvOptions(_Strict):
-    """CSV layout. The default (bare `x,y,z` rows) is the paper's and what CAD importers read."""
-
-    header: bool = False
-    colors: bool = False
-
-
-Seconds = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
-
-
-class FrameSelection(_Strict):
-    """Which frames of a video to measure.
-
-    Either `indices` alone, or any of `start_s`/`end_s`, `every` and `sharpest` together: the
-    candidates are the frames whose time (index / fps) lies in [start_s, end_s), every
-    `every`-th of them counted from the first; `sharpest` then keeps the K candidates with the
-    highest variance of the Laplacian (the least blurred). An empty selection means every frame.
-    The number of frames measured is capped by the caller (the service's setting, the CLI's
-    ``--max-frames``).
-    """
-
-    every: int | None = Field(default=None, ge=1, description="Every Nth candidate frame (1: all).")
-    start_s: Seconds | None = Field(default=None, description="First time measured, seconds.")
-    end_s: Seconds | None = Field(default=None, description="Frames before this time, seconds.")
-    indices: list[NonNegativeInt] | None = Field(
-        default=None, min_length=1, description="Explicit frame indices (0 = the first frame)."
-    )
-    sharpest: int | None = Field(
-        default=None, ge=1, description="Keep the K sharpest candidates (variance of the Laplacian)."
-    )
-
-    @model_validator(mode="after")
-    def _consistent(self) -> FrameSelection:
-        if self.indices is not None:
-            others = {k: getattr(self, k) for k in ("every", "start_s", "end_s", "sharpest")
-                      if getattr(self, k) is not None}
-            if others:
-                given = ", ".join(f"{k}={v!r}" for k, v in others.items())
-                raise ValueError(f"indices name the frames themselves: drop {given}")
-            repeated = sorted(i for i, n in Counter(self.indices).items() if n > 1)
-            if repeated:
-                raise ValueError(f"frame indices repeated: {repeated}")
-        if self.start_s is not None and self.end_s is not None and self.end_s <= self.start_s:
-            raise ValueError(f"end_s {self.end_s!r} must be after start_s {self.start_s!r}")
-        return self
-
-
-
 
 
 def _spec_schema(schema: dict[str, Any]) -> None:
@@ -228,55 +93,7 @@ def _auto_schema(schema: dict[str, Any]) -> None:
         options.insert(0, {"const": "auto"})
 
 
-class AutoPoints(_Strict):
-    """Where the zero-click search looks: the box around `hint`, or inside `roi`."""
-
-    hint: Point | None = Field(default=None, description="(x, y) px on the box wanted (a video: in "
-                               "its first selected frame; each later frame starts at the box the "
-                               "frame before showed).")
-    roi: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] | None = Field(
-        default=None, description="(x0, y0, x1, y1) px: look for the box inside this region only.")
-
-
-def search_area_problem(hint: tuple[float, float] | None, roi: tuple[float, float, float, float] | None,
-                        width: int, height: int) -> tuple[str, str] | None:
-    """Why the zero-click search cannot look where it is told in a `width` x `height` px photo:
-    ("hint" or "roi", the reason), or None. One rule for the engine (`locate.find_points`) and
-    the API (at submit, where the upload's size is known)."""
-    w, h = width, height
-    if hint is not None:
-        hx, hy = (float(v) for v in hint)
-        if not (math.isfinite(hx) and math.isfinite(hy) and 0 <= hx < w and 0 <= hy < h):
-            return "hint", f"hint {hint!r} is outside the {w}x{h} image"
-    if roi is not None:
-        x0, y0, x1, y1 = (float(v) for v in roi)
-        if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
-            return "roi", f"roi {roi!r}: expected X0,Y0,X1,Y1 with X0 < X1 and Y0 < Y1"
-        ix0, iy0 = max(0, math.floor(x0)), max(0, math.floor(y0))
-        ix1, iy1 = min(w, math.ceil(x1) + 1), min(h, math.ceil(y1) + 1)
-        if ix1 - ix0 < 16 or iy1 - iy0 < 16:
-            return "roi", f"roi {roi!r} leaves less than 16x16 px of the {w}x{h} image"
-    return None
-
-
-SideFace = Literal["auto", "right", "left", "top"]
-
 _NO_FIRST_VIEW = "(the first view's photo)"
-
-
-def error_message(msg: str) -> str:
-    """A spec validation error's message as a user reads it: pydantic's "Value error, " before a
-    validator's own message says nothing to a user (the CLI's one line and the API's problem
-    details both show it through here)."""
-    return msg.removeprefix("Value error, ")
-
-
-def _field_error(loc: tuple[str | int, ...], message: str, value: object) -> ValidationError:
-    """A validation error at `loc` inside the model being validated (pydantic prefixes the
-    model's own place), so a cross-field rule points at the field at fault."""
-    return ValidationError.from_exception_data("ScanSpec", [InitErrorDetails(
-        type=PydanticCustomError("value_error", "{message}", {"message": message}), loc=loc,
-        input=value)])
 
 
 class ViewSpec(_Strict):
@@ -699,24 +516,3 @@ def view_spec(spec: ScanSpec, k: int) -> ScanSpec:
         "max_pixels": spec.max_pixels})
 
 
-_PAIR = re.compile(r"^\s*(-?\d+(?:\.\d+)?)\s*,\s*(-?\d+(?:\.\d+)?)\s*$")
-
-
-def parse_points(text: str) -> ReferencePoints:
-    """Parse ``"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]"`` into reference points.
-
-    Raises
-    ------
-    ValueError
-        If a pair is malformed or the count is not 5 or 7; the message quotes the bad text.
-    """
-    pairs = text.split()
-    points = []
-    for pair in pairs:
-        match = _PAIR.match(pair)
-        if match is None:
-            raise ValueError(f"bad point {pair!r}: expected x,y")
-        points.append((float(match[1]), float(match[2])))
-    if len(points) not in (5, 7):
-        raise ValueError(f"expected 5 or 7 points (P1..P5 [P6 P7]), got {len(points)} in {text!r}")
-    return ReferencePoints.model_validate(points)

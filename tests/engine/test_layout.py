@@ -24,6 +24,7 @@ LAYERS: list[set[str]] = [
     {"_lazy", "_version", "errors"},
     {"bounds"},
     {"camera"},
+    {"spec_fields"},
     {"spec"},
     {"io", "quality"},
     {"geometry"},
@@ -43,7 +44,6 @@ FORBIDDEN = {
 MAX_LINES = 600
 # Modules still over MAX_LINES while issue 26's splits land (each leaves this list when split).
 TOO_LONG_FOR_NOW = {
-    "prismcore/spec.py",
     "prismsynth/render.py",
 }
 
