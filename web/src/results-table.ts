@@ -7,6 +7,7 @@
 import { apiUrl, call, getJson, message } from "./api";
 import type { Job, ResultRow, ResultsTable, Verdict } from "./types";
 import { badge, verdictText } from "./verdicts";
+import { DIMENSIONS, qualified } from "./warnings";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 
@@ -206,6 +207,14 @@ export class ResultsTableView {
         td.title = `${dv}${dev === null ? "" : `, deviation ${dev >= 0 ? "+" : ""}${dev.toFixed(2)} mm`}`;
       }
       td.append(c.cell(r));
+      // A figure a warning qualifies is flagged here too, as in the result (warnings.ts).
+      const dim = DIMENSIONS.find((d) => d === c.id);
+      const warned = dim !== undefined && warningsOf(r).some((w) => qualified(w).includes(dim));
+      if (warned && td.textContent) {
+        td.classList.add("warned");
+        td.append(Object.assign(document.createElement("span"), { className: "dim-warned", textContent: " ⚠",
+          title: "A warning of this scan is about this figure" }));
+      }
       if (c.id === "input" && inputName(r) !== String(r.input ?? "")) td.title = String(r.input);
       if (typeof dv === "string") {
         // The dimension's own verdict as a symbol and (for screen readers) a word, not colour alone.
