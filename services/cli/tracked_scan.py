@@ -121,7 +121,7 @@ def _joint(spec: ScanSpec, path: Path, out: Path, good: dict[int, np.ndarray],
     """The tracked frames whose views differ most, measured as ONE box: joint.json."""
     assert isinstance(spec.scale, KnownEdge)  # the spec's rules
     chosen = viewing_spread(good, JOINT_TRACKED_VIEWS)
-    views = [View(frame, good[index], spec.side_face, f"frame {index}")
+    views = [View(frame, good[index].tolist(), spec.side_face, f"frame {index}")
              for index, frame in iter_frames(path, chosen)]
     result = fit_views(views, spec.scale, focal_px=spec.focal_px)
     report = joint_report(result)

@@ -19,9 +19,11 @@ points of every other selected frame follow from the box's own motion:
 A frame whose track is lost (too few inliers on the front, forward-backward errors too large) or
 whose box no longer fits (the plan's fit guard refuses it) is named with the reason and left out;
 the track is then picked up from the last good frame, with a wider search (larger window, more
-pyramid levels) straight to each later frame, for up to `TrackerSettings.max_gap` frames. A cut
-to another scene (a large change of the grey-level histogram from one frame to the next, or no
-feature at all surviving) ends the track: every later frame is left out with that reason.
+pyramid levels) straight to each later frame, for up to `TrackerSettings.max_gap` frames (no
+feature surviving at all is such a loss: a hand passing over the box). A cut to another scene (a
+large change of the grey-level histogram from one frame to the next) ends the track at once, and
+a track not found again within `max_gap` frames ends too: every later frame is left out with the
+reason.
 
 Frames before the marked one are tracked backwards from it (the caller's frames are kept, in
 grey, until the marked one is reached). Pure functions over arrays: no I/O.
@@ -89,6 +91,9 @@ class TrackerSettings:
     """The re-seeding search's window side, px."""
     wide_levels: int = 5
     """The re-seeding search's pyramid levels."""
+    side_model: str = "homography"
+    """How the second face's far corners move: "homography" (its own RANSAC homography) or
+    "affine" (an affine motion of its inliers held to the fold as the front moved it)."""
     max_width_px: int = 1280
     """Frames wider than this are tracked at a reduced size (the points are scaled back)."""
 
@@ -345,7 +350,7 @@ class _Tracker:
         new, ok, fb = _lk(st.grey, grey, allpts, win, levels)
         ok &= fb < s.fb_max_px
         if not ok.any():
-            return _Step(None, reason="no feature on the box could be followed into this frame", cut=not wide)
+            return _Step(None, reason="track lost: no feature on the box could be followed into this frame")
         fb_med = float(np.median(fb[ok]))
         faces, hs, inl = [], [], []
         start = 0
@@ -367,14 +372,17 @@ class _Tracker:
         moved[3] = _apply(hs[0], pts[3:4])[0]
         side_h = None
         if hs[1] is not None and inl[1] >= s.min_side_inliers:
-            # The second face shares an edge with the front: its homography is refitted to its
-            # inliers with that edge's two corners as the front moved them (weighed as many
-            # features), so a thin or plain face cannot swing about the fold.
-            shared = list(_SHARED_CORNERS[self.side_face])
-            weight = max(len(faces[1].now), 8)
-            src = np.concatenate([faces[1].anchor.astype(np.float64), np.repeat(pts[shared], weight, axis=0)])
-            dst = np.concatenate([faces[1].now.astype(np.float64), np.repeat(moved[shared], weight, axis=0)])
-            side_h, _ = cv2.findHomography(src, dst, 0)
+            side_h = hs[1]
+            if s.side_model == "affine":
+                # A narrow second face's homography extrapolates its far corners badly: an affine
+                # motion of its inliers with the fold's two corners as the front moved them.
+                shared = list(_SHARED_CORNERS[self.side_face])
+                src = np.concatenate([faces[1].anchor.astype(np.float64), pts[shared]])
+                dst = np.concatenate([faces[1].now.astype(np.float64), moved[shared]])
+                w = np.r_[np.ones(len(faces[1].now)), np.full(2, max(len(faces[1].now), 8.0))]
+                A = np.column_stack([src, np.ones(len(src))]) * w[:, None]
+                sol, *_ = np.linalg.lstsq(A, dst * w[:, None], rcond=None)
+                side_h = np.vstack([sol.T, [0.0, 0.0, 1.0]])
         if side_h is not None and np.isfinite(side_h).all():
             moved[list(_SIDE_ONLY)] = _apply(side_h, pts[list(_SIDE_ONLY)])
         else:

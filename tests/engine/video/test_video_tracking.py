@@ -1,0 +1,122 @@
+"""Points marked on one frame carried to the others (prismcore.video.tracking, issue 29).
+
+Bounds with margins over the renders' seeds; the figures themselves: benchmarks/video_tracking.py.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from prismcore.errors import InputError
+from prismcore.video.tracking import box_refiner, track_points, viewing_spread
+from prismsynth import Box
+from prismsynth.video import moving_clip
+
+FRAMES = 40
+SIZE = (640, 360)
+FRONT = [0, 1, 2, 5]
+
+
+@functools.cache
+def _clip(seed: int) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    images, points = moving_clip(Box(120.0, 80.0, 60.0), FRAMES, image_size=SIZE, focal_px=600.0,
+                                 sway_deg=8.0, seed=seed)
+    return tuple(images), tuple(points)
+
+
+def _worst(points: np.ndarray, truth: np.ndarray, rows: list[int] | None = None) -> float:
+    d = np.linalg.norm(points - truth, axis=1)
+    return float((d if rows is None else d[rows]).max())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_renders_tracked_and_refined_within_a_pixel(seed: int) -> None:
+    images, truth = _clip(seed)
+    report = set(range(0, FRAMES, 5)) | {FRAMES - 1}
+    out = track_points(list(enumerate(images)), truth[0], 0, report=report, refine=box_refiner())
+    assert sorted(out) == sorted(report)
+    for index, frame in out.items():
+        assert frame.points is not None, frame.reason
+        assert _worst(frame.points, truth[index]) < 1.5, index
+        assert frame.quality is not None and 0.0 <= frame.quality.confidence <= 1.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_front_followed_every_frame_without_refinement(seed: int) -> None:
+    images, truth = _clip(seed)
+    out = track_points(list(enumerate(images)), truth[0], 0)
+    assert len(out) == FRAMES
+    worst = max(_worst(f.points, truth[i], FRONT) for i, f in out.items() if f.points is not None)
+    assert all(f.points is not None for f in out.values())
+    assert worst < 2.5
+    q = out[FRAMES - 1].quality
+    assert q is not None and q.inliers_front >= 10 and q.fb_error_px < 0.5 and q.steps == FRAMES - 1
+
+
+def test_frames_before_the_marked_one_are_tracked_backwards() -> None:
+    images, truth = _clip(0)
+    start = 20
+    out = track_points(list(enumerate(images)), truth[start], start, report={0, 10, start, 30},
+                       refine=box_refiner())
+    assert sorted(out) == [0, 10, start, 30]
+    for index, frame in out.items():
+        assert frame.points is not None, frame.reason
+        assert _worst(frame.points, truth[index]) < 1.5
+
+
+def test_a_lost_frame_is_left_out_and_the_track_picked_up_after_it() -> None:
+    images, truth = _clip(1)
+    frames = [img.copy() for img in images]
+    box = truth[12]
+    x0, y0 = np.floor(box.min(axis=0)).astype(int) - 5
+    x1, y1 = np.ceil(box.max(axis=0)).astype(int) + 5
+    frames[12][max(y0, 0):y1, max(x0, 0):x1] = frames[12][max(y0, 0):y1, max(x0, 0):x1].mean(axis=(0, 1))
+    out = track_points(list(enumerate(frames)), truth[0], 0, report={5, 12, 20, 30}, refine=box_refiner())
+    assert out[12].points is None and out[12].reason is not None and "lost" in out[12].reason
+    for index in (5, 20, 30):
+        assert out[index].points is not None, out[index].reason
+        assert _worst(out[index].points, truth[index]) < 1.5
+
+
+def test_a_cut_to_another_scene_ends_the_track() -> None:
+    images, truth = _clip(0)
+    other, _ = _clip(2)
+    rng = np.random.default_rng(0)
+    cut = [rng.integers(0, 60, img.shape, dtype=np.uint8) for img in other[:10]]  # a dark scene
+    frames = list(enumerate([*images[:15], *cut]))
+    out = track_points(frames, truth[0], 0, report={10, 15, 20})
+    assert out[10].points is not None
+    for index in (15, 20):
+        assert out[index].points is None and "cut" in str(out[index].reason)
+
+
+def test_a_box_that_no_longer_fits_is_named() -> None:
+    images, truth = _clip(0)
+
+    def refuse_at_20(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        if image is images[20]:
+            raise InputError("the fitted box sits 40 px from P5")
+        return points
+
+    out = track_points(list(enumerate(images)), truth[0], 0, report={10, 20, 30}, refine=refuse_at_20)
+    assert out[20].points is None and "no longer fits" in str(out[20].reason) and "P5" in str(out[20].reason)
+    assert out[10].points is not None and out[30].points is not None
+
+
+def test_bad_input_is_refused() -> None:
+    images, truth = _clip(0)
+    with pytest.raises(InputError, match="not among"):
+        track_points(list(enumerate(images[:5])), truth[0], 9)
+    with pytest.raises(InputError, match="seven"):
+        track_points(list(enumerate(images[:5])), truth[0][:5], 0)
+
+
+def test_viewing_spread_keeps_the_extremes_of_a_sweep() -> None:
+    _, truth = _clip(0)
+    points = dict(enumerate(truth))
+    chosen = viewing_spread(points, 5)
+    assert len(chosen) == 5 and chosen == sorted(chosen)
+    assert viewing_spread(points, 100) == list(range(FRAMES))
