@@ -24,6 +24,7 @@ _DENSE_POINTS = 200
 _FITTED_STARTS = 8  # at most
 _AGREEING = 3  # fits of the starts ending at the best cost: the multi-start stops there
 _AGREE = 0.02  # relative cost: the same minimum
+_AGREE_SIZE = 0.03  # of the box's largest side: the same box
 _WEAK_STEP = 20.0  # RGB levels
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 
@@ -360,6 +361,15 @@ def _start(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> 
     return starts
 
 
+def _same_box(a: np.ndarray, b: np.ndarray) -> bool:
+    """Two fitted parameter sets the same box within _AGREE_SIZE: footprint sides (in either order:
+    a box turned a quarter with its sides swapped is the same box), height and centre."""
+    sa = np.r_[np.sort(np.exp(a[3:5])), np.exp(a[5])]
+    sb = np.r_[np.sort(np.exp(b[3:5])), np.exp(b[5])]
+    tol = _AGREE_SIZE * float(max(sa.max(), sb.max()))
+    return bool(np.all(np.abs(sa - sb) <= tol) and np.hypot(a[0] - b[0], a[1] - b[1]) <= tol)
+
+
 def fold_distance(gray: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Distance (px, float32, capped) to the nearest intensity edge inside the part: where its
     folds between faces of different shading show."""
@@ -464,14 +474,14 @@ def fit_box(
     coarse = problem(_COARSE_POINTS)
     starts = _start(outline, K, R, t)
     costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
-    # Fitted best first, until _AGREEING of them end at the best cost yet (the same minimum
-    # reached from different starts), or _FITTED_STARTS are fitted.
+    # Fitted best first, until _AGREEING of them end at the best one yet (the same box at the same
+    # cost, reached from different starts), or _FITTED_STARTS are fitted.
     fits: list[Any] = []
     for i in np.argsort(costs)[:_FITTED_STARTS]:
         fits.append(least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm",
                                   x_scale="jac", max_nfev=25))
-        lowest = min(f.cost for f in fits)
-        if sum(f.cost <= lowest * (1 + _AGREE) for f in fits) >= _AGREEING:
+        lowest = min(fits, key=lambda f: f.cost)
+        if sum(f.cost <= lowest.cost * (1 + _AGREE) and _same_box(f.x, lowest.x) for f in fits) >= _AGREEING:
             break
     best_x = min(fits, key=lambda f: f.cost).x
     dense = problem(_DENSE_POINTS)
