@@ -257,6 +257,28 @@ def engine_photo_like_measure(ctx: Ctx) -> float:
     return photo_like_engine(ctx)["measure"]
 
 
+def _dims(report: dict) -> str:
+    dims, sigma = report["dimensions"], report.get("uncertainty") or {}
+    return " x ".join(f"{dims[k]:.2f}±{float(sigma.get(k) or 0):.2f}" for k in ("width", "height", "depth"))
+
+
+@figure("engine.dims", "1 engine", "dimensions (mm, ±1 sigma): sample; photo-like seeds 0-2", unit="mm")
+def engine_dims(ctx: Ctx) -> Measured:
+    """The answers the timed engine gives, beside the base's: a speed-up must not move them
+    beyond their sigma (issue 28 item 1)."""
+    from prismcore import ScanSpec, run_scan
+    from prismsynth import photo_like_scene
+    result, _ = sample_result(ctx)
+    out = [f"sample {_dims(result.report)}"]
+    for seed in range(3):
+        p = photo_like_scene(seed, image_size=(1280, 1024))
+        clicks = [list(map(float, p.clicks[f"p{i}"])) for i in range(1, 8)]
+        spec = ScanSpec(image="photo.jpg", points=clicks,
+                        scale={"kind": "edge", "edge": p.known_edge, "length_mm": p.known_length_mm})
+        out.append(f"{seed}: {_dims(run_scan(spec, p.image).report)}")
+    return Measured(None, "; ".join(out))
+
+
 # ---------------------------------------------------------------------------------------------
 # 2. Outputs
 # ---------------------------------------------------------------------------------------------
