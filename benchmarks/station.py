@@ -174,11 +174,14 @@ def _hand_held(n: int, seed: int) -> None:
     k2 -0.05..0.1, the principal point up to 15 px off the centre; parts 20-80 mm on the board)."""
     from prismcore.station.handheld import measure_on_board
 
+    if n <= 0:
+        return
     found, within, in3, total, silent = 0, 0, 0, 0, 0
     reasons: Counter[str] = Counter()
     refused: list[int] = []
     worst: list[tuple[float, str]] = []
     cpu_ms: list[float] = []
+    signed: dict[str, list[float]] = {"width": [], "height": [], "depth": []}
     for i in range(n):
         s = 5000 + seed * 1000 + i
         sc = _hand_held_scene(s)
@@ -199,6 +202,7 @@ def _hand_held(n: int, seed: int) -> None:
             within += abs(err) <= max(0.01 * true, 1.0)
             in3 += abs(err) <= 3 * m.uncertainty[key]
             silent += abs(err) > 0.05 * true and not warned
+            signed[key].append(err)
             worst.append((abs(err) / true, f"seed {s} {key} {true:.1f} -> {m.dimensions[key]:.1f} "
                                            f"+- {m.uncertainty[key]:.2f} mm{' (warned)' if warned else ''}"))
     print(f"hand-held on the board, no station: focal length and k1 from the board ({n} photos, seeds "
@@ -214,6 +218,8 @@ def _hand_held(n: int, seed: int) -> None:
     print(f"  > 5 % off without a warning    {silent:7d}   target 0 (the focal length's note is no warning)")
     for rel, text in sorted(worst, reverse=True)[:3]:
         print(f"    worst {rel:6.1%}: {text}")
+    if found:
+        print("  mean signed error, mm: " + ", ".join(f"{k} {np.mean(v):+.2f}" for k, v in signed.items()))
     if cpu_ms:
         print(f"  CPU ms a photo (measure_on_board, one thread), median / p90 / worst: {_spread(cpu_ms)}")
 
