@@ -88,7 +88,9 @@ def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, m
     image = np.zeros((1024, 1280, 3), np.uint8)
     overlay_report.overlay_from_report(image, report)
     overlay_report.overlay_from_report(image, {**report, "points_source": "clicked"})
-    assert keys == ["found point", "click"]
+    # On a station (or a board) nobody clicked: the points are the fitted box's.
+    overlay_report.overlay_from_report(image, {**report, "scale_source": "station"})
+    assert keys == ["found point", "click", "fitted box's point"]
 
 
 def test_the_serve_banner_names_the_page():

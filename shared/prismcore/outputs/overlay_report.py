@@ -69,6 +69,14 @@ def points_found(report: Mapping[str, Any]) -> str | None:
     return "points found" + (f" (confidence {confidence:.2f})" if confidence is not None else "")
 
 
+def _points_key(report: Mapping[str, Any]) -> str:
+    """What the overlay's key calls the crosses: clicks, or points placed by the search or by a
+    box fitted on a station (or a board), which nobody clicked."""
+    if report.get("scale_source") in ("station", "board"):
+        return "fitted box's point"
+    return "found point" if points_found(report) else "click"
+
+
 def report_notes(report: Mapping[str, Any]) -> list[str]:
     """The legend's lines for a report: dimensions (± one standard deviation when the report
     has `uncertainty`; a known edge's "(given)"), focal length (`camera`), fit RMS (`fit`),
@@ -236,4 +244,4 @@ def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: 
         side_face = "right"  # a report from before the choice existed, or a side photo's
     return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
                         title=title, warn_px=warn_px, side_face=side_face,
-                        points_key="found point" if points_found(report) else "click")
+                        points_key=_points_key(report))
