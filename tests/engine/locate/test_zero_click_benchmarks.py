@@ -13,7 +13,7 @@ import pytest
 
 pytestmark = pytest.mark.slow  # benchmark scripts, out of scripts/test --fast
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _run(*argv: str) -> str:

@@ -233,7 +233,7 @@ def _video_module():  # type: ignore[no-untyped-def]
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "real_video_data.py"
+    path = Path(__file__).resolve().parents[3] / "benchmarks" / "real_video_data.py"
     spec = importlib.util.spec_from_file_location("real_video_data", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

@@ -434,7 +434,7 @@ def test_text_file_opened_w_is_refused(tmp_path):
 
 
 def test_benchmark_run_is_quiet_and_complete(capfd):
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "writers_bench.py"
+    path = Path(__file__).resolve().parents[3] / "benchmarks" / "writers_bench.py"
     spec = importlib.util.spec_from_file_location("writers_bench", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)

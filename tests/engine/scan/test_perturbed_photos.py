@@ -36,7 +36,7 @@ from prismcore.locate.search import Found, find_points
 from prismsynth import photo_like_scene
 from prismsynth.scenes import clutter_scene
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 pytestmark = pytest.mark.slow  # about 30 photos, each fitted four times
 
 

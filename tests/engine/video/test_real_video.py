@@ -11,7 +11,7 @@ import pytest
 
 from prismcore import InputError, ScanSpec, run_scan
 
-_DATA = Path(__file__).resolve().parents[2] / "benchmarks" / "real_video_data.py"
+_DATA = Path(__file__).resolve().parents[3] / "benchmarks" / "real_video_data.py"
 _spec = importlib.util.spec_from_file_location("real_video_data", _DATA)
 assert _spec is not None and _spec.loader is not None
 rvd = importlib.util.module_from_spec(_spec)
