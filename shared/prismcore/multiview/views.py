@@ -6,7 +6,7 @@ view measured alone by the single-view pipeline, its evidence made ready for the
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -55,6 +55,10 @@ class _Prepared:
     lines_rejected: int = 0
     line_sigma_px: float = SIGMA_LINE_PX
     click_sigma_px: float = SIGMA_CLICK_PX
+    # The faces' evidence undistorted, per face and lens (`problem._terms`); shared by the views
+    # `replace` makes of this one, whose faces are either these (same answer) or new (own key).
+    undistorted: dict[tuple[int, float, bytes], tuple[FaceEvidence, FaceEvidence]] = field(
+        default_factory=dict, compare=False, repr=False)
 
     def without_lines(self, drop: dict[str, set[int]] | None = None) -> _Prepared:
         """The view with the named sides' edge lines (all, when None) taken out (its clicks stay)."""
