@@ -433,19 +433,44 @@ def cmd_scan_ratio(ctx: Ctx) -> Measured:
 # 3. The command itself (the CLI engineer's)
 # ---------------------------------------------------------------------------------------------
 
-def _process_cpu_ms(args: list[str], runs: int) -> float:
-    cpus = []
-    for _ in range(runs):
-        _, cpu, done = run_child_process(args)
-        if done.returncode != 0:
-            raise RuntimeError(f"{args[-1]} failed: {done.stderr[-300:]}")
-        cpus.append(cpu * 1000)
-    return statistics.median(cpus)
+# A typer app of two commands, its --help: what typer and rich cost alone, the floor of prism --help.
+_TYPER_FLOOR = """import typer
+app = typer.Typer(add_completion=False, help="x")
+app.command()(lambda x: None)
+@app.command()
+def b(y: int = 1) -> None:
+    \"\"\"B.\"\"\"
+app()
+"""
+
+
+def help_runs(ctx: Ctx) -> dict[str, float]:
+    """`prism --help` in fresh processes: median wall and CPU ms; and the typer floor's CPU."""
+    def make() -> dict[str, float]:
+        runs = 5 if ctx.quick else 11
+        walls, cpus, floor = [], [], []
+        for _ in range(runs):
+            wall, cpu, done = run_child_process([*prism_command(ctx.tree), "--help"])
+            if done.returncode != 0:
+                raise RuntimeError(f"prism --help failed: {done.stderr[-300:]}")
+            walls.append(wall * 1000)
+            cpus.append(cpu * 1000)
+            floor.append(run_child_process([sys.executable, "-c", _TYPER_FLOOR, "--help"])[1] * 1000)
+        return {"wall": statistics.median(walls), "cpu": statistics.median(cpus),
+                "floor": statistics.median(floor)}
+    return ctx.once("help", make)
 
 
 @figure("cmd.help", "3 command", "prism --help (process CPU)", unit="ms", target="<= 200", limit=200.0)
-def cmd_help(ctx: Ctx) -> float:
-    return _process_cpu_ms([*prism_command(ctx.tree), "--help"], 3 if ctx.quick else 7)
+def cmd_help(ctx: Ctx) -> Measured:
+    t = help_runs(ctx)
+    return Measured(t["cpu"], f"a bare 2-command typer app's --help: {t['floor']:.0f} ms CPU")
+
+
+@figure("cmd.help_wall", "3 command", "prism --help (wall; the machine's load adds to it)", unit="ms",
+        target="<= 200", limit=200.0)
+def cmd_help_wall(ctx: Ctx) -> Measured:
+    return Measured(help_runs(ctx)["wall"], f"load average {os.getloadavg()[0]:.1f}")
 
 
 @figure("cmd.scan_fixed", "3 command", "prism scan: fixed cost (process CPU - in-command work)", unit="ms",
@@ -460,35 +485,123 @@ def cmd_scan_fixed(ctx: Ctx) -> Measured:
 # 4. Several views, the search, the worker (the joint-fit / search engineer's)
 # ---------------------------------------------------------------------------------------------
 
+# The joint fit's cases: (seed, views) of prismsynth.views.photo_like_views at 1280x1024 (seed 0
+# has no 30 poses far enough apart: seed 1 for 30).
+JOINT_CASES = {3: 0, 10: 0, 30: 1}
+
+
+def joint_views(views: int) -> dict[str, Any]:
+    """The renders of one joint-fit case, drawn once per machine (both trees fit the same
+    pixels: the renders are the fixture, not what is measured): images, clicks, the known edge
+    and the true box."""
+    import numpy as np
+    seed = JOINT_CASES[views]
+    cache = Path(tempfile.gettempdir()) / f"speed-joint-views-{seed}-{views}.npz"
+    if not cache.exists():
+        from prismsynth.views import photo_like_views
+        scenes = photo_like_views(seed, views, image_size=(1280, 1024))
+        p = scenes[0]
+        part = cache.with_suffix(".part.npz")
+        np.savez(part, images=np.stack([q.image for q in scenes]),
+                 clicks=np.array([q.click_list() for q in scenes], dtype=np.float64),
+                 truth=np.array([p.box.width_mm, p.box.height_mm, p.box.depth_mm]),
+                 edge=np.array(p.known_edge), length=np.array(p.known_length_mm))
+        part.rename(cache)
+    with np.load(cache) as data:
+        return {k: data[k] for k in data.files}
+
+
+def joint_fit(ctx: Ctx, views: int) -> Measured:
+    """CPU s of `fit_views` over `views` views (no focal, one known edge; cv2 single-threaded), and
+    in the note the error of the two dimensions the known edge does not set, their 1-sigma and
+    the solver's work (nfev)."""
+    from prismcore.multiview.joint import View, fit_views
+    from prismcore.spec import KnownEdge
+    single_thread()
+    case = joint_views(views)
+    scale = KnownEdge(edge=str(case["edge"]), length_mm=float(case["length"]))  # type: ignore[arg-type]
+    given = [View(image, [list(map(float, p)) for p in clicks], name=f"view {k + 1}")
+             for k, (image, clicks) in enumerate(zip(case["images"], case["clicks"], strict=True))]
+    start = time.process_time()
+    result = fit_views(given, scale)
+    seconds = time.process_time() - start
+    d = result.dimensions
+    sigma = d.uncertainty or (0.0, 0.0, 0.0)
+    errors = [f"{name} {100 * (got / true - 1):+.2f} % (1s {100 * s / true:.2f})"
+              for name, got, s, true in zip(("width", "height", "depth"), (d.width, d.height, d.depth),
+                                            sigma, case["truth"], strict=True) if name != str(case["edge"])]
+    return Measured(seconds, f"{', '.join(errors)}; nfev {result.nfev}, {len(result.left_out)} left out")
+
+
 @figure("joint.3", "4 views", "joint fit, 3 views of 1280x1024 (CPU)", unit="s", target="", quick=True)
-def joint_3(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+def joint_3(ctx: Ctx) -> Measured:
+    return joint_fit(ctx, 3)
 
 
 @figure("joint.10", "4 views", "joint fit, 10 views (CPU)", unit="s", target="<= 3", limit=3.0, quick=False)
-def joint_10(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+def joint_10(ctx: Ctx) -> Measured:
+    return joint_fit(ctx, 10)
 
 
 @figure("joint.30", "4 views", "joint fit, 30 views (CPU)", unit="s", target="<= 10", limit=10.0, quick=False)
-def joint_30(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+def joint_30(ctx: Ctx) -> Measured:
+    return joint_fit(ctx, 30)
 
 
-@figure("search.median", "4 views", "zero-click search, median", unit="ms", target="")
-def search_median(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+def search_runs(ctx: Ctx) -> dict[str, Any]:
+    """`find_points` on clutter scenes (benchmarks/zero_click.py's, 1280x1024), cv2 single-threaded:
+    each scene's search CPU ms (its `timings_ms["search_cpu"]`: edges, faces, boxes, fallbacks,
+    PnP screen; the corner fits left out) and whether its points lie within 3 px of the box's
+    corners (accepted scenes)."""
+    def make() -> dict[str, Any]:
+        import numpy as np
+
+        from prismcore.locate.search import find_points
+        from prismsynth.scenes import clutter_scene
+        single_thread()
+        scenes = [clutter_scene(seed) for seed in range(20 if ctx.quick else 60)]
+        find_points(scenes[0].image)  # OpenCV's one-time set-up is no photo's cost
+        cpu, right, accepted = [], 0, 0
+        for scene in scenes:
+            found = find_points(scene.image)
+            cpu.append(found.timings_ms.get("search_cpu", 0.0))
+            if found.ok and found.points is not None:
+                accepted += 1
+                worst = max(float(np.linalg.norm(scene.vertices_px - np.asarray(xy), axis=1).min())
+                            for xy in found.points.as_dict().values())
+                right += worst <= 3.0
+        worst_at = int(np.argmax(cpu))
+        return {"cpu": cpu, "right": right, "accepted": accepted, "worst_seed": worst_at}
+    return ctx.once("search", make)
 
 
-@figure("search.worst", "4 views", "zero-click search, worst", unit="ms", target="<= 150", limit=150.0)
-def search_worst(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+@figure("search.median", "4 views", "zero-click search, median (CPU)", unit="ms", target="")
+def search_median(ctx: Ctx) -> Measured:
+    r = search_runs(ctx)
+    return Measured(statistics.median(r["cpu"]), f"{len(r['cpu'])} clutter scenes: {r['accepted']} accepted, "
+                                                 f"{r['right']} of them within 3 px")
+
+
+@figure("search.worst", "4 views", "zero-click search, worst (CPU)", unit="ms", target="<= 150", limit=150.0)
+def search_worst(ctx: Ctx) -> Measured:
+    r = search_runs(ctx)
+    cpu = sorted(r["cpu"])
+    return Measured(cpu[-1], f"scene {r['worst_seed']}; p90 {cpu[int(0.9 * (len(cpu) - 1))]:.0f} ms")
 
 
 @figure("worker.ratio", "4 views", "worker CPU per photo / engine CPU", unit="x", target="<= 2",
         limit=2.0, quick=False)
-def worker_ratio(ctx: Ctx) -> float | Measured | None:
-    return None  # TODO(issue 28 item 4)
+def worker_ratio(ctx: Ctx) -> Measured:
+    """benchmarks/worker_cost.py of the tree measured: 16 photos (8 distinct, 1280x1024, a scale)
+    as jobs of 8 through the real stack (redis, SeaweedFS, the API, a 2-process worker), the
+    service's default outputs; the worker's CPU per photo over the engine's in-process CPU."""
+    sys.path.insert(0, str(ctx.tree / "benchmarks"))
+    import worker_cost  # the tree's own
+    from throughput_model import _photos
+    distinct = _photos(8)
+    _, engine = worker_cost.engine_cost(distinct, 3)
+    worker = worker_cost.worker_cost([distinct[i % 8] for i in range(16)], 8, None, None)
+    return Measured(worker / engine, f"worker {worker:.0f} ms CPU per photo, engine {engine:.0f} ms")
 
 
 # ---------------------------------------------------------------------------------------------
