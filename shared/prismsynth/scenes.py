@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .render import Box, Scene, Style, render_oblique_view
+from .models import Box, Scene, Style
+from .render import render_oblique_view
 
 __all__ = ["ClutterScene", "box_vertices_px", "clutter_scene"]
 
@@ -189,7 +190,8 @@ def clutter_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE,
 
 def empty_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE) -> np.ndarray:
     """(H, W, 3) uint8 RGB: a cluttered background (shapes, lines, text) and no box, JPEG'd."""
-    from .render import _background, _jpeg_round_trip
+    from .phone import _jpeg_round_trip
+    from .textures import _background
 
     rng = np.random.default_rng(np.random.SeedSequence([13, int(seed)]))
     style = Style()
@@ -208,7 +210,9 @@ def two_box_scene(seed: int, *, image_size: tuple[int, int] = _IMAGE_SIZE
 
     Returns the (H, W, 3) uint8 RGB image and, per box, its (8, 2) corners in it (px).
     """
-    from .render import _camera_matrix, _jpeg_round_trip, _oblique_pose, _principal, _render
+    from .box_geometry import _camera_matrix, _oblique_pose, _principal
+    from .phone import _jpeg_round_trip
+    from .render import _render
 
     w = image_size[0]
     box = Box(120.0, 90.0, 70.0)

@@ -15,7 +15,8 @@ from collections.abc import Iterable
 import cv2
 import numpy as np
 
-from .render import DEFAULT_STYLE, Box, Scene, Style, render_oblique_view
+from .models import DEFAULT_STYLE, Box, Scene, Style
+from .render import render_oblique_view
 
 __all__ = ["moving_clip", "render_clip", "write_video"]
 

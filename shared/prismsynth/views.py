@@ -2,7 +2,7 @@
 
 `photo_like_views` draws one box, one camera (focal length, lens distortion), one edge rounding
 and one look (style, colours, label) from a seed, then several poses, each showing the front, the
-right side and the top at a distinct angle, and renders each as `render.photo_like_scene` renders
+right side and the top at a distinct angle, and renders each as `photo_like.photo_like_scene` renders
 its one photo (distortion, rounded edges, vignetting, noise, blur, JPEG), with its own clicks
 0-3 px off. The known edge is the same for every view. Ground truth for the engine's joint fit
 (`prismcore.multiview.joint`).
@@ -16,16 +16,9 @@ import numpy as np
 
 from prismcore.errors import InputError
 
-from .render import (
-    _POINT_ORDER,
-    Box,
-    PhotoLikeScene,
-    Realism,
-    _scene,
-    photo_like_clicks,
-    photo_like_pose,
-    photo_like_setup,
-)
+from .models import Box, Realism
+from .photo_like import _POINT_ORDER, PhotoLikeScene, photo_like_clicks, photo_like_pose, photo_like_setup
+from .render import _scene
 
 __all__ = ["MIN_VIEW_SEPARATION_DEG", "photo_like_views"]
 

@@ -11,7 +11,7 @@ import pytest
 
 from prismcore.geometry.rounding import _sample, estimate_edge_radius
 from prismsynth import PhotoLikeScene, photo_like_scene
-from prismsynth.render import distort_points
+from prismsynth.phone import distort_points
 
 pytestmark = pytest.mark.slow  # one photo-like render per case
 
