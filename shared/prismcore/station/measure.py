@@ -206,19 +206,23 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
 _SECOND_PART_MM = 10.0  # a blob apart from the part this wide on the support is a second part
 
 
-def _apart(others: list[tuple[float, float, float]], K: np.ndarray, R: np.ndarray,
+def _apart(others: list[tuple[float, float, float]], fit: BoxFit, K: np.ndarray, R: np.ndarray,
            t: np.ndarray) -> list[str]:
-    """Blobs found apart from the part (`Silhouette.others`: x, y, diagonal px), sized on the
-    support plane: one over 10 mm across is a second part (refused), a smaller one a speck
-    (a warning naming where and how large, so it is never dropped unsaid)."""
+    """The smaller blobs segmentation found beside the part (`Silhouette.others`: x, y, diagonal
+    px) that lie outside the fitted box's outline, sized on the support plane: one 10 mm across or
+    more is a second part (refused), a smaller one a speck (a warning naming where and how large,
+    so it is never dropped unsaid). Blobs on the box's outline are pieces of the part."""
     specks = []
     centre = -R.T @ t
-    for x, y, diag_px in others:
+    hull = cv2.convexHull(project(fit.corners(), K, R, t).astype(np.float32))
+    outside = [(x, y, d) for x, y, d in others
+               if cv2.pointPolygonTest(hull, (float(x), float(y)), True) < -(d / 2 + 8.0)]
+    for x, y, diag_px in outside:
         ray = R.T @ np.linalg.solve(K, np.array([x, y, 1.0]))
         depth = -centre[2] / ray[2] if abs(ray[2]) > 1e-12 else np.inf
         mm = diag_px * depth / K[0, 0] if np.isfinite(depth) and depth > 0 else np.inf
         if mm >= _SECOND_PART_MM:
-            raise InputError(f"{1 + len(others)} parts found: one part per photo (one of them about "
+            raise InputError(f"{1 + len(outside)} parts found: one part per photo (one of them about "
                              f"{mm:.0f} mm across at ({x:.0f}, {y:.0f}) px)")
         specks.append(f"a speck {mm:.0f} mm across at ({x:.0f}, {y:.0f}) px, apart from the part, "
                       "was left out: dust or a mark on the support?")
@@ -247,7 +251,6 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
                              "photograph from higher up or use a larger board")
     t3, c3 = time.perf_counter(), time.thread_time()
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
-    speck_warnings = _apart(sil.others, K, R, t)
     # the folds and the outline's steps looked for in the part's window only
     gray = cv2.cvtColor(photo_u[sil.window], cv2.COLOR_RGB2GRAY)
     fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask[sil.window]), sil.difference, sil.origin)
@@ -259,7 +262,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
             f"the part is not a box resting flat on the support: its outline is "
             f"{fit.residual_px:.1f} px (RMS) from the best such box (over {MAX_RESIDUAL_PX} px)"
         )
-    warnings = [*sil.warnings, *speck_warnings]
+    warnings = [*sil.warnings, *_apart(sil.others, fit, K, R, t)]
     if fit.residual_px > WARN_RESIDUAL_PX:
         warnings.append(
             f"the outline is {fit.residual_px:.1f} px (RMS) from the fitted box: a part that is "

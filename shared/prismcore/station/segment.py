@@ -268,7 +268,8 @@ class Silhouette:
     warnings: list[str]
     difference: np.ndarray  # (h, w) float32, the window: the photo's distance from the shadow-scaled support
     origin: tuple[int, int] = (0, 0)
-    # blobs apart from the part, smaller than it: (x, y, diagonal) px of each, the photo's pixels
+    # blobs much smaller than the part, not joined to it: (x, y, diagonal) px of each (centre and
+    # diagonal of its bounding box, the photo's pixels)
     others: list[tuple[float, float, float]] = field(default_factory=list)
 
     @property
@@ -404,9 +405,10 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
         raise InputError("no part found on the support (nothing differs from the plate)")
     first = big[0]
     # A blob within a small gap of the part is the part split by a band of its colour meeting the
-    # support's (one face alike the table behind it): joined. Farther, it is a second part; a far
-    # blob much smaller than the part may be a small part or a speck: measured in mm by the caller
-    # (`Silhouette.others`), which knows the plane, never dropped unsaid.
+    # support's (one face alike the table behind it): joined. Farther, it is a second part; a blob
+    # much smaller than the part may be a piece of it, a small part or a speck: judged by the
+    # caller against the fitted box and sized on the plane (`Silhouette.others`), never dropped
+    # unsaid.
     gap = cv2.distanceTransform((labels != first).astype(np.uint8), cv2.DIST_L2, 3)
     reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(areas[first - 1])))
     far = [i for i in big[1:] if float(gap[labels == i].min()) > reach]
@@ -414,10 +416,11 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     joined = [i for i in big[1:] if i not in far and areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     if others:
         raise InputError(f"{1 + len(others)} parts found: one part per photo")
-    small_far = [
+    # the smaller blobs, near or far: the caller keeps those inside the fitted box's outline
+    apart = [
         ((stats[i, 0] + stats[i, 2] / 2) * _COARSE, (stats[i, 1] + stats[i, 3] / 2) * _COARSE,
          float(np.hypot(stats[i, 2], stats[i, 3])) * _COARSE)
-        for i in far
+        for i in big[1:] if i not in joined
     ]
     pieces = [first, *joined]
     x0, y0 = (int(min(stats[i, k] for i in pieces)) for k in (0, 1))
@@ -483,5 +486,5 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
         warnings=warnings,
         difference=resid,
         origin=(X0, Y0),
-        others=small_far,
+        others=apart,
     )

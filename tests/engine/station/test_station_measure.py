@@ -66,6 +66,23 @@ def test_two_parts_are_refused_one_part_per_photo() -> None:
         measure_on_station(sc.photo, station_for(sc))
 
 
+@pytest.fixture(scope="module")
+def setup_3():
+    setup = station_setup(3, image_size=(1280, 1024))
+    return setup, station_for(station_scene(100, setup))
+
+
+@pytest.mark.parametrize("seed", [200, 202, 207, 208])
+def test_a_small_second_part_beside_a_large_one_is_refused_not_left_out(setup_3, seed) -> None:
+    # Each second part is a cube of 20-22 mm beside one of 60-170 mm: under a fifth of its area in
+    # the photo, and next to it (207) or apart. It was once left out unsaid, the large one measured.
+    setup, station = setup_3
+    sc = station_scene(seed, setup, parts=2)
+    assert min(b.length_mm for b in sc.extra_boxes) <= 25
+    with pytest.raises(InputError, match=r"2 parts found: one part per photo \(one of them about"):
+        measure_on_station(sc.photo, station)
+
+
 def test_a_camera_moved_far_since_calibration_is_refused() -> None:
     sc = scene(4)
     other = station_scene(4, station_setup(5))  # another camera position over another table
