@@ -17,8 +17,9 @@ they slide towards the focal length's bound without converging.
 The second face may be the right side (the paper's), the left side (in the plane X = 0) or the
 top (in the plane Y = 0): see `prismcore.geometry.faces` for which corner each point marks.
 
-The lens distortion the edges show is `prismcore.geometry.lens`; what the model leaves out (that
-distortion, rounded edges) as the shape's covariance, `prismcore.geometry.model_error`.
+The lens distortion the edges show is `prismcore.geometry.lens`, the evidence undistorted for a
+fit `prismcore.geometry.evidence`; what the model leaves out (that distortion, rounded edges) as
+the shape's covariance, `prismcore.geometry.model_error`.
 """
 
 from __future__ import annotations
@@ -31,20 +32,18 @@ import cv2
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
-from prismcore.geometry.lens import RadialDistortion, tls_line
+from prismcore.geometry.lens import RadialDistortion
 
 __all__ = [
     "NOISE_CLICK_PX",
     "NOISE_LINE_PX",
     "BoxFit",
     "FaceEvidence",
-    "box_edge_samples",
     "centre_depth",
     "fit_box",
     "fit_rectangle",
     "focal_from_vanishing_points",
     "project",
-    "undistort_evidence",
 ]
 
 SIGMA_LINE_PX = 0.3
@@ -587,36 +586,3 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     return BoxFit(float(x[6]), float(x[7]), x[:3].copy(), x[3:6].copy(), focal, focal_std,
                   pts[list(_FRONT_IDX)], pts[list(second.idx)], shape_cov, _line_rms(best, n_lines),
                   G @ _influence(best), principal.copy(), nfev=nfev)
-
-
-# --------------------------------------------------------------------------- the evidence undistorted
-
-def undistort_evidence(face: FaceEvidence, lens: RadialDistortion) -> FaceEvidence:
-    """The face's evidence as a pinhole would have seen it: corners and clicks undistorted, each
-    fitted line refitted to its undistorted samples (or, without samples, carried through two
-    of its points near the face)."""
-    lines: list[np.ndarray | None] = []
-    for s, line in enumerate(face.lines):
-        if line is None:
-            lines.append(None)
-            continue
-        pts = face.samples[s] if s < len(face.samples) else None
-        if pts is not None and len(pts) >= 2:
-            lines.append(tls_line(lens.undistort(pts)))
-            continue
-        ends = face.corners[[s, (s + 1) % 4]]
-        ends = ends - np.outer(ends @ line[:2] + line[2], line[:2])  # onto the line
-        p, q = lens.undistort(ends)
-        h = np.cross(np.append(p, 1.0), np.append(q, 1.0))
-        lines.append(h / np.hypot(h[0], h[1]))
-    samples = tuple(None if e is None else lens.undistort(e) for e in face.samples)
-    return FaceEvidence(lens.undistort(face.corners), lens.undistort(face.clicked), tuple(lines), samples)
-
-
-def box_edge_samples(front: FaceEvidence, side: FaceEvidence, side_face: str = "right") -> list[np.ndarray]:
-    """The samples of each of the box's edges once (the edge the second face shares with the front
-    is the front's)."""
-    out = [e for e in front.samples if e is not None]
-    if side.samples:
-        out += [e for e in (side.samples[s] for s in _SECOND[side_face].sides) if e is not None]
-    return out

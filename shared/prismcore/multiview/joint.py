@@ -47,9 +47,10 @@ from scipy.optimize import OptimizeResult
 from scipy.stats import chi2
 
 from prismcore.errors import InputError
+from prismcore.geometry.evidence import box_edge_samples
 from prismcore.geometry.lens import RadialDistortion, estimate_distortion
 from prismcore.geometry.model_error import _rows
-from prismcore.geometry.perspective import NOISE_LINE_PX, SIGMA_LINE_PX, box_edge_samples
+from prismcore.geometry.perspective import NOISE_LINE_PX, SIGMA_LINE_PX
 from prismcore.multiview.model_sigma import (
     _fold_sigma,
     _mm_per_unit,

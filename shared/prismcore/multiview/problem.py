@@ -12,6 +12,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
+from prismcore.geometry.evidence import undistort_evidence
 from prismcore.geometry.lens import RadialDistortion
 from prismcore.geometry.perspective import (
     _F_SCALE,
@@ -28,7 +29,6 @@ from prismcore.geometry.perspective import (
     _n_line_terms,
     _residual_jac_fn,
     fit_box,
-    undistort_evidence,
 )
 from prismcore.multiview.views import _Prepared
 from prismcore.spec import KnownEdge

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from prismcore.geometry.evidence import box_edge_samples, undistort_evidence
 from prismcore.geometry.lens import RadialDistortion, estimate_distortion
 from prismcore.geometry.model_error import ROUNDING_RMS_MM, edge_shifts, model_error_cov, rounding_shifts
 from prismcore.geometry.perspective import (
@@ -33,12 +34,10 @@ from prismcore.geometry.perspective import (
     NOISE_LINE_PX,
     BoxFit,
     FaceEvidence,
-    box_edge_samples,
     centre_depth,
     fit_box,
     fit_rectangle,
     project,
-    undistort_evidence,
 )
 from prismcore.geometry.rounding import RadiusEstimate, estimate_edge_radius
 from prismcore.spec import KnownEdge, MmPerPx, Pinhole, Scale
