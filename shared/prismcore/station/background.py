@@ -20,10 +20,10 @@ import numpy as np
 
 from prismcore.station.segment import _SHADOW_RANGE
 
-__all__ = ["TABLE_ZONE", "board_cover", "shadow_difference", "with_table"]
+__all__ = ["TABLE_HEIGHT", "board_cover", "shadow_difference", "table_zone", "with_table"]
 
 _COARSE = 4  # the table's level is found in a photo this many times smaller
-TABLE_ZONE = 0.6  # the table is modelled this far round the board, of the board's longer side in the photo
+TABLE_HEIGHT = 0.5  # the table is modelled where a part this tall (of the board's longer side) can show
 _MEDIAN = 0.35  # the median's window, of the board's longer side in the photo
 _TEXTURE = 3.0  # the table's texture reaches this many times its local median difference
 
@@ -45,14 +45,29 @@ def board_cover(corners_px: np.ndarray, shape: tuple[int, int], blur_px: float =
     return cast("np.ndarray", cv2.GaussianBlur(cover, (0, 0), blur_px)) if blur_px > 0 else cover
 
 
+def table_zone(corners_mm: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, height_mm: float
+               ) -> np.ndarray:
+    """Where a part standing on the board, up to `height_mm` tall, can show in the photo: the
+    convex hull (M, 2) px of the board's corners (4, 2) mm and the same corners raised by that
+    height (towards the camera's side of the board: z negative), through K, R, t (board -> camera).
+    The table in front of the board, where no part on it shows, is left out."""
+    base = np.column_stack([corners_mm, np.zeros(len(corners_mm))])
+    raised = base - np.array([0.0, 0.0, height_mm])
+    X = np.vstack([base, raised])
+    cam = X @ R.T + t
+    cam = cam[cam[:, 2] > 1.0]  # a raised corner behind the camera: left out
+    px = (cam[:, :2] / cam[:, 2:3]) * (K[0, 0], K[1, 1]) + (K[0, 2], K[1, 2])
+    return cast("np.ndarray", cv2.convexHull(px.astype(np.float32)).reshape(-1, 2).astype(np.float64))
+
+
 def with_table(
-    photo_u: np.ndarray, board_plate: np.ndarray, cover: np.ndarray
+    photo_u: np.ndarray, board_plate: np.ndarray, cover: np.ndarray, zone_px: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The support as it would look without the part, the board's model (`board_plate`, valid
     where `cover` > 0) joined to the table's read from the photo round the board.
 
     Returns (plate (H, W, 3) uint8, known (H, W) bool: where the support is modelled, the board
-    and the table up to TABLE_ZONE of the board's size round it; elsewhere the plate is the photo).
+    and the table within `zone_px` (a convex polygon, :func:`table_zone`); elsewhere the photo).
     """
     h, w = photo_u.shape[:2]
     small = (max(1, w // _COARSE), max(1, h // _COARSE))
@@ -78,9 +93,9 @@ def with_table(
     level = cv2.medianBlur(np.clip(filled, 0, 255).astype(np.uint8), k) if k >= 3 else filled.astype(np.uint8)
     level_full = cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR).astype(np.float32)
     table_plate = _texture_allowed(photo_u.astype(np.float32), level_full, small, k)
-    dist = cv2.distanceTransform((~on_board).astype(np.uint8), cv2.DIST_L2, 3)
-    zone_s = (dist <= TABLE_ZONE * extent).astype(np.uint8)
-    known = cv2.resize(zone_s, (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) | (cover > 0.5)
+    zone = np.zeros((h, w), np.uint8)
+    cv2.fillConvexPoly(zone, np.round(zone_px).astype(np.int32).reshape(-1, 1, 2), 1)
+    known = zone.astype(bool) | (cover > 0.5)
     c = cover[..., None]
     plate = c * board_plate.astype(np.float32) + (1 - c) * table_plate
     plate = np.where(known[..., None], plate, photo_u.astype(np.float32))

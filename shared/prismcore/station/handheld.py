@@ -13,7 +13,8 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
-from prismcore.station.background import TABLE_ZONE, board_cover, shadow_difference, with_table
+from prismcore.station import background
+from prismcore.station.background import board_cover, shadow_difference, table_zone, with_table
 from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
@@ -210,7 +211,9 @@ def measure_on_board(
     corners_mm = np.array([[0, 0], [board.size_mm[0], 0], [board.size_mm[0], board.size_mm[1]],
                            [0, board.size_mm[1]]], np.float64)
     corners_px = cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
-    plate_u, region = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)))
+    tall = background.TABLE_HEIGHT * max(board.size_mm)
+    zone = table_zone(corners_mm, K, R, t, tall)
+    plate_u, region = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)), zone)
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {
         "undistort": 0.0,
@@ -224,8 +227,8 @@ def measure_on_board(
             raise
         raise InputError(
             "the part's outline reaches past the board and the table modelled round it in the photo "
-            f"(up to {TABLE_ZONE:.0%} of the board's size beyond it): lay the part on the board with "
-            "the board all round it, and photograph from higher up or use a larger board"
+            f"(where a part up to {tall:.0f} mm tall on the board shows): lay the part on the board "
+            "with the board all round it, and photograph from higher up or use a larger board"
         ) from None
     if camera is None:
         measured.warnings.append(

@@ -107,7 +107,7 @@ def test_a_distortion_beyond_what_one_view_can_be_trusted_for_is_refused_naming_
 def test_a_part_reaching_past_what_is_modelled_is_refused_naming_it(monkeypatch) -> None:
     """With no table modelled round the board (as before the table's model), seed 0's part rises
     past what is known: refused, saying so."""
-    monkeypatch.setattr(background, "TABLE_ZONE", 0.0)
+    monkeypatch.setattr(background, "TABLE_HEIGHT", 0.0)
     sc = _scene(0)
     with pytest.raises(InputError, match="reaches past the board"):
         measure_on_board(sc.photo, sc.setup.board, true_camera(sc))
