@@ -47,7 +47,7 @@ def board_camera(
     fixes the focal length and k1 with the centre known, not more). radial=False fixes k1 at 0.
 
     On renders with k1 = +-0.05 (k2 = 0) the sizes found with k1 fixed at 0 differ from those of
-    a lens without distortion by under 0.1 % on average (benchmarks/station.py --hand-held, see
+    a lens without distortion by under 0.1 % on average (benchmarks/station.py --lens-bias, see
     docs/explanation/accuracy.md); k1 is found (within about 0.015 there) so that a stronger lens
     (k1 -0.15 to -0.2, whose corners missed a pose without it by over 1 px) is measured, not refused.
 
