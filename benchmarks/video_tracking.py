@@ -54,7 +54,9 @@ from real_video_data import BOX_MM, load_marks, points_of, video_path
 from prismcore.io.video_decode import iter_frames
 from prismcore.multiview.joint import View, fit_views
 from prismcore.spec import KnownEdge
-from prismcore.video.tracking import box_refiner, track_points, viewing_spread
+from prismcore.video.frame_select import viewing_spread
+from prismcore.video.track_refine import box_refiner
+from prismcore.video.tracking import track_points
 from prismsynth import Box
 from prismsynth.video import moving_clip
 

@@ -6,7 +6,7 @@ selected ones refined on the box's edges by the engine's own plan); each selecte
 or the reason it is left out, go to ``tracked_points.json`` in the output folder. The tracked
 frames are then measured one by one as `prism scan VIDEO` measures a video with `frame_points`
 (a folder per frame, summary.json), or with fit "joint" as ONE box over the frames whose views
-differ most (`tracking.viewing_spread`, up to `JOINT_TRACKED_VIEWS`): joint.json.
+differ most (`frame_select.viewing_spread`, up to `JOINT_TRACKED_VIEWS`): joint.json.
 """
 
 from __future__ import annotations
@@ -26,8 +26,9 @@ from prismcore.io.video_decode import iter_frames, probe_video
 from prismcore.multiview.joint import View, fit_views
 from prismcore.multiview.report import joint_report
 from prismcore.spec import SUMMARY_NAME, KnownEdge, ScanSpec
-from prismcore.video.frame_select import select_frames
-from prismcore.video.tracking import TrackedFrame, box_refiner, to_reference, track_points, viewing_spread
+from prismcore.video.frame_select import select_frames, viewing_spread
+from prismcore.video.track_refine import box_refiner
+from prismcore.video.tracking import TrackedFrame, to_reference, track_points
 
 __all__ = ["JOINT_TRACKED_VIEWS", "TRACKED_NAME", "scan_tracked", "track_video"]
 

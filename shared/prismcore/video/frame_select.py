@@ -11,7 +11,7 @@ from prismcore.errors import InputError
 from prismcore.io.video_decode import PathLike, VideoInfo, decode_bgr
 from prismcore.spec import FrameSelection
 
-__all__ = ["DEFAULT_MAX_FRAMES", "frame_sharpness", "select_frames"]
+__all__ = ["DEFAULT_MAX_FRAMES", "frame_sharpness", "select_frames", "viewing_spread"]
 
 DEFAULT_MAX_FRAMES = 500
 """The CLI's cap on frames measured per video (the service has its own setting)."""
@@ -125,3 +125,37 @@ def select_frames(path: PathLike, selection: FrameSelection, info: VideoInfo, *,
         raise InputError(f"the selection picks {len(chosen)} frames of {label}, over the cap of "
                          f"{max_frames} frames per video: {_NARROW}")
     return list(chosen)
+
+
+def viewing_spread(points: dict[int, np.ndarray], count: int) -> list[int]:
+    """The frames whose views of the box differ most: farthest-point sampling of the seven
+    points' shape (centred, scaled to unit size), which changes as the viewing angle does.
+
+    Parameters
+    ----------
+    points : dict of int to ndarray, shape (7, 2)
+        Each frame's points.
+    count : int
+        How many frames to choose (all when fewer).
+
+    Returns
+    -------
+    list of int
+        The chosen frame indices, increasing.
+    """
+    keys = sorted(points)
+    if len(keys) <= count:
+        return keys
+    shapes = []
+    for key in keys:
+        p = points[key] - points[key].mean(axis=0)
+        shapes.append((p / max(float(np.sqrt((p**2).sum(axis=1).mean())), 1e-9)).ravel())
+    x = np.array(shapes)
+    centre = x.mean(axis=0)
+    chosen = [int(np.argmax(np.linalg.norm(x - centre, axis=1)))]
+    dist = np.linalg.norm(x - x[chosen[0]], axis=1)
+    while len(chosen) < count:
+        nxt = int(np.argmax(dist))
+        chosen.append(nxt)
+        dist = np.minimum(dist, np.linalg.norm(x - x[nxt], axis=1))
+    return sorted(keys[i] for i in chosen)

@@ -13,7 +13,8 @@ points of every other selected frame follow from the box's own motion:
   (`cv2.findHomography`) from the frame the points were last fixed on (the anchor) to this one,
   and the face's points are moved with it (the shared corner with the front's);
 * on the selected frames only, the points are refined on the box's edges as clicks are, by the
-  engine's own plan (`prismcore.scan.pipeline.plan_scan`: edges fitted to sub-pixel lines, the
+  engine's own plan (`prismcore.video.track_refine.box_refiner`, through
+  `prismcore.scan.pipeline.plan_scan`: edges fitted to sub-pixel lines, the
   box fitted to them, its fit guard), and the tracker takes the refined points as its new anchor.
 
 A frame whose track is lost (too few inliers on the front, forward-backward errors too large) or
@@ -39,19 +40,19 @@ import cv2
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.faces import SideFace, clicked_quads, quad_labels, resolve_side_face
+from prismcore.geometry.faces import SideFace, clicked_quads, resolve_side_face
 from prismcore.spec import ReferencePoints
 
 __all__ = [
+    "POINT_NAMES",
+    "Refiner",
     "TrackQuality",
     "TrackedFrame",
     "TrackerSettings",
-    "box_refiner",
     "track_points",
-    "viewing_spread",
 ]
 
-_POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
+POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 _FRONT = (0, 1, 2, 5)  # P1, P2, P3, P6: the front face's corners
 _SIDE_ONLY = (4, 6)  # P5, P7: the second face's far corners (P4 is a front corner)
 _SHARED_CORNERS = {"right": (1, 2), "left": (0, 5), "top": (0, 1)}  # the front corners on the fold
@@ -175,7 +176,7 @@ def _as_points(points: ReferencePoints | Sequence[Sequence[float]] | np.ndarray)
         d = points.as_dict()
         if len(d) != 7:
             raise InputError("tracking needs all seven points P1..P7 (P6 and P7 too)")
-        return np.array([d[n] for n in _POINT_NAMES], dtype=np.float64)
+        return np.array([d[n] for n in POINT_NAMES], dtype=np.float64)
     arr = np.asarray(points, dtype=np.float64)
     if arr.shape != (7, 2) or not np.isfinite(arr).all():
         raise InputError(f"tracking needs seven finite (x, y) points P1..P7, got shape {arr.shape}")
@@ -184,7 +185,7 @@ def _as_points(points: ReferencePoints | Sequence[Sequence[float]] | np.ndarray)
 
 def to_reference(points: np.ndarray) -> ReferencePoints:
     """(7, 2) points as the spec's ReferencePoints."""
-    return ReferencePoints.model_validate({n: (float(x), float(y)) for n, (x, y) in zip(_POINT_NAMES, points,
+    return ReferencePoints.model_validate({n: (float(x), float(y)) for n, (x, y) in zip(POINT_NAMES, points,
                                                                                        strict=True)})
 
 
@@ -570,78 +571,6 @@ class _Everything(Collection[int]):
 
     def __len__(self) -> int:
         return 0
-
-
-def box_refiner(spec_fields: dict[str, Any] | None = None) -> Refiner:
-    """The engine's refinement of clicked points as a tracker's `refine`.
-
-    The points run through `plan_scan` as clicks on a photo do (edges fitted to sub-pixel lines,
-    the box fitted to them, the snap and fit guards); the refined points are the fitted box's
-    corners. `spec_fields` adds to the photo spec (side_face, focal_px, camera, scale...).
-
-    Returns
-    -------
-    callable
-        (image (H, W, 3) RGB, points (7, 2)) -> points (7, 2); InputError when the plan refuses.
-    """
-    from prismcore.scan.pipeline import plan_scan
-    from prismcore.spec import ScanSpec
-
-    extra = dict(spec_fields or {})
-
-    def refine(image: np.ndarray, points: np.ndarray) -> np.ndarray:
-        spec = ScanSpec.model_validate({"image": "frame", "formats": ["csv"], **extra,
-                                        "points": to_reference(points).model_dump()})
-        plan = plan_scan(spec, image)
-        side_face = plan.side_face
-        front, side = plan.faces[0].region, plan.faces[1].region
-        labels = quad_labels(clicked_quads(to_reference(points), two_photo=False, side_face=side_face))
-        out = points.copy()
-        for quad, names in ((front, labels[0]), (side, labels[1])):
-            for corner, name in zip(quad, names, strict=True):
-                if name is not None:
-                    out[_POINT_NAMES.index(name)] = corner
-        # P4 is the front's corner it marks (P2, or P1), as the box has one corner there.
-        out[3] = out[1] if side_face == "right" else out[0]
-        if not np.isfinite(out).all():
-            raise InputError("the refined box has no finite corners")
-        return out
-
-    return refine
-
-
-def viewing_spread(points: dict[int, np.ndarray], count: int) -> list[int]:
-    """The frames whose views of the box differ most: farthest-point sampling of the seven
-    points' shape (centred, scaled to unit size), which changes as the viewing angle does.
-
-    Parameters
-    ----------
-    points : dict of int to ndarray, shape (7, 2)
-        Each frame's points.
-    count : int
-        How many frames to choose (all when fewer).
-
-    Returns
-    -------
-    list of int
-        The chosen frame indices, increasing.
-    """
-    keys = sorted(points)
-    if len(keys) <= count:
-        return keys
-    shapes = []
-    for key in keys:
-        p = points[key] - points[key].mean(axis=0)
-        shapes.append((p / max(float(np.sqrt((p**2).sum(axis=1).mean())), 1e-9)).ravel())
-    x = np.array(shapes)
-    centre = x.mean(axis=0)
-    chosen = [int(np.argmax(np.linalg.norm(x - centre, axis=1)))]
-    dist = np.linalg.norm(x - x[chosen[0]], axis=1)
-    while len(chosen) < count:
-        nxt = int(np.argmax(dist))
-        chosen.append(nxt)
-        dist = np.minimum(dist, np.linalg.norm(x - x[nxt], axis=1))
-    return sorted(keys[i] for i in chosen)
 
 
 def with_settings(settings: TrackerSettings, **changes: Any) -> TrackerSettings:

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from prismcore.errors import InputError
-from prismcore.video.tracking import box_refiner, track_points, viewing_spread
+from prismcore.video.frame_select import viewing_spread
+from prismcore.video.track_refine import box_refiner
+from prismcore.video.tracking import track_points
 from prismsynth import Box
 from prismsynth.video import moving_clip
 
