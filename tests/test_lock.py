@@ -136,7 +136,29 @@ def test_the_dockerfiles_install_steps_make_a_working_service(tmp_path: Path) ->
         run = subprocess.run([str(venv / "bin" / "python"), "-m", *step.split()], cwd=tmp_path,
                              capture_output=True, text=True, timeout=900)
         assert run.returncode == 0, (step, run.stderr[-2000:])
-    check = subprocess.run([str(venv / "bin" / "python"), "-c",
-                            "import prism_api.main, prism_worker.app, prismcore.scan.pipeline"],
+    # every package, the engine's subpackages and what the worker imports only when an item
+    # needs it (a station's scan) included: a subpackage missing from pyproject's list was not in
+    # the wheel, and the image failed on its first station item
+    modules = [*source_packages(), "prism_api.main", "prism_worker.app", "prism_worker.station_item",
+               "prismcore.scan.pipeline", "prismcore.station.scan"]
+    each = "import importlib, sys\nfor m in sys.argv[1:]: importlib.import_module(m)"
+    check = subprocess.run([str(venv / "bin" / "python"), "-c", each, *modules],
                            cwd="/", capture_output=True, text=True, timeout=120)
     assert check.returncode == 0, check.stderr[-2000:]
+
+
+def source_packages() -> list[str]:
+    """Every package (a folder with an __init__.py) under pyproject's package-dir roots."""
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = set()
+    for name, folder in setuptools["package-dir"].items():
+        for init in (ROOT / folder).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT / folder)
+            found.add(".".join([name, *rel.parts]))
+    return sorted(found)
+
+
+def test_the_wheel_lists_every_package() -> None:
+    # `pip install --no-deps .` (the image) installs only the packages pyproject lists
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert sorted(setuptools["packages"]) == source_packages()
