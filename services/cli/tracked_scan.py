@@ -25,7 +25,7 @@ from prismcore.errors import InputError
 from prismcore.io.video_decode import iter_frames, probe_video
 from prismcore.multiview.joint import View, fit_views
 from prismcore.multiview.report import joint_report
-from prismcore.spec import SUMMARY_NAME, KnownEdge, ScanSpec
+from prismcore.spec import JOINT_MAX_PIXELS, SUMMARY_NAME, KnownEdge, ScanSpec
 from prismcore.video.frame_select import select_frames, viewing_spread
 from prismcore.video.track_refine import box_refiner
 from prismcore.video.tracking import TrackedFrame, to_reference, track_points
@@ -121,7 +121,10 @@ def _joint(spec: ScanSpec, path: Path, out: Path, good: dict[int, np.ndarray],
            left: dict[int, str | None]) -> dict[str, Any]:
     """The tracked frames whose views differ most, measured as ONE box: joint.json."""
     assert isinstance(spec.scale, KnownEdge)  # the spec's rules
-    chosen = viewing_spread(good, JOINT_TRACKED_VIEWS)
+    # as many as JOINT_MAX_PIXELS lets be held decoded at once (the joint fit holds every view)
+    info = probe_video(path)
+    fit_at_once = max(2, JOINT_MAX_PIXELS // max(1, info.width * info.height))
+    chosen = viewing_spread(good, min(JOINT_TRACKED_VIEWS, fit_at_once))
     views = [View(frame, good[index].tolist(), spec.side_face, f"frame {index}")
              for index, frame in iter_frames(path, chosen)]
     result = fit_views(views, spec.scale, focal_px=spec.focal_px)

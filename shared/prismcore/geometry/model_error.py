@@ -31,7 +31,8 @@ the rounding makes, which spans about the radius on either face; 1-sigma, in rad
 
 
 def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
-    """The line residuals' layout as `perspective._residual_fn` makes it: (face, side, line, model corner)."""
+    """The line residuals' layout as `perspective._residual_jac_fn` makes it: (face, side, line,
+    model corner)."""
     return [(f, s, line, idx[e])
             for f, (face, idx, sides) in enumerate(faces) for s in sides
             if (line := face.lines[s]) is not None

@@ -165,36 +165,15 @@ def _camera(focal: float, principal: np.ndarray) -> np.ndarray:
 FaceTerms = list[tuple[FaceEvidence, tuple[int, ...], tuple[int, ...]]]
 
 
-def _residual_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Callable[[np.ndarray], np.ndarray],
-                 n_shape: int, faces: FaceTerms) -> Callable[[np.ndarray], np.ndarray]:
-    """Whitened residuals: line terms (sigma SIGMA_LINE_PX) then click terms (SIGMA_CLICK_PX).
-
-    faces: (evidence, model corner index of TL, TR, BR, BL, sides of the face to use).
-    x = rvec (3), tvec (3), shape (n_shape), then whatever K_of reads (e.g. log focal).
-    """
-    def residual(x: np.ndarray) -> np.ndarray:
-        pts = project(K_of(x), x[:3], x[3:6], corners_of(x[6:6 + n_shape]))
-        lines, clicks = [], []
-        for face, idx, sides in faces:
-            quad = pts[list(idx)]
-            for s in sides:
-                line = face.lines[s]
-                if line is not None:
-                    ends = quad[[s, (s + 1) % 4]]
-                    lines.append((ends @ line[:2] + line[2]) / SIGMA_LINE_PX)
-            clicks.append(((quad - face.clicked) / SIGMA_CLICK_PX).ravel())
-        return np.concatenate(lines + clicks)
-
-    return residual
-
-
 def _residual_jac_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Callable[[np.ndarray], np.ndarray],
                      n_shape: int, faces: FaceTerms, *, log_focal: bool = False
                      ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
-    """`_residual_fn`'s residuals (same terms, same order), vectorised, and their Jacobian in
-    closed form: the solver's finite differences took ten residual evaluations per step, most
-    of a free-focal box fit's time. `corners_of` must be affine in the shape (the box models
-    are); with `log_focal`, x[6 + n_shape] is the log of a focal length K_of puts on the
+    """Whitened residuals, line terms (sigma SIGMA_LINE_PX) then click terms (SIGMA_CLICK_PX),
+    vectorised, and their Jacobian in closed form: the solver's finite differences took ten
+    residual evaluations per step, most of a free-focal box fit's time. faces: (evidence, model
+    corner index of TL, TR, BR, BL, sides of the face to use); x = rvec (3), tvec (3), shape
+    (n_shape), then whatever K_of reads (e.g. log focal). `corners_of` must be affine in the shape (the
+    box models are); with `log_focal`, x[6 + n_shape] is the log of a focal length K_of puts on the
     diagonal (fx = fy = f about a fixed principal point)."""
     line_ends: list[int] = []
     line_coef: list[np.ndarray] = []
@@ -350,7 +329,7 @@ def fit_rectangle(K: np.ndarray, face: FaceEvidence) -> tuple[float, np.ndarray,
     def corners_of(p: np.ndarray) -> np.ndarray:
         return np.array([[0, 0, 0], [p[0], 0, 0], [p[0], 1, 0], [0, 1, 0]], dtype=np.float64)
 
-    residual = _residual_fn(lambda _: K, corners_of, 1, [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
+    residual, _ = _residual_jac_fn(lambda _: K, corners_of, 1, [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
     x = _solve(residual, np.concatenate([rvec, tvec, [aspect]])).x
     return float(x[6]), x[:3], x[3:6], project(K, x[:3], x[3:6], corners_of(x[6:]))
 

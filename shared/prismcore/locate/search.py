@@ -456,7 +456,7 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
     warnings: tuple[str, ...] = ()
     if reason is None and confidence < CONFIDENCE_WARN:
         warnings = (f"points found automatically with a modest confidence ({confidence:.2f}): "
-                    "check them on overlay.png",)
+                    "check them on the overlay",)
     stable = all(f.seen == _SAMPLINGS for f in box.faces)
     if reason is None and not stable:
         warnings += (_UNSTABLE,)
@@ -465,7 +465,7 @@ def _measure(image: np.ndarray, first_in: dict[str, np.ndarray], side_face: Side
 
 _UNSTABLE = ("a face of this box was found in only one of two samplings of the photo (its region "
              "closes on one, not the other): a slight change of the photo may lose the box; check "
-             "the points on overlay.png")
+             "the points on the overlay")
 
 
 def resolve_points(spec: ScanSpec, image: np.ndarray) -> tuple[ScanSpec, Found]:

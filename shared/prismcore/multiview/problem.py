@@ -61,7 +61,7 @@ class _Problem:
     """The joint least-squares problem over some views.
 
     x = (W, D[, log focal]) then per view (rvec, tvec): whitened residuals per view, its line terms
-    then its click terms (as `perspective._residual_fn` lays them out). Each view's residuals and
+    then its click terms (as `perspective._residual_jac_fn` lays them out). Each view's residuals and
     their Jacobian are `perspective._residual_jac_fn`'s (closed form: the forward differences it
     replaces took nine residual evaluations per view and step, half of a 10-view fit's time).
     """

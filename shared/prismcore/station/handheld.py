@@ -220,16 +220,14 @@ def measure_on_board(
         "register": (t1 - t0) * 1e3,
         "expected_board": (time.perf_counter() - t1) * 1e3,
     }
-    try:
-        measured = measure_registered(photo_u, plate_u, cam, reg, timings, region=region)
-    except InputError as exc:
-        if "reaches past the board" not in str(exc):
-            raise
-        raise InputError(
+    measured = measure_registered(
+        photo_u, plate_u, cam, reg, timings, region=region,
+        region_refusal=(
             "the part's outline reaches past the board and the table modelled round it in the photo "
             f"(where a part up to {tall:.0f} mm tall on the board shows): lay the part on the board "
             "with the board all round it, and photograph from higher up or use a larger board"
-        ) from None
+        ),
+    )
     if camera is None:
         measured.warnings.append(
             f"focal length {cam.fx:.0f} px and lens distortion k1 {cam.dist[0]:+.3f} found from the "

@@ -206,38 +206,51 @@ def measure_on_station(photo: np.ndarray, station: Station) -> StationMeasuremen
 _SECOND_PART_MM = 10.0  # a blob apart from the part this wide on the support is a second part
 
 
-def _apart(others: list[tuple[float, float, float]], fit: BoxFit, K: np.ndarray, R: np.ndarray,
+# what a part reaching out of `region` is told, unless the caller says more
+_REGION_REFUSAL = ("the part's outline reaches past the board in the photo (only the board's area is "
+                   "known): lay the part on the board with the board all round it, and photograph from "
+                   "higher up or use a larger board")
+
+
+def _apart(others: list[tuple[float, ...]], fit: BoxFit, K: np.ndarray, R: np.ndarray,
            t: np.ndarray) -> list[str]:
-    """The smaller blobs segmentation found beside the part (`Silhouette.others`: x, y, diagonal
-    px) that lie outside the fitted box's outline, sized on the support plane: one 10 mm across or
-    more is a second part (refused), a smaller one a speck (a warning naming where and how large,
-    so it is never dropped unsaid). Blobs on the box's outline are pieces of the part."""
+    """The smaller blobs segmentation found beside the part (`Silhouette.others`: bounding boxes
+    x, y, width, height px) that lie outside the fitted box's outline, sized on the support plane
+    (the longer of the box's diagonals mapped onto it: a blob seen on a support tilted away reads
+    its own size, not its foreshortened one): 10 mm across or more is a second part (refused), a
+    smaller one a speck (a warning naming where and how large, so it is never dropped unsaid).
+    Blobs on the box's outline are pieces of the part."""
     specks = []
-    centre = -R.T @ t
     hull = cv2.convexHull(project(fit.corners(), K, R, t).astype(np.float32))
-    outside = [(x, y, d) for x, y, d in others
-               if cv2.pointPolygonTest(hull, (float(x), float(y)), True) < -(d / 2 + 8.0)]
-    for x, y, diag_px in outside:
-        ray = R.T @ np.linalg.solve(K, np.array([x, y, 1.0]))
-        depth = -centre[2] / ray[2] if abs(ray[2]) > 1e-12 else np.inf
-        mm = diag_px * depth / K[0, 0] if np.isfinite(depth) and depth > 0 else np.inf
+    to_plane = np.linalg.inv(K @ np.column_stack([R[:, 0], R[:, 1], t]))
+    outside = []
+    for x, y, w, h in others:
+        cx, cy = x + w / 2, y + h / 2
+        if cv2.pointPolygonTest(hull, (cx, cy), True) < -(np.hypot(w, h) / 2 + 8.0):
+            ends = np.array([[[x, y], [x + w, y + h], [x + w, y], [x, y + h]]], np.float64)
+            mm_pts = cv2.perspectiveTransform(ends, to_plane)[0]
+            mm = float(max(np.linalg.norm(mm_pts[0] - mm_pts[1]), np.linalg.norm(mm_pts[2] - mm_pts[3])))
+            outside.append((cx, cy, mm if np.isfinite(mm) else np.inf))
+    for cx, cy, mm in outside:
         if mm >= _SECOND_PART_MM:
             raise InputError(f"{1 + len(outside)} parts found: one part per photo (one of them about "
-                             f"{mm:.0f} mm across at ({x:.0f}, {y:.0f}) px)")
-        specks.append(f"a speck {mm:.0f} mm across at ({x:.0f}, {y:.0f}) px, apart from the part, "
+                             f"{mm:.0f} mm across, its outline mapped onto the support, at "
+                             f"({cx:.0f}, {cy:.0f}) px)")
+        specks.append(f"a speck {mm:.0f} mm across at ({cx:.0f}, {cy:.0f}) px, apart from the part, "
                       "was left out: dust or a mark on the support?")
     return specks
 
 
 def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraModel, reg: Registration,
                        timings: dict[str, float] | None = None, *, region: np.ndarray | None = None,
+                       region_refusal: str = _REGION_REFUSAL,
                        cpu: dict[str, float] | None = None) -> StationMeasurement:
     """The part measured in an undistorted photo whose support's pose is known (`reg`), against
     `plate_u` (the support as it looks without the part, registered by `reg.homography`).
 
     region : (H, W) bool, optional. Where the support is known (a hand-held board's area): a part
-    reaching out of it is refused. timings, cpu : each stage's wall and CPU (this thread's) ms are
-    added to them.
+    reaching out of it is refused, with `region_refusal`'s words. timings, cpu : each stage's wall
+    and CPU (this thread's) ms are added to them.
     """
     timings = {} if timings is None else timings
     cpu = {} if cpu is None else cpu
@@ -246,9 +259,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     if region is not None:
         edge = sil.mask & ~cv2.erode(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
         if edge.sum() > 0.002 * sil.area_px:
-            raise InputError("the part's outline reaches past the board in the photo (only the board's "
-                             "area is known): lay the part on the board with the board all round it, and "
-                             "photograph from higher up or use a larger board")
+            raise InputError(region_refusal)
     t3, c3 = time.perf_counter(), time.thread_time()
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
     # the folds and the outline's steps looked for in the part's window only

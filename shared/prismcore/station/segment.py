@@ -268,9 +268,9 @@ class Silhouette:
     warnings: list[str]
     difference: np.ndarray  # (h, w) float32, the window: the photo's distance from the shadow-scaled support
     origin: tuple[int, int] = (0, 0)
-    # blobs much smaller than the part, not joined to it: (x, y, diagonal) px of each (centre and
-    # diagonal of its bounding box, the photo's pixels)
-    others: list[tuple[float, float, float]] = field(default_factory=list)
+    # blobs much smaller than the part, not joined to it: the bounding box (x, y, width, height)
+    # px of each, the photo's pixels
+    others: list[tuple[float, ...]] = field(default_factory=list)
 
     @property
     def window(self) -> tuple[slice, slice]:
@@ -322,7 +322,7 @@ def _gain(P: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, str | None]:
     if count <= _LIGHT_MIN_PIXELS:
         return np.ones(3, np.float32), (
             f"the light's change since the plate could not be measured ({count} of the support's pixels "
-            "unclipped, at most 100): taken as none; the part's outline may be off")
+            f"unclipped, at most {_LIGHT_MIN_PIXELS}): taken as none; the part's outline may be off")
     return np.array([np.median(pc[ok] / bc[ok]) for pc, bc in zip(p, b, strict=True)], np.float32), None
 
 
@@ -417,11 +417,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     if others:
         raise InputError(f"{1 + len(others)} parts found: one part per photo")
     # the smaller blobs, near or far: the caller keeps those inside the fitted box's outline
-    apart = [
-        ((stats[i, 0] + stats[i, 2] / 2) * _COARSE, (stats[i, 1] + stats[i, 3] / 2) * _COARSE,
-         float(np.hypot(stats[i, 2], stats[i, 3])) * _COARSE)
-        for i in big[1:] if i not in joined
-    ]
+    apart = [tuple(float(v) * _COARSE for v in stats[i, :4]) for i in big[1:] if i not in joined]
     pieces = [first, *joined]
     x0, y0 = (int(min(stats[i, k] for i in pieces)) for k in (0, 1))
     bw = int(max(stats[i, 0] + stats[i, 2] for i in pieces)) - x0

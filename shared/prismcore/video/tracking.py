@@ -33,14 +33,14 @@ grey, until the marked one is reached). Pure functions over arrays: no I/O.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import cv2
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.faces import SideFace, clicked_quads, resolve_side_face
+from prismcore.geometry.faces import SideFace, clicked_quads, quad_area, resolve_side_face
 from prismcore.spec import ReferencePoints
 
 __all__ = [
@@ -232,15 +232,10 @@ def _inset_mask(shape: tuple[int, int], quad: np.ndarray, inset_px: float) -> np
     mask = np.zeros(shape, np.uint8)
     poly = np.array(corners)
     # An inset that turned the quad inside out (a face thinner than twice the inset) is empty.
-    if np.sign(_area(poly)) != np.sign(_area(quad)):
+    if np.sign(quad_area(poly)) != np.sign(quad_area(quad)):
         return mask
     cv2.fillConvexPoly(mask, np.round(poly * 16).astype(np.int32), 255, lineType=cv2.LINE_8, shift=4)
     return mask
-
-
-def _area(quad: np.ndarray) -> float:
-    x, y = quad[:, 0], quad[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
 def _features(grey: np.ndarray, quad: np.ndarray, s: TrackerSettings) -> np.ndarray:
@@ -571,8 +566,3 @@ class _Everything(Collection[int]):
 
     def __len__(self) -> int:
         return 0
-
-
-def with_settings(settings: TrackerSettings, **changes: Any) -> TrackerSettings:
-    """`settings` with some fields changed."""
-    return replace(settings, **changes)
