@@ -119,8 +119,11 @@ def _table(summary: dict) -> Table:
     return table
 
 
-def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int) -> dict:
+def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int,
+               extra: dict | None = None) -> dict:
     """Measure the frames `spec.frames` selects in the video `base / spec.image`; returns the summary.
+
+    extra : more blocks for summary.json (the tracking of points marked on one frame).
 
     Raises
     ------
@@ -168,6 +171,7 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
     if found is not None:
         summary["focal"] = {"pooled_px": round(found[0].focal_px, 3), "std_px": round(found[0].std_px, 3),
                             "frames": found[1]}
+    summary.update(extra or {})
     out.mkdir(parents=True, exist_ok=True)
     (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
     if not summary["frames"]["measured"]:

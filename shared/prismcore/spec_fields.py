@@ -30,6 +30,7 @@ __all__ = [
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
     "SUMMARY_NAME",
+    "TRACKED_NAME",
     "AutoPoints",
     "CsvOptions",
     "FrameSelection",
@@ -55,7 +56,8 @@ pixel centre."""
 
 FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
               "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
-              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json"}
+              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json",
+              "tracked_points": "tracked_points.json"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
 
@@ -64,6 +66,10 @@ SUMMARY_NAME = "summary.json"
 
 JOINT_NAME = FILE_NAMES["joint"]
 """The file name of a joint fit's report (several views of one part measured as ONE box)."""
+
+TRACKED_NAME = FILE_NAMES["tracked_points"]
+"""The file name of the points tracked from one frame of a video to the others (points_frame):
+per frame its seven points and their quality, or the reason it is left out."""
 
 JOINT_MAX_VIEWS = 24
 """The most views (photos, or a video's frames) one joint fit measures together: they are held
