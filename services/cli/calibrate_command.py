@@ -9,20 +9,27 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
 from prismcore.errors import InputError
 
+from .console import rich_console
+
 if TYPE_CHECKING:
     import numpy as np
+    from rich.console import Console
 
 __all__ = ["calibrate", "parse_board"]
+
+
+def console() -> Console:
+    """The command's console (soft wrap: a list of photo names stays on its line)."""
+    return rich_console(soft_wrap=True)
+
 
 # prismcore.io.images.DEFAULT_MAX_PIXELS, not imported for --help (it loads OpenCV; the
 # calibration, scipy): tests/cli/test_cli_imports.py checks the two agree.
 DEFAULT_MAX_PIXELS = 50_000_000
 
-console = Console(soft_wrap=True)  # a list of photo names stays on its line
 
 _IMAGE_SUFFIXES = {".bmp", ".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp"}
 _DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
@@ -102,16 +109,16 @@ def calibrate(
 
     short = _short_names(result.views + result.missing)
     worst = int(np.argmax(result.per_view_rms_px))
-    console.print(f"[bold]RMS reprojection error {result.rms_px:.3f} px[/]  (worst view "
+    console().print(f"[bold]RMS reprojection error {result.rms_px:.3f} px[/]  (worst view "
                   f"{short[result.views[worst]]}: {result.per_view_rms_px[worst]:.3f} px)")
     sx, sy = result.focal_sigma_px
-    console.print(f"focal length   fx {camera.fx:.2f} +- {sx:.2f} px, fy {camera.fy:.2f} +- {sy:.2f} px")
-    console.print(f"principal point {camera.cx:.2f}, {camera.cy:.2f} px  "
+    console().print(f"focal length   fx {camera.fx:.2f} +- {sx:.2f} px, fy {camera.fy:.2f} +- {sy:.2f} px")
+    console().print(f"principal point {camera.cx:.2f}, {camera.cy:.2f} px  "
                   f"({camera.image_width}x{camera.image_height} photos)")
-    console.print("distortion     " + "  ".join(f"{n} {v:+.5f}" for n, v in zip(_DIST_NAMES, camera.dist,
+    console().print("distortion     " + "  ".join(f"{n} {v:+.5f}" for n, v in zip(_DIST_NAMES, camera.dist,
                                                                                strict=False)))
     used = ", ".join(short[v] for v in result.views)
-    console.print(f"views used     {result.views_used} of {len(paths)}: {used}")
+    console().print(f"views used     {result.views_used} of {len(paths)}: {used}")
     if result.missing:
-        console.print(f"[yellow]no board in[/] {', '.join(short[v] for v in result.missing)}")
-    console.print(f"  camera: {out}")
+        console().print(f"[yellow]no board in[/] {', '.join(short[v] for v in result.missing)}")
+    console().print(f"  camera: {out}")

@@ -7,10 +7,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
 
 from prismcore.errors import InputError
 
+from .console import rich_console as console
 from .scan_command import one_line, read_spec_json, spec_from_flags
 
 if TYPE_CHECKING:
@@ -24,7 +24,6 @@ if TYPE_CHECKING:
 __all__ = ["cancel", "download", "jobs", "results", "station_delete", "station_list", "station_upload",
            "status", "submit", "wait"]
 
-console = Console()
 ApiUrl = Annotated[str, typer.Option("--api", envvar="PRISM_API_URL", help="API base URL.")]
 ApiKey = Annotated[str, typer.Option("--key", envvar="PRISM_API_KEY", help="API key.")]
 _REFERENCE_PREFIXES = ("upload:", "s3://", "https://")
@@ -85,9 +84,9 @@ def _print_job(job: JobPublic) -> None:
     line = f"job {job.id}: [bold]{job.state.value}[/] {job.progress}%"
     if job.item_count > 1:
         line += f" ({job.items_done} of {job.item_count} items)"
-    console.print(line, soft_wrap=True)
+    console().print(line, soft_wrap=True)
     if job.error:
-        console.print(f"  error: {job.error}", soft_wrap=True, markup=False)
+        console().print(f"  error: {job.error}", soft_wrap=True, markup=False)
     for item in job.items:
         text = f"  item {item.index}: {item.state.value}"
         if item.result:
@@ -96,9 +95,9 @@ def _print_job(job: JobPublic) -> None:
                 text += f", focal {item.result.focal_px:.0f} px ({item.result.focal_source})"
         if item.error:
             text += f"  error: {item.error}"
-        console.print(text, soft_wrap=True, markup=False)
+        console().print(text, soft_wrap=True, markup=False)
         for warning in item.result.warnings if item.result else []:
-            console.print(f"    warning: {warning}", soft_wrap=True, markup=False)
+            console().print(f"    warning: {warning}", soft_wrap=True, markup=False)
 
 
 def _job_document(spec_file: Path) -> dict[str, Any]:
@@ -185,7 +184,7 @@ def submit(
     # The client uploads a file once however many items name it.
     body = {**document, "items": [_upload_local(client, dict(item), base) for item in document["items"]]}
     job = client.submit(body, idempotency_key=idempotency_key)
-    console.print(job.id)
+    console().print(job.id)
     if then_wait:
         _wait(client, job.id, timeout=3600)
 
@@ -208,38 +207,38 @@ def station_upload(
         raise InputError(f"{station_file}: no such file")
     with _client(api, key) as client:
         found = client.create_station(station_file, name=name)
-    console.print(found.id, soft_wrap=True)
+    console().print(found.id, soft_wrap=True)
 
 
 def station_list(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
     """List your stations on the service, newest first: id, image size, plane RMS, plate, name."""
     with _client(api, key) as client:
         for s in client.stations():
-            console.print(f"{s.id}  {s.image_width}x{s.image_height} px  plane RMS {s.plane_rms_px:.2f} px  "
-                          f"{'plate' if s.has_plate else 'no plate'}  {s.created_at:%Y-%m-%d %H:%M:%S}  "
-                          f"{s.name or ''}", soft_wrap=True, markup=False)
+            console().print(f"{s.id}  {s.image_width}x{s.image_height} px  plane RMS "
+                            f"{s.plane_rms_px:.2f} px  {'plate' if s.has_plate else 'no plate'}  "
+                            f"{s.created_at:%Y-%m-%d %H:%M:%S}  {s.name or ''}", soft_wrap=True, markup=False)
 
 
 def station_delete(station_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "") -> None:
     """Delete one of your stations from the service."""
     with _client(api, key) as client:
         client.delete_station(station_id)
-    console.print(f"deleted station {station_id}", soft_wrap=True)
+    console().print(f"deleted station {station_id}", soft_wrap=True)
 
 
 def status(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
            as_json: Annotated[bool, typer.Option("--json", help="Print the raw job.")] = False) -> None:
     """Print a job's state, progress and per-item results."""
     job = _client(api, key).job(job_id)
-    console.print_json(job.model_dump_json()) if as_json else _print_job(job)
+    console().print_json(job.model_dump_json()) if as_json else _print_job(job)
 
 
 def _wait(client: ApiClient, job_id: str, timeout: float) -> JobPublic:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TextColumn("{task.fields[detail]}"), TimeElapsedColumn(), console=console,
-                  transient=not console.is_terminal) as bar:
+                  TextColumn("{task.fields[detail]}"), TimeElapsedColumn(), console=console(),
+                  transient=not console().is_terminal) as bar:
         task = bar.add_task(job_id, total=100, detail="")
         job = client.wait(job_id, timeout=timeout, on_update=lambda j: bar.update(
             task, completed=j.progress, description=f"{job_id} {j.state.value}",
@@ -261,8 +260,8 @@ def download(job_id: str, out: Annotated[Path, typer.Option(help="Folder for the
     """Download every item's outputs into OUT/item-N/, and the job's table as OUT/results.csv."""
     with _client(api, key) as client:
         for path in client.download(client.job(job_id), out):
-            console.print(str(path))
-        console.print(str(client.save_results_csv(job_id, out / "results.csv")))
+            console().print(str(path))
+        console().print(str(client.save_results_csv(job_id, out / "results.csv")))
 
 
 def results(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
@@ -272,7 +271,7 @@ def results(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = ""
 
     with _client(api, key) as client:
         table = client.results(job_id)
-    console.print_json(table.model_dump_json()) if as_json else render_results(table, console)
+    console().print_json(table.model_dump_json()) if as_json else render_results(table, console())
 
 
 def jobs(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
@@ -288,7 +287,7 @@ def jobs(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
         if as_json:
             print(job.model_dump_json(exclude={"items"}))
         else:
-            console.print(f"{job.id}  {job.state.value:<9} {job.progress:>3}%  "
+            console().print(f"{job.id}  {job.state.value:<9} {job.progress:>3}%  "
                           f"{job.items_done}/{job.item_count} items  "
                           f"{job.created_at:%Y-%m-%d %H:%M:%S}  {job.client_reference or ''}",
                           soft_wrap=True, markup=False)

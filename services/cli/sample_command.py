@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from prismcore.errors import InputError
 
@@ -41,5 +40,7 @@ def sample(
         "scale": {"kind": "pinhole", "distance_mm": round(scene.distance_mm, 3)},
     }
     (out / "job.json").write_text(json.dumps(spec, indent=2) + "\n")
+    from rich.console import Console
+
     Console().print(f"true size {width_mm:g} x {height_mm:g} x {depth_mm:g} mm\n"
                     f" image: {out / 'box.jpg'}\n  spec: {out / 'job.json'}")

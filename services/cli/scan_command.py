@@ -10,9 +10,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
 
 from prismcore.errors import InputError
+
+from .console import rich_console as console
 
 if TYPE_CHECKING:
     from pydantic import ValidationError
@@ -30,7 +31,6 @@ DEFAULT_MAX_FRAMES = 500
 __all__ = ["one_line", "quality_flags", "quality_lines", "scan", "selection_from_flags", "spec_from_flags",
            "summary_line"]
 
-console = Console()
 
 
 def _internal(step: int | str) -> bool:
@@ -257,8 +257,7 @@ def scan(
              "their order, or keyed by file name; an entry may be {\"points\": [...], \"side_face\": "
              "\"top\"}): the photos are measured as ONE box (one known edge), joint.json in --out.")] = None,
     points: Annotated[str | None, typer.Option(
-        # \[: the help is rich markup, in which [x6,y6 x7,y7] is a tag (and was not shown).
-        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 \\[x6,y6 x7,y7]" in image pixels, or auto (found in '
+        help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels, or auto (found in '
              'the photo; refused, exit 2, when not sure).')] = None,
     hint: Annotated[str | None, typer.Option(help="--points auto: X,Y px on the box wanted.")] = None,
     roi: Annotated[str | None, typer.Option(
@@ -453,11 +452,11 @@ def scan(
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)
     paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
-    console.print(summary_line(result.report), soft_wrap=True)
+    console().print(summary_line(result.report), soft_wrap=True)
     for line in quality_lines(result.report.get("quality")):
-        console.print(line, soft_wrap=True)
+        console().print(line, soft_wrap=True)
     for warning in result.report["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
+        console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))
     for kind, path in paths.items():
-        console.print(f"{kind:>{wide}}: {path}", soft_wrap=True)  # a path must stay one line to be copied
+        console().print(f"{kind:>{wide}}: {path}", soft_wrap=True)  # a path must stay one line to be copied

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
 from prismcore.errors import InputError
 
@@ -130,6 +129,8 @@ def serve(
     workers: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 2,
 ) -> None:
     """Run the API, workers, Redis and S3 storage locally until Ctrl-C."""
+    from rich.console import Console
+
     from .stack import port_is_free, start_api, start_redis, start_s3, start_worker
 
     console = Console()

@@ -9,21 +9,27 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
-from rich.console import Console
 
 from prismcore import InputError
 
+from .console import rich_console
+
 if TYPE_CHECKING:
     import numpy as np
+    from rich.console import Console
 
     from prismcore.station.board import BoardSpec
     from prismcore.station.calibrate import Station
 
 __all__ = ["board", "load_board", "load_station", "station_app"]
 
-console = Console(soft_wrap=True)
+
+def console() -> Console:
+    """The command's console (soft wrap: a list of photo names stays on its line)."""
+    return rich_console(soft_wrap=True)
+
 station_app = typer.Typer(
-    no_args_is_help=True,
+    no_args_is_help=True, rich_markup_mode=None,
     help="A station: a camera calibrated to the support parts stand on (measure with prism scan --station).",
 )
 
@@ -117,12 +123,12 @@ def board(
     _pdf(image, spec, paper, out / "board.pdf")
     (out / "board.json").write_text(json.dumps(spec.describe(), indent=2) + "\n")
     w, h = spec.size_mm
-    console.print(
+    console().print(
         f"ChArUco {spec.squares_x}x{spec.squares_y}, squares {spec.square_mm:g} mm, markers "
         f"{spec.marker_mm:g} mm ({spec.dictionary}): {w:g} x {h:g} mm on {paper}"
     )
     for name in ("board.png", "board.pdf", "board.json"):
-        console.print(f"{name:>10}: {out / name}")
+        console().print(f"{name:>10}: {out / name}")
 
 
 @station_app.command("calibrate")
@@ -188,21 +194,21 @@ def calibrate(
         # station.json's calibration (written by calibrate_station): views and views_left_out are
         # lists of the photos' names
         views = cast("list[str]", info["views"])
-        console.print(
+        console().print(
             f"camera: fx {c.fx:.1f} fy {c.fy:.1f} px, centre ({c.cx:.1f}, {c.cy:.1f}), "
             f"RMS {info['rms_px']:.3f} px over {info['corners']} corners of {len(views)} photos"
         )
         for name in cast("list[str]", info.get("views_left_out", [])):
-            console.print(f"[yellow]left out:[/] {name} (too few board corners)")
+            console().print(f"[yellow]left out:[/] {name} (too few board corners)")
     else:
-        console.print(f"camera: from {camera} (fx {c.fx:.1f} px)")
+        console().print(f"camera: from {camera} (fx {c.fx:.1f} px)")
     centre = station.plane.camera_centre()
-    console.print(
+    console().print(
         f"plane: {station.plane.corners} corners, RMS {station.plane.rms_px:.3f} px; camera "
         f"{-centre[2]:.0f} mm above the support"
     )
     if station.plate_png is None:
-        console.print(
+        console().print(
             "[yellow]warning:[/] no --plate: prism scan --station needs a photo of the empty support"
         )
-    console.print(f"station: {out}")
+    console().print(f"station: {out}")

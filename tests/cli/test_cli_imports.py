@@ -1,7 +1,7 @@
 """`prism` imports what a command uses when it runs (issue 28): `prism --help` and every command's
---help load no engine, numpy, OpenCV, scipy or HTTP client (pydantic, yes: typer coerces a
-command's parameters with it), and a scan of a photo loads neither the client nor the joint fit,
-the calibration or the video search. Not a timing test:
+--help load no engine, numpy, OpenCV, scipy, HTTP client or rich (the help is plain click text;
+pydantic, yes: typer coerces a command's parameters with it), and a scan of a photo loads neither
+the client nor the joint fit, the calibration or the video search. Not a timing test:
 the modules in a fresh process's ``sys.modules``, which is what the time follows
 (`benchmarks/speed.py` prints the time)."""
 
@@ -22,7 +22,7 @@ SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 SEVEN = "395,293 943,331 919,761 943,331 1035,298 411,647 1009,660"
 
 # Each costs tens to hundreds of ms of CPU to import (scipy.optimize ~0.5 s, scipy.stats ~1 s).
-HELP_FORBIDDEN = ("numpy", "cv2", "scipy", "polars", "httpx", "prism_common", "rich.progress",
+HELP_FORBIDDEN = ("numpy", "cv2", "scipy", "polars", "httpx", "prism_common", "rich",
                   "prismsynth", "prismcore.spec", "prismcore.multiview.joint")
 SCAN_FORBIDDEN = ("httpx", "prism_common", "scipy.stats", "prismsynth", "prismcore.multiview.joint",
                   "prismcore.geometry.calibration", "prismcore.locate.search",
