@@ -82,8 +82,8 @@ def _size(probe: dict[str, Any] | None) -> tuple[int, int] | None:
 
 def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> tuple[tuple, str] | None:
     """Where and why the upload named by `field` is the wrong kind for the item: a video as a
-    photo, a photo as a video, frame indices past the video's end; None when it fits (or its
-    probe is unknown). `field` "view": a photo of an item's views."""
+    photo, a photo as a video, frame indices (or the marked frame, points_frame) past the video's
+    end; None when it fits (or its probe is unknown). `field` "view": a photo of an item's views."""
     kind = (probe or {}).get("kind")
     if field == "view":
         return ((), "the upload is a video: a view is a photo (a video's frames are measured as one "
@@ -94,6 +94,10 @@ def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> t
     if kind == "image" and field == "image" and item.is_video:
         return ("frames",), "frames: the image is a photo, not a video: drop frames (and frame_points)"
     count = (probe or {}).get("frame_count")
+    marked = item.points_frame
+    if kind == "video" and isinstance(count, int) and marked is not None and marked >= count:
+        return ("points_frame",), (f"points_frame {marked} is past the video's end: it has {count} "
+                                   f"frames (0-{count - 1})")
     indices = item.frames.indices if item.frames is not None else None
     if kind == "video" and isinstance(count, int) and indices:
         past = sorted(n for n in indices if n >= count)
@@ -177,13 +181,6 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
-        if item.points_frame is not None:
-            # The worker measures a video's frames with `points` as a fixed camera's: it would
-            # ignore points_frame. Refused until it tracks (issue 29).
-            fail(("items", i, "points_frame"), f"item {i} points_frame: points tracked from one frame "
-                 "are measured by prism scan VIDEO --points ... --points-frame N for now; the service "
-                 "does not track yet (give frame_points, each frame's own points)")
-            continue
         shapes: dict[str, tuple[int, int] | None] = {}
         # Each input as (its place in the item, the field its kind is judged as, its reference).
         inputs: list[tuple[tuple[str | int, ...], str, str | None]] = (

@@ -2,11 +2,14 @@
 
 Two kinds of item: one with `views` (photos of one part, each with its seven points; each read
 where its reference points, not copied), and a video with `fit` "joint" (the frames of
-`frame_points`, decoded from the video streamed to a local file). The views are decoded and held
-together (at most `JOINT_MAX_VIEWS`, `JOINT_MAX_PIXELS` together), fitted as one box, and the
-fit's report is stored as ``joint.json``; the item's result carries the dimensions with their
-1-sigma, the focal length, the views used and those left out with the reason. No cloud is made:
-a cloud is one photo's.
+`frame_points`, decoded from the video streamed to a local file; or with `points_frame`, the
+points of one frame tracked to the selected frames (`prismcore.video.tracked`: tracked_points.json
+is stored beside joint.json, the frames whose views differ most are fitted, and each frame the
+tracking left out is named with its reason in the result's warnings and ``summary.tracking``).
+The views are decoded and held together (at most `JOINT_MAX_VIEWS`, `JOINT_MAX_PIXELS`
+together), fitted as one box, and the fit's report is stored as ``joint.json``; the item's
+result carries the dimensions with their 1-sigma, the focal length, the views used and those
+left out with the reason. No cloud is made: a cloud is one photo's.
 
 Views of different image sizes (one camera is assumed), views none of which can be measured,
 a video that does not decode: InputError, which fails the item with its reason.
@@ -29,14 +32,15 @@ from prismcore.io.images import load_image
 from prismcore.multiview.joint import View, fit_views
 from prismcore.multiview.report import joint_report
 from prismcore.quality.verdicts import quality_from_report
-from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, KnownEdge, ScanSpec
+from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, TRACKED_NAME, KnownEdge, ScanSpec
 from prismcore.video.frames import iter_frames, probe_video, select_frames
+from prismcore.video.tracked import Tracking, check_points_frame, joint_frames, tracked_views
 
 from .artifacts import item_key
 from .context import WorkerContext
 from .inputs import read_reference, save_input
 from .steps import max_pixels
-from .video import client_message
+from .video import client_message, track_item
 
 __all__ = ["is_joint", "measure_joint"]
 
@@ -59,9 +63,13 @@ def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[
     spec = view.item.spec
     inputs: dict[str, Any]
     labels: list[int] | None
+    tracking: Tracking | None = None
     if spec.views is not None:
         views, labels, inputs = _photos(ctx, view), None, {
             "inputs": [{"index": k, "image": v.image} for k, v in enumerate(spec.views)]}
+    elif spec.points_frame is not None:
+        views, frames, info, tracking = _tracked(ctx, view)
+        labels, inputs = frames, {"video": {"reference": spec.image, **info}}
     else:
         views, frames, info = _frames(ctx, view)
         labels, inputs = frames, {"video": {"reference": spec.image, **info}}
@@ -69,10 +77,15 @@ def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[
     assert isinstance(spec.scale, KnownEdge)  # the spec's rules
     result = fit_views(views, spec.scale, focal_px=spec.focal_px)
     report = {**joint_report(result, labels), **inputs}
-    key = item_key(view.job_id, view.item.index, JOINT_NAME)
-    ctx.objects.put_json(key, report)
+    outputs = {"joint": item_key(view.job_id, view.item.index, JOINT_NAME)}
+    if tracking is not None:
+        report["tracking"] = tracking.block(labels)
+        outputs["tracked_points"] = item_key(view.job_id, view.item.index, TRACKED_NAME)
+    ctx.objects.put_json(outputs["joint"], report)
     quality = quality_from_report(report, spec.nominal, spec.tolerance_mm)
     left = [f"{o['name']} left out: {o['reason']}" for o in report["left_out"]]
+    if tracking is not None:
+        left = tracking.warnings() + left
     camera = report["camera"]
     return ItemResult(
         points=0, point_loss=0.0, dimensions=report["dimensions"], uncertainty=report["uncertainty"],
@@ -82,7 +95,8 @@ def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[
         given_dimension=spec.scale.edge if spec.scale is not None and spec.scale.kind == "edge" else None,
         joint={"views": report["views"], "left_out": report["left_out"],
                "focal_std_px": camera["focal_std_px"], "distortion_kappa": camera["distortion_kappa"]},
-    ), {"joint": key}
+        summary=None if tracking is None else {"tracking": report["tracking"], **inputs},
+    ), outputs
 
 
 def _photos(ctx: WorkerContext, view: ItemView) -> list[View]:
@@ -128,6 +142,31 @@ def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], 
         except InputError as exc:  # quote the client's name for the video, not our temp file
             raise InputError(client_message(exc, path, label)) from None
     return views, frames, asdict(info)
+
+
+def _tracked(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], dict[str, Any], Tracking]:
+    """The points of `points_frame` tracked to the selected frames (tracked_points.json stored),
+    and the tracked frames whose views differ most as views: their indices, the video's probe
+    and the tracking."""
+    spec = view.item.spec
+    assert spec.frames is not None
+    with tempfile.TemporaryDirectory(prefix="prism-joint-") as tmp:
+        path = Path(tmp) / "video"
+        with path.open("wb") as dest:
+            label = save_input(ctx, view, "front", dest)
+        try:
+            info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
+            check_points_frame(spec, info)
+            frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
+        except InputError as exc:  # quote the client's name for the video, not our temp file
+            raise InputError(client_message(exc, path, label)) from None
+        tracking = track_item(ctx, view, path, label, frames)
+        chosen = joint_frames(tracking, info)
+        try:
+            views = tracked_views(spec, iter_frames(path, chosen), tracking)
+        except InputError as exc:
+            raise InputError(client_message(exc, path, label)) from None
+    return views, chosen, asdict(info), tracking
 
 
 def _same_size(views: list[View], labels: list[int] | None) -> None:

@@ -10,6 +10,13 @@ finds each frame's points, in frame order (`prismcore.video.point_search.FrameSe
 starts at the box the frame before showed), and stores them beside the frame (``points.json``:
 the points, or the search's reason, which fails that frame).
 
+Points marked on one frame (``points_frame``): the split's first part tracks them to the
+selected frames (`prismcore.video.tracked`, as `prism scan VIDEO --points-frame N`) and stores
+``tracked_points.json`` beside the item's results (per frame its points and quality, or the
+reason the tracking left it out); each frame is then measured with its own tracked points, and
+a frame left out fails with the tracking's reason. The tracking runs whole in that task (its
+time limit bounds it: every frame from the first selected one to the last is read).
+
 Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frames.frame_spec`)
 and gets its own outputs and record; after the item's last frame (`frame_finished`) the item's
 result is the summary over its frames: the median of each dimension, with its spread, so a
@@ -51,11 +58,19 @@ from prismcore import InputError, ReferencePoints, ScanSpec
 from prismcore.io.containers import HEAD_BYTES, video_container
 from prismcore.io.images import load_image
 from prismcore.locate.auto_points import scan_found
-from prismcore.spec import SUMMARY_NAME
+from prismcore.spec import SUMMARY_NAME, TRACKED_NAME
 from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
 from prismcore.video.point_search import FrameSearch
 from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.video.summary import frame_info, summarize
+from prismcore.video.tracked import (
+    Tracking,
+    check_points_frame,
+    left_out_message,
+    per_frame_spec,
+    track_video,
+    tracked_json,
+)
 
 from . import lifecycle
 from .artifacts import frame_key, item_key, write_outputs
@@ -64,7 +79,7 @@ from .inputs import save_input
 from .steps import max_pixels
 
 __all__ = ["FOCAL_NAME", "FRAMES_NAME", "POINTS_NAME", "client_message", "extract_frame", "frame_failed",
-           "frame_finished", "png_bytes", "scan_frame", "split_video"]
+           "frame_finished", "png_bytes", "scan_frame", "split_video", "track_item"]
 
 log = logging.getLogger(__name__)
 
@@ -121,6 +136,8 @@ def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
             label = save_input(ctx, view, "front", dest)
         if part == 0:
             frames = _select(ctx, view, path, label)
+            if spec.points_frame is not None:
+                track_item(ctx, view, path, label, frames)
             left = _Split(next=0, hint=None, estimates=[], stored=[])
         else:
             frames = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["frames"]
@@ -162,6 +179,7 @@ def _select(ctx: WorkerContext, view: ItemView, path: Path, label: str) -> list[
     cap, store = ctx.settings.max_frames_per_job, ctx.store
     try:
         info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
+        check_points_frame(spec, info)
         frames = select_frames(path, spec.frames, info, max_frames=cap)
     except InputError as exc:  # quote the client's name for the video, not our temp file
         raise InputError(client_message(exc, path, label)) from None
@@ -173,6 +191,51 @@ def _select(ctx: WorkerContext, view: ItemView, path: Path, label: str) -> list[
     ctx.objects.put_json(item_key(job_id, item, FRAMES_NAME), {"frames": frames, "video": asdict(info)})
     lifecycle.count_plan(ctx, job_id, item, len(frames))  # progress counts frames from here on
     return frames
+
+
+def track_item(ctx: WorkerContext, view: ItemView, path: Path, label: str, frames: list[int]) -> Tracking:
+    """Track the points of `points_frame` to `frames` and store tracked_points.json (unless a
+    run before this one did: the tracking is deterministic); the frames tracked and left out.
+
+    Raises
+    ------
+    InputError
+        The points do not fit a box on the marked frame, or no frame could be tracked.
+    """
+    spec, objects = view.item.spec, ctx.objects
+    assert spec.points_frame is not None
+    key = item_key(view.job_id, view.item.index, TRACKED_NAME)
+    try:
+        if objects.exists(key):
+            doc = objects.get_json(key)
+        else:
+            doc = tracked_json(track_video(spec, path, frames))
+            objects.put_json(key, doc)
+        tracking = Tracking.from_json(spec.points_frame, doc)
+        tracking.require_some(repr(label))
+    except InputError as exc:
+        raise InputError(client_message(exc, path, label)) from None
+    return tracking
+
+
+@lru_cache(maxsize=32)
+def _tracking(ctx: WorkerContext, key: str, points_frame: int) -> Tracking:
+    """tracked_points.json (never changes once written)."""
+    doc = ctx.objects.get_json(key)
+    if doc is None:  # the split stores it before any frame's task is sent
+        raise RuntimeError(f"the item has no {TRACKED_NAME}")
+    return Tracking.from_json(points_frame, doc)
+
+
+def _tracked_spec(ctx: WorkerContext, view: ItemView, frame: int) -> ScanSpec:
+    """The frame's photo spec with its tracked points; InputError with the tracking's reason
+    for a frame it left out."""
+    spec = view.item.spec
+    assert spec.points_frame is not None
+    tracking = _tracking(ctx, item_key(view.job_id, view.item.index, TRACKED_NAME), spec.points_frame)
+    if frame not in tracking.good:
+        raise InputError(left_out_message(frame, tracking.left.get(frame, "not among the frames tracked")))
+    return frame_spec(per_frame_spec(spec, tracking), frame)
 
 
 def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[int], left: _Split,
@@ -188,7 +251,7 @@ def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[i
         if store.state(job_id) != State.running:
             return  # cancelled (or ended) meanwhile: the remaining frames are not wanted
         objects.put_bytes(frame_key(job_id, item, index, "frame.png"), png_bytes(rgb), "image/png")
-        photo = frame_spec(spec, index) if search is None else _search(ctx, view, search, index, rgb)
+        photo = _photo_spec(ctx, view, index) if search is None else _search(ctx, view, search, index, rgb)
         if pool:
             if photo is not None and (found := focal_estimate(photo, rgb)) is not None:
                 left.estimates.append((index, *found))
@@ -216,6 +279,16 @@ def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[i
             ctx.send_task(TASK_SCAN_FRAME, (job_id, item, index))
 
 
+def _photo_spec(ctx: WorkerContext, view: ItemView, index: int) -> ScanSpec | None:
+    """The frame's photo spec as the split sees it (None: a frame the tracking left out)."""
+    if view.item.spec.points_frame is None:
+        return frame_spec(view.item.spec, index)
+    try:
+        return _tracked_spec(ctx, view, index)
+    except InputError:
+        return None
+
+
 def _search(ctx: WorkerContext, view: ItemView, search: FrameSearch, index: int,
             rgb: np.ndarray) -> ScanSpec | None:
     """Find the frame's points (the next frame's search starts from them) and store them, or
@@ -238,6 +311,8 @@ def _frame_spec(ctx: WorkerContext, view: ItemView, frame: int) -> tuple[ScanSpe
     Raises InputError with the search's reason for a frame where it found no points.
     """
     spec = view.item.spec
+    if spec.points_frame is not None:
+        return _tracked_spec(ctx, view, frame), None
     photo = frame_spec(spec, frame)
     if spec.auto_points is None:
         return photo, None
@@ -327,16 +402,24 @@ def _finish_video(ctx: WorkerContext, job_id: str, item: int, frames: dict[str, 
             if (pooled := _pooled(ctx, item_key(job_id, item, FOCAL_NAME))) is not None:
                 summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
                                     "frames": list(pooled.used)}
+            outputs: dict[str, str] = {}
+            warnings: list[str] = []
+            if (points_frame := view.item.spec.points_frame) is not None:
+                outputs["tracked_points"] = tracked = item_key(job_id, item, TRACKED_NAME)
+                tracking = _tracking(ctx, tracked, points_frame)
+                summary["tracking"] = tracking.block()
+                warnings += tracking.warnings()
             key = item_key(job_id, item, SUMMARY_NAME)
             ctx.objects.put_json(key, summary)
             dims = {k: v["median"] for k, v in summary["dimensions"].items()}
             failed = summary["frames"]["failed"]
-            warnings = [f"{failed} of {len(records)} frames could not be measured"] if failed else []
+            if failed:
+                warnings.insert(0, f"{failed} of {len(records)} frames could not be measured")
             result = ItemResult(points=sum(r.points for r in measured),
                                 dimensions={**dims, "unit": summary["unit"]},
                                 point_loss=median(r.point_loss for r in measured),
                                 warnings=warnings, summary=summary)
-            lifecycle.succeed_item(ctx, job_id, view.item, result, {"summary": key})
+            lifecycle.succeed_item(ctx, job_id, view.item, result, {"summary": key, **outputs})
     lifecycle.complete_item(ctx, job_id, item, maybe_repeat=maybe_repeat)
 
 

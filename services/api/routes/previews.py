@@ -2,7 +2,9 @@
 
 ``GET /v1/jobs/{id}/items/{n}/preview.ply`` and ``.../items/{n}/frames/{f}/preview.ply``; the
 same with ``overlay.png`` (the fit drawn on the photo), and ``items/{n}/box.glb`` (the fitted box
-as a textured glTF model, when the item asked for the glb format). The web page draws the cloud with WebGL
+as a textured glTF model, when the item asked for the glb format), and ``items/{n}/tracked_points.json``
+(a video whose points were marked on one frame: each frame's tracked points, or why it was left
+out). The web page draws the cloud with WebGL
 and shows the overlay from its own origin, so these routes relay the worker's objects (`relay`).
 Another tenant's job answers 404, like every job route.
 """
@@ -31,7 +33,7 @@ _RESPONSES: dict[int | str, dict[str, Any]] = {
     200: _PLY, 404: {"description": "No such job, item, frame or preview"}
 }
 Index = Annotated[int, Path(ge=0)]
-_MEDIA = {"overlay": "image/png", "glb": "model/gltf-binary"}
+_MEDIA = {"overlay": "image/png", "glb": "model/gltf-binary", "tracked_points": "application/json"}
 
 
 def _item(store: JobStore, job_id: str, index: int, tenant: str) -> ItemRecord:
@@ -116,3 +118,18 @@ def get_box_model(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
     item = _item(store, job_id, index, tenant)
     return _relay(objects, item.outputs.get("glb"), f"item {index} of job {job_id}", "item",
                   item.state.value, "glb")
+
+
+@router.get("/{job_id}/items/{index}/tracked_points.json", response_class=StreamingResponse,
+            responses={200: {"content": {"application/json": {}},
+                             "description": "Per frame index, its seven tracked points [[x, y] x 7] "
+                                            "and their quality, or the reason the frame was left out."},
+                       404: {"description": "No such job or item, or no tracking (no points_frame, "
+                                            "or not tracked yet)"}})
+def get_tracked_points(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
+                       objects: ObjectsDep) -> StreamingResponse:
+    """The points of a video marked on one frame (points_frame), tracked to each selected frame
+    (tracked_points.json), relayed so the page draws the track from its own origin."""
+    item = _item(store, job_id, index, tenant)
+    return _relay(objects, item.outputs.get("tracked_points"), f"item {index} of job {job_id}", "item",
+                  item.state.value, "tracked_points")

@@ -49,6 +49,7 @@ __all__ = [
     "refine_fields",
     "track_video",
     "tracked_json",
+    "tracked_views",
 ]
 
 JOINT_TRACKED_VIEWS = 30
@@ -187,6 +188,11 @@ def fit_tracked(spec: ScanSpec, frames: Iterable[tuple[int, np.ndarray]], tracki
     """
     if not isinstance(spec.scale, KnownEdge):
         raise InputError('fit "joint" needs a known edge as the scale (scale kind "edge")')
-    views = [View(image, tracking.good[index].tolist(), spec.side_face, f"frame {index}")
-             for index, image in frames]
-    return fit_views(views, spec.scale, focal_px=spec.focal_px)
+    return fit_views(tracked_views(spec, frames, tracking), spec.scale, focal_px=spec.focal_px)
+
+
+def tracked_views(spec: ScanSpec, frames: Iterable[tuple[int, np.ndarray]], tracking: Tracking) -> list[View]:
+    """The tracked frames `frames` ((index, RGB (H, W, 3) uint8)) as a joint fit's views, each
+    with its tracked points, named "frame N"."""
+    return [View(image, tracking.good[index].tolist(), spec.side_face, f"frame {index}")
+            for index, image in frames]

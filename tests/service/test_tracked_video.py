@@ -1,0 +1,129 @@
+"""A hand-held video whose seven points are marked on one frame (`points_frame`), through a real
+worker (Redis, SeaweedFS, Celery): the points tracked to the selected frames and stored as
+tracked_points.json beside the results, each frame measured with its own points (or the frames
+as ONE box, fit "joint"), and a frame the tracking leaves out named with its reason. The truth
+is the renderer's: each frame's exact corners and the box's size. At submit, a marked frame past
+the video's end is refused with a pointer to points_frame."""
+
+# ruff: noqa: F811 - `client` is test_api's fixture, imported to be used as such
+from __future__ import annotations
+
+import functools
+import json
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from prism_common.records import State
+
+from prismcore.spec import ScanSpec
+from prismsynth import Box
+from prismsynth.video import moving_clip, write_video
+
+from .test_api import ACME, client, make_client  # noqa: F401 (fixtures)
+from .worker_env import Env, worker_env
+
+BOX = Box(120.0, 80.0, 60.0)
+TRACKED = 16  # frames of the moving camera; then a cut to a dark scene
+CUT = 4
+MARKED = 8
+SELECTED = [0, 4, MARKED, 12, 15, 17]  # 17: after the cut, left out
+EDGE = {"kind": "edge", "edge": "width", "length_mm": BOX.width_mm}
+POINT_PX = 2.0  # MJPEG-decoded frames against the renderer's exact corners
+SIZE_REL = 0.03  # each frame's (and the joint box's) height and depth against the box's
+
+
+@functools.cache
+def _clip() -> tuple[bytes, tuple[np.ndarray, ...]]:
+    images, truth = moving_clip(BOX, TRACKED, image_size=(640, 360), focal_px=600.0, sway_deg=8.0, seed=0)
+    rng = np.random.default_rng(0)
+    dark = [rng.integers(0, 60, images[0].shape, dtype=np.uint8) for _ in range(CUT)]
+    folder = Path(tempfile.mkdtemp(prefix="tracked-clip-"))
+    write_video([*images, *dark], folder / "clip.avi", codec="MJPG", fps=12.0)
+    return (folder / "clip.avi").read_bytes(), tuple(truth)
+
+
+@pytest.fixture(scope="module")
+def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
+    with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=13,
+                    bucket="t-tracked", tiles_per_face=1, items_in_flight=2, max_frames=20) as made:
+        yield made
+
+
+def _spec(env: Env, fit: str) -> ScanSpec:
+    video, truth = _clip()
+    points = [[round(float(x), 2), round(float(y), 2)] for x, y in truth[MARKED]]
+    return ScanSpec.model_validate({
+        "image": env.upload(video, name="handheld.avi"), "points": points, "points_frame": MARKED,
+        "frames": {"indices": SELECTED}, "scale": EDGE, "focal_px": 600.0, "fit": fit,
+        "formats": ["csv"]})
+
+
+def _check_track(env: Env, key: str) -> dict[str, dict]:
+    """tracked_points.json: each tracked frame's points against the renderer's, the cut named."""
+    doc = json.loads(env.objects.get_bytes(key))
+    _, truth = _clip()
+    assert sorted(map(int, doc)) == SELECTED
+    for index in SELECTED[:-1]:
+        entry = doc[str(index)]
+        assert "points" in entry, (index, entry)
+        worst = float(np.linalg.norm(np.array(entry["points"]) - truth[index], axis=1).max())
+        assert worst < POINT_PX, (index, worst)
+        assert 0 < entry["quality"]["confidence"] <= 1
+    assert "cut" in doc["17"]["reason"]
+    return doc
+
+
+@pytest.mark.parametrize("fit", ["frames", "joint"])
+def test_points_marked_on_one_frame_are_tracked_and_measured(env: Env, fit: str) -> None:
+    job = env.wait(env.submit([_spec(env, fit)]), timeout=300)
+    item = job.items[0]
+    assert item.state == State.succeeded, item.error
+    assert set(item.outputs) >= {"tracked_points", "joint" if fit == "joint" else "summary"}
+    assert item.outputs["tracked_points"].endswith("/items/0/tracked_points.json")
+    doc = _check_track(env, item.outputs["tracked_points"])
+    tracking = item.result.summary["tracking"]
+    assert tracking["points_frame"] == MARKED
+    assert tracking["tracked"] == SELECTED[:-1]
+    assert tracking["left_out"] == {"17": doc["17"]["reason"]}
+    assert f"frame 17 left out by the tracking: {doc['17']['reason']}" in item.result.warnings
+    for name in ("height", "depth"):
+        assert abs(item.result.dimensions[name] / getattr(BOX, f"{name}_mm") - 1) < SIZE_REL, item.result
+    if fit == "joint":
+        report = json.loads(env.objects.get_bytes(item.outputs["joint"]))
+        assert report["tracking"]["chosen"] and set(report["tracking"]["chosen"]) <= set(SELECTED[:-1])
+        assert {v["index"] for v in report["views"]} <= set(report["tracking"]["chosen"])
+        assert item.result.uncertainty["height"] > 0
+        return
+    frames = {f.index: f for f in item.frames}
+    assert sorted(frames) == SELECTED
+    for index in SELECTED[:-1]:
+        assert frames[index].state == State.succeeded, frames[index].error
+        for name in ("height", "depth"):
+            measured = frames[index].result.dimensions[name]
+            assert abs(measured / getattr(BOX, f"{name}_mm") - 1) < SIZE_REL, (index, name, measured)
+    assert frames[17].state == State.failed and "left out by the tracking" in frames[17].error
+    summary = json.loads(env.objects.get_bytes(item.outputs["summary"]))
+    assert summary == item.result.summary
+    assert summary["frames"] == {"selected": len(SELECTED), "measured": len(SELECTED) - 1, "failed": 1}
+
+
+def test_a_marked_frame_past_the_video_is_refused_at_submit(client) -> None:
+    video, truth = _clip()
+    r = client.post("/v1/uploads", files={"file": ("clip.avi", video)}, headers=ACME)
+    assert r.status_code == 201, r.text
+    reference = r.json()["reference"]
+    points = [[round(float(x), 2), round(float(y), 2)] for x, y in truth[0]]
+    item = {"image": reference, "points": points, "frames": {"every": 4}}
+    total = TRACKED + CUT
+    r = client.post("/v1/jobs", json={"items": [{**item, "points_frame": total}]}, headers=ACME)
+    assert r.status_code == 422, r.text
+    assert r.headers["content-type"].startswith("application/problem+json")
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/points_frame"
+    assert f"points_frame {total} is past the video's end: it has {total} frames (0-{total - 1})" \
+        in error["detail"]
+    ok = client.post("/v1/jobs", json={"items": [{**item, "points_frame": total - 1}]}, headers=ACME)
+    assert ok.status_code == 202, ok.text
