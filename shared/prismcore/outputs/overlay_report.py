@@ -1,6 +1,7 @@
 """The overlay of a scan from its report.json: which clicks and faces belong on which photo, the
 legend's notes (dimensions with their uncertainty, focal length, fit RMS, method, frame), the
-photo undistorted when the fit was; the drawing itself is `prismcore.outputs.overlay`.
+photo undistorted when the fit was; the drawing itself is `prismcore.outputs.overlay`. Its file
+names (overlay.jpg by default, overlay.png on request) are `prismcore.outputs.writers.overlay_name`'s.
 """
 
 from __future__ import annotations
@@ -13,11 +14,8 @@ import numpy as np
 
 from prismcore.errors import InputError
 from prismcore.outputs.overlay import CORNER_OF, SECOND_FACE_CORNERS, _as_rgb8, draw_overlay
-from prismcore.spec import FILE_NAMES
 
 __all__ = [
-    "OVERLAY_NAME",
-    "SIDE_OVERLAY_NAME",
     "given_dimension",
     "overlay_from_report",
     "photo_points",
@@ -25,10 +23,6 @@ __all__ = [
     "report_notes",
 ]
 
-OVERLAY_NAME = FILE_NAMES["overlay"]
-"""File name of the overlay of the front photo (the only photo in single-photo mode)."""
-SIDE_OVERLAY_NAME = FILE_NAMES["overlay_side"]
-"""File name of the side photo's overlay in two-photo mode."""
 _SIDE_PHOTO_POINTS = ("p4", "p5", "p7")  # two-photo mode: the clicks made on the side photo
 _DIMENSIONS = ("width", "height", "depth")
 
