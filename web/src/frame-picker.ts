@@ -72,7 +72,9 @@ export class FramePicker {
   private marked(): string {
     if (!S.state.perFrame) {
       const at = S.state.markedFrame;
-      return at === null ? "" : `The points were marked on frame ${at}; they apply to every frame measured.`;
+      if (at === null) return "";
+      return S.state.tracked ? `The points were marked on frame ${at}; the service tracks them to the other frames measured.`
+        : `The points were marked on frame ${at}; they apply to every frame measured.`;
     }
     const all = S.allFrameMarks();
     const frames = Object.keys(all).map(Number).sort((a, b) => a - b);

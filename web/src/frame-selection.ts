@@ -1,5 +1,6 @@
 // Step 3 for a video: which frames are measured (the spec's `frames`) and whether the points hold
-// for every frame (`points`) or only for the frames marked, each its own (`frame_points`).
+// for every frame (`points`), only for the frames marked, each its own (`frame_points`), or are
+// tracked by the service from the frame marked to the others (`points_frame`).
 // The candidates mirror prismcore.video.frame_select, so the note says which frames will be measured.
 
 import { state } from "./state";
@@ -14,7 +15,9 @@ export class FrameSelectionForm {
   constructor(private info: () => VideoInfo | null) {
     for (const radio of document.querySelectorAll<HTMLInputElement>("input[name=frame-points]")) {
       radio.addEventListener("change", () => {
-        state.perFrame = radio.value === "each" && radio.checked;
+        if (!radio.checked) return;
+        state.perFrame = radio.value === "each";
+        state.tracked = radio.value === "track";
         this.render();
         this.onModeChange();
       });
@@ -31,6 +34,7 @@ export class FrameSelectionForm {
     if (!info) return;
     const kind = value("select-kind");
     $("frame-selection").hidden = state.perFrame;
+    $("track-options").hidden = !state.tracked;
     for (const el of document.querySelectorAll<HTMLElement>("#frame-selection [data-kind]")) {
       el.hidden = !el.dataset.kind!.split(" ").includes(kind);
     }
@@ -49,6 +53,14 @@ export class FrameSelectionForm {
         "keeps each frame's points.";
     }
     const selection = this.read(info, state.markedFrame);
+    const tracked = state.tracked ? (state.markedFrame === null
+      ? " Mark the seven points on one frame: they are tracked from it to each frame measured."
+      : ` The points of frame ${state.markedFrame} are tracked to each; a frame where the track is lost is left out, with the reason.`)
+      : "";
+    return this.measured(selection, info) + tracked;
+  }
+
+  private measured(selection: FrameSelection, info: VideoInfo): string {
     if (selection.sharpest !== undefined) {
       return `Measures the ${selection.sharpest} sharpest of ${candidates(selection, info).length} frames.`;
     }

@@ -8,6 +8,7 @@ import { call, message } from "./api";
 import type { ColourMode } from "./colours";
 import { jointFocal, jointLine, jointOf, jointTable } from "./joint-result";
 import { ResultsTableView } from "./results-table";
+import { isTracked, trackView } from "./track-view";
 import type { Dimension, Frame, Item, Job, Result } from "./types";
 import { badge, deviationText } from "./verdicts";
 import { isVideoItem, videoResult } from "./video-result";
@@ -93,6 +94,7 @@ export class ResultPanel {
     const item = this.item();
     const video = isVideoItem(item);
     const shown = video ? { top: videoResult(item), warnings: [], details: [] } : summary(item);
+    if (isTracked(item)) shown.top.push(trackView(this.job!, item));
     $("result-body").replaceChildren(...shown.top);
     $("result-warnings").replaceChildren(...shown.warnings);
     $("result-details").replaceChildren(...shown.details);

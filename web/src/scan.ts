@@ -1,6 +1,7 @@
 // The scan the user has set up, as one item of a job (the ScanSpec model with upload references),
 // or a sentence saying what is still missing. A video's item has `frames` and `points`, or
-// `frame_points` (per-frame points: exactly the frames marked are measured); several photos of
+// `frame_points` (per-frame points: exactly the frames marked are measured), or `points` with
+// `points_frame` (the frame they were marked on: the service tracks them); several photos of
 // one part are one item with `views`, measured as one box.
 
 import { foundAsIs, pointsOrigin } from "./find-points";
@@ -75,6 +76,7 @@ function videoScan(front: { ref: string; name: string }, info: VideoInfo | null,
                    selectFrames: SelectFrames): Scan {
   if (state.twoPhoto) throw new Error("A video is measured in single-photo mode: choose “One photo” under Mode.");
   if (!info) throw new Error(`Wait for the service to read ${front.name}.`);
+  if (state.tracked) return trackedScan(front, info, settings, selectFrames);
   if (!state.perFrame) {
     const spec = { image: front.ref, points: complete(state.marks), frames: selectFrames(info, state.markedFrame) };
     const origin = pointsOrigin();
@@ -87,6 +89,19 @@ function videoScan(front: { ref: string; name: string }, info: VideoInfo | null,
     spec: { image: front.ref, frame_points: framePoints, ...settings },
     label: `${front.name} (video, frames ${marked.map(([f]) => f).join(", ")})`,
   };
+}
+
+/** The seven points of one frame, tracked by the service to the frames selected (`points_frame`);
+ *  measured frame by frame, or as one box when asked. */
+function trackedScan(front: { ref: string; name: string }, info: VideoInfo, settings: Settings,
+                     selectFrames: SelectFrames): Scan {
+  const marked = state.markedFrame;
+  if (marked === null) throw new Error("Mark the seven points on one frame: the service tracks them to the others.");
+  const points = complete(state.marks, `Frame ${marked}: `, true);
+  const spec: ScanSpec = { image: front.ref, points, points_frame: marked, frames: selectFrames(info, marked), ...settings };
+  const joint = (document.getElementById("track-joint") as HTMLInputElement).checked;
+  if (joint) spec.fit = "joint";
+  return { spec, label: `${front.name} (video, points of frame ${marked} tracked${joint ? ", one box" : ""})` };
 }
 
 /** The part's photos as one item with `views` (each its seven points, second face and file name),

@@ -31,6 +31,8 @@ export const state = {
   // Videos: each frame's own points (the frame shown's are in `marks`), or the same points for
   // every frame; and the frame last marked on.
   perFrame: false,
+  // Or the points of the frame marked, tracked by the service to the frames measured (points_frame).
+  tracked: false,
   frameMarks: {} as Record<number, Marks>,
   markedFrame: null as number | null,
   // Several photos of one part, measured as one box (part.ts): their ids in order, the one whose

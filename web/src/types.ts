@@ -229,6 +229,10 @@ export interface ScanSpec {
   auto_points?: { hint?: Point };
   frames?: FrameSelection;
   frame_points?: Record<string, PointSet>;
+  /** The frame `points` were marked on: the service tracks them to the frames selected. */
+  points_frame?: number;
+  /** "joint": a video's frames measured as ONE box (a known edge as the scale). */
+  fit?: "frames" | "joint";
   /** 2 or more photos of one part, measured as ONE box (a known edge as the scale; no cloud). */
   views?: ViewSpec[];
   tolerance?: number;

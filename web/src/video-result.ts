@@ -20,7 +20,8 @@ const el = <K extends keyof HTMLElementTagNameMap>(tag: K, text = "", attrs: Rec
 const capital = (s: string) => s.charAt(0).toUpperCase() + s.slice(1);
 
 export function isVideoItem(item: Item): boolean {
-  return item.frames.length > 0 || Boolean(item.result?.summary);
+  // A tracked video measured as one box has a summary of its tracking only: it is a joint result.
+  return item.frames.length > 0 || Boolean(item.result?.summary?.frames);
 }
 
 export function videoResult(item: Item): HTMLElement[] {
