@@ -58,15 +58,19 @@ class EdgeFit:
 
 
 def line_through(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The normalised line (a, b, c) through two image points."""
-    line = np.cross(np.append(p, 1.0), np.append(q, 1.0))
+    """The normalised line (a, b, c) through two image points: (p, 1) x (q, 1), written out
+    (np.cross's generality cost more than the rest of a side's bounds)."""
+    px, py, qx, qy = float(p[0]), float(p[1]), float(q[0]), float(q[1])
+    line = np.array([py - qy, qx - px, px * qy - py * qx])
     normalised: np.ndarray = line / np.hypot(line[0], line[1])
     return normalised
 
 
 def intersect(l1: np.ndarray, l2: np.ndarray) -> np.ndarray:
     """Intersection (x, y) of two lines in (a, b, c) form."""
-    h = np.cross(l1, l2)
+    a1, b1, c1 = (float(v) for v in l1)
+    a2, b2, c2 = (float(v) for v in l2)
+    h = np.array([b1 * c2 - c1 * b2, c1 * a2 - a1 * c2, a1 * b2 - b1 * a2])
     point: np.ndarray = h[:2] / h[2]
     return point
 
@@ -115,7 +119,7 @@ def _candidates(
     # Smooth along the side (noise) and differentiate across it (the edge), in one pass.
     grad = cv2.sepFilter2D(np.ascontiguousarray(samples, dtype=np.float32), -1, _DERIVATIVE,
                            _SMOOTH, borderType=cv2.BORDER_REPLICATE)
-    strength = np.sqrt((grad**2).sum(axis=2))
+    strength = np.sqrt(grad[..., 0] ** 2 + grad[..., 1] ** 2 + grad[..., 2] ** 2)
     inner = strength[:, margin - 1 : strength.shape[1] - margin + 1]
     left, mid, right = inner[:, :-2], inner[:, 1:-1], inner[:, 2:]
     is_peak = (mid > left) & (mid >= right)
@@ -155,9 +159,15 @@ def _consensus(
     sub = slice(None, None, max(1, len(s) // _SCORING_PROFILES))
     filled = np.where(np.isfinite(pos[sub]), pos[sub], np.inf).astype(np.float32)
     line = (a[:, None] + b[:, None] * s[None, sub]).astype(np.float32)
-    near = np.abs(filled[None] - line[:, :, None]) <= tol
-    support = near.any(axis=2).sum(axis=1)
-    strength = (near * weight[sub][None]).max(axis=2).sum(axis=1)
+    # Per candidate column (a handful): reductions over that short last axis were most of the time.
+    seen = np.zeros(line.shape, dtype=bool)
+    strongest = np.zeros(line.shape, dtype=weight.dtype)
+    for k, w in zip(filled.T, weight[sub].T, strict=True):
+        near = np.abs(k[None] - line) <= tol
+        seen |= near
+        np.maximum(strongest, np.where(near, w[None], 0), out=strongest)
+    support = seen.sum(axis=1)
+    strength = strongest.sum(axis=1)
     # Prefer the line most profiles see; among equals, the stronger and the nearer to the click.
     best = np.lexsort((np.abs(a), -strength, -support))[0]
     return float(a[best]), float(b[best])

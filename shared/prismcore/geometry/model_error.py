@@ -17,6 +17,7 @@ from prismcore.geometry.perspective import (
     FaceEvidence,
     FaceTerms,
     _camera,
+    line_terms,
     project,
 )
 
@@ -28,15 +29,6 @@ machined parts: 0-2.5 mm); a sharp box has 0. Its silhouette lies inside the sha
 FOLD_FRACTION = 0.5
 """Where an edge detector finds a rounded fold (both faces seen): anywhere on the shading ramp
 the rounding makes, which spans about the radius on either face; 1-sigma, in radii."""
-
-
-def _rows(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
-    """The line residuals' layout as `perspective._residual_jac_fn` makes it: (face, side, line,
-    model corner)."""
-    return [(f, s, line, idx[e])
-            for f, (face, idx, sides) in enumerate(faces) for s in sides
-            if (line := face.lines[s]) is not None
-            for e in (s, (s + 1) % 4)]
 
 
 def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, side_face: str = "right",
@@ -66,7 +58,7 @@ def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, sid
     K = _camera(fit.focal_px, fit.principal)
     model = second.corners(np.array([fit.width, fit.depth]))
     image = project(K, fit.rvec, fit.tvec, model)
-    rows = _rows(faces)
+    rows = line_terms(faces)
     n_lines = len(rows)
     n = fit.influence.shape[1]
     patterns: list[np.ndarray] = []
@@ -119,7 +111,7 @@ def rounding_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, radius
     box_centre = np.array([fit.width, 1.0, fit.depth]) / 2
     silhouettes = np.zeros(n)
     folds: dict[tuple[int, int], np.ndarray] = {}
-    for k, (f, s, line, corner) in enumerate(_rows(faces)):
+    for k, (f, s, line, corner) in enumerate(line_terms(faces)):
         quad = model[list(faces[f][1])]
         centre = quad.mean(axis=0)
         normal = (centre - box_centre) / np.linalg.norm(centre - box_centre)
@@ -158,7 +150,7 @@ def edge_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence,
     faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
     model = second.corners(np.array([fit.width, fit.depth]))
     dr = np.zeros(n)
-    for k, (f, s, line, _) in enumerate(_rows(faces)):
+    for k, (f, s, line, _) in enumerate(line_terms(faces)):
         idx = faces[f][1]
         mid = (model[idx[s]] + model[idx[(s + 1) % 4]]) / 2
         for where, vector in moves:

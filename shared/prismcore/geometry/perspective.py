@@ -165,6 +165,23 @@ def _camera(focal: float, principal: np.ndarray) -> np.ndarray:
 FaceTerms = list[tuple[FaceEvidence, tuple[int, ...], tuple[int, ...]]]
 
 
+def line_terms(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
+    """The line residuals' layout, the one every user of it reads (the residuals, their count,
+    the model's error patterns): per face, per side used that has a fitted line, one term per
+    end of that side; each (face index, side, line (a, b, c) as float64, model corner)."""
+    return [(f, s, np.asarray(line, dtype=np.float64), idx[e])
+            for f, (face, idx, sides) in enumerate(faces) for s in sides
+            if (line := face.lines[s]) is not None
+            for e in (s, (s + 1) % 4)]
+
+
+def cauchy_weights(fun: np.ndarray) -> np.ndarray:
+    """The Cauchy loss's IRLS weights 1 / (1 + (r / _F_SCALE)^2) of whitened residuals `fun`
+    (n,): how much each residual counts at a robust fit's solution."""
+    w: np.ndarray = 1.0 / (1.0 + (np.asarray(fun) / _F_SCALE) ** 2)
+    return w
+
+
 def _residual_jac_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Callable[[np.ndarray], np.ndarray],
                      n_shape: int, faces: FaceTerms, *, log_focal: bool = False
                      ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
@@ -175,21 +192,14 @@ def _residual_jac_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Calla
     (n_shape), then whatever K_of reads (e.g. log focal). `corners_of` must be affine in the shape (the
     box models are); with `log_focal`, x[6 + n_shape] is the log of a focal length K_of puts on the
     diagonal (fx = fy = f about a fixed principal point)."""
-    line_ends: list[int] = []
-    line_coef: list[np.ndarray] = []
+    rows = line_terms(faces)
     click_idx: list[int] = []
     clicked: list[np.ndarray] = []
-    for face, idx, sides in faces:
-        for side in sides:
-            line = face.lines[side]
-            if line is not None:
-                line_ends += [idx[side], idx[(side + 1) % 4]]
-                line_coef += [np.asarray(line, dtype=np.float64)] * 2
     for face, idx, _ in faces:
         click_idx += list(idx)
         clicked.append(np.asarray(face.clicked, dtype=np.float64))
-    ends = np.array(line_ends, dtype=int)
-    coef = np.array(line_coef, dtype=np.float64).reshape(-1, 3)
+    ends = np.array([corner for *_, corner in rows], dtype=int)
+    coef = np.array([line for _, _, line, _ in rows], dtype=np.float64).reshape(-1, 3)
     clicks = np.array(click_idx, dtype=int)
     target = np.concatenate(clicked).reshape(-1, 2)
 
@@ -248,7 +258,7 @@ def _expected_cost(faces: FaceTerms, n_lines: int) -> float:
 
 
 def _n_line_terms(faces: FaceTerms) -> int:
-    return sum(2 for face, _, sides in faces for s in sides if face.lines[s] is not None)
+    return len(line_terms(faces))
 
 
 def _solve(residual: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
@@ -276,8 +286,7 @@ def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
     video's frames.
     """
     J = np.asarray(res.jac, dtype=np.float64)
-    z = (res.fun / _F_SCALE) ** 2
-    w = 1.0 / (1.0 + z)  # Cauchy IRLS weights
+    w = cauchy_weights(res.fun)
     noise = np.full(J.shape[0], (NOISE_CLICK_PX / SIGMA_CLICK_PX) ** 2)
     noise[:n_lines] = (NOISE_LINE_PX / SIGMA_LINE_PX) ** 2
     Jw = J * w[:, None]
@@ -302,8 +311,7 @@ def _influence(res: OptimizeResult) -> np.ndarray:
     """dx / d(whitened residuals), (n_params, n_residuals): the linearised shift of the solution
     when the data move (robust weights frozen), -(J^T W J)^-1 J^T W."""
     J = np.asarray(res.jac, dtype=np.float64)
-    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
-    Jw = J * w[:, None]
+    Jw = J * cauchy_weights(res.fun)[:, None]
     influence: np.ndarray = -np.linalg.pinv(J.T @ Jw, rcond=1e-12) @ Jw.T
     return influence
 
@@ -499,6 +507,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     principal = K[:2, 2].astype(np.float64)
     best: OptimizeResult | None = None
     nfev = 0
+    accept = _ACCEPT * _expected_cost(faces, n_lines)
     if free_focal:
         size = 2 * float(np.abs(np.concatenate([front.clicked, side.clicked]) - principal).max())
         size = max(size, 2 * float(principal.max()) + 1)
@@ -509,11 +518,13 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
         bounds = (np.r_[np.full(8, -np.inf), np.log(lo)], np.r_[np.full(8, np.inf), np.log(hi)])
         # The vanishing points' focal first; the spread of typical focal lengths only when that
         # start is missing or its fit is worse than the noise explains. Each start costs a full
-        # solve (~40 ms), and on a consistent box the closed form lands in the global minimum.
-        # The spread stops after the first focal length whose fit the noise explains, and once
-        # the starts together have spent _NFEV_BUDGET: on points that are no box every start
-        # slides towards the focal length's bound without converging, and sixteen took minutes.
-        accept = _ACCEPT * _expected_cost(faces, n_lines)
+        # solve (photo-like renders: 10-36 evaluations, 3-12 ms CPU), and on a consistent box the
+        # closed form lands in the global minimum: the pose from the side face is tried only
+        # when the front's fit is worse than the noise explains (the two landed in the same
+        # minimum on every photo-like render), and the spread stops after the first focal length
+        # whose fit the noise explains, and once the starts together have spent _NFEV_BUDGET: on
+        # points that are no box every start slides towards the focal length's bound without
+        # converging, and sixteen took minutes.
         first = [float(np.median(closed))] if closed else []
         tried: set[float] = set()
         for guesses in (first, [*closed, *(m * size for m in _FOCAL_STARTS)]):
@@ -524,6 +535,8 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     continue
                 tried.add(f)
                 for x0 in _box_starts(_camera(f, principal), front, side, side_face):
+                    if best is not None and best.cost <= accept:
+                        break
                     if not np.isfinite(x0).all() or nfev >= _NFEV_BUDGET:
                         continue
                     res = _solve(residual, np.r_[x0, np.log(np.clip(f, lo * 1.001, hi * 0.999))],
@@ -535,7 +548,9 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     break
     else:
         residual, jac = _residual_jac_fn(lambda _: K, box_corners, 2, faces)
-        for x0 in _box_starts(K, front, side, side_face):
+        for x0 in _box_starts(K, front, side, side_face):  # the side's pose only if needed
+            if best is not None and best.cost <= accept:
+                break
             if not np.isfinite(x0).all():
                 continue
             res = _solve(residual, x0, jac=jac)

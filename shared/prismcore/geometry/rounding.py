@@ -393,9 +393,11 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         g = tuple(float(np.linalg.norm(to_image((mid - n)[None])[0] - p0)) for n in (n_b, n_a))
         if min(g) >= _MIN_PX_PER_MM:
             readable.append((start, end, n_a, n_b, mid, p0, g))
+    def ramps_px() -> list[float]:
+        return [r * q for r, q in zip(radii, resolution, strict=True)]
+
     for done, (start, end, n_a, n_b, mid, p0, g) in enumerate(readable):
-        if _no_radius_whatever_follows([r * q for r, q in zip(radii, resolution, strict=True)],
-                                       len(readable) - done):
+        if _no_radius_whatever_follows(ramps_px(), len(readable) - done):
             return None  # the folds read so far decide it: no need to read the others
         ray = centre - mid
         tan_phi = (float(ray @ n_b / (ray @ n_a)), float(ray @ n_a / (ray @ n_b)))
@@ -414,10 +416,8 @@ def estimate_edge_radius(image: np.ndarray, to_image: Callable[[np.ndarray], np.
         toward_b = to_image((mid - n_a)[None])[0] - p0
         offsets.append((mid, -shift * toward_b / np.linalg.norm(toward_b)))
         resolution.append(min(g))
-    if len(radii) < MIN_FOLDS:
-        return None
-    if float(np.median([r * g for r, g in zip(radii, resolution, strict=True)])) < RESOLVED_PX:
-        return None  # what a sharp fold's blur, JPEG and print near it also show
+    if _no_radius_whatever_follows(ramps_px(), 0):
+        return None  # too few folds, or ramps what a sharp fold's blur, JPEG and print also show
     spread = float(np.std(radii, ddof=1)) if len(radii) > 1 else 0.0
     std = max(spread, PER_FOLD_STD_MM / math.sqrt(len(radii)), STD_FLOOR_MM)
     if float(np.median(radii)) < MIN_SIGNIFICANCE * std:

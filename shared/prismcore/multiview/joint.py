@@ -49,8 +49,7 @@ from scipy.stats import chi2
 from prismcore.errors import InputError
 from prismcore.geometry.evidence import box_edge_samples
 from prismcore.geometry.lens import RadialDistortion, estimate_distortion
-from prismcore.geometry.model_error import _rows
-from prismcore.geometry.perspective import NOISE_LINE_PX, SIGMA_LINE_PX
+from prismcore.geometry.perspective import NOISE_LINE_PX, SIGMA_LINE_PX, line_terms
 from prismcore.multiview.model_sigma import (
     _fold_sigma,
     _mm_per_unit,
@@ -189,7 +188,7 @@ def _worst_line(problem: _Problem, x: np.ndarray) -> tuple[int, str, int, float]
         ends = np.abs(problem.view_px(x, v)[:n]).reshape(-1, 2).max(axis=1)
         if ends.size and (worst is None or float(ends.max()) > worst[3]):
             k = int(np.argmax(ends))
-            face, side, _, _ = _rows(problem.terms[v])[2 * k]
+            face, side, _, _ = line_terms(problem.terms[v])[2 * k]
             worst = (v, "front" if face == 0 else "side", side, float(ends[k]))
     return worst
 

@@ -8,15 +8,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from scipy.optimize import OptimizeResult
 
 from prismcore.geometry.lens import RadialDistortion
-from prismcore.geometry.model_error import FOLD_FRACTION, ROUNDING_RMS_MM, _rows, edge_shifts, rounding_shifts
-from prismcore.geometry.perspective import _F_SCALE, BoxFit, _camera, project
-from prismcore.geometry.rounding import STD_FLOOR_MM, RadiusEstimate, estimate_edge_radius
+from prismcore.geometry.model_error import FOLD_FRACTION, ROUNDING_RMS_MM, edge_shifts, rounding_shifts
+from prismcore.geometry.perspective import cauchy_weights, line_terms
+from prismcore.geometry.rounding import STD_FLOOR_MM, RadiusEstimate
 from prismcore.multiview.problem import _dims, _dims_gradient, _fit, _Problem
+from prismcore.scan.measure import box_edge_radius
 from prismcore.spec import KnownEdge
 
 __all__: list[str] = []
@@ -45,16 +45,8 @@ def _read_rounding(problem: _Problem, x: np.ndarray, lens: RadialDistortion, k: 
     """Each view's edge radius read from its shading through the shared box (`rounding`), pooled
     with inverse-variance weights (at least STD_FLOOR_MM)."""
     estimates: dict[int, RadiusEstimate] = {}
-    K = _camera(problem.focal(x), problem.principal)
-    size = np.array([x[0], 1.0, x[1]]) * k
     for v, view in enumerate(problem.views):
-        fit = problem.box_fit(x, v)
-        R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
-
-        def to_image(world_mm: np.ndarray, fit: BoxFit = fit) -> np.ndarray:
-            return lens.distort(project(K, fit.rvec, fit.tvec, world_mm / k))
-
-        found = estimate_edge_radius(view.image, to_image, size, -R.T @ fit.tvec * k)
+        found = box_edge_radius(view.image, problem.box_fit(x, v), lens, k)
         if found is not None:
             estimates[view.index] = found
     if not estimates:
@@ -131,14 +123,13 @@ def _fold_sigma(problem: _Problem, res: OptimizeResult, scale: KnownEdge, roundi
     k = _mm_per_unit(scale, x)
     radius = (rounding.radius_mm + rounding.std_mm) if rounding.read else ROUNDING_RMS_MM
     J = np.asarray(res.jac, dtype=np.float64)
-    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
-    Jw = J * w[:, None]
+    Jw = J * cauchy_weights(res.fun)[:, None]
     influence = -np.linalg.pinv(J.T @ Jw, rcond=1e-12)[:2] @ Jw.T  # d(W, D) / d(residuals)
     starts = np.r_[0, np.cumsum(problem.sizes)[:-1]]
     by_edge: dict[tuple[int, int], np.ndarray] = {}
     for v, view in enumerate(problem.views):
         terms = problem.terms[v]
-        rows = _rows(terms)
+        rows = line_terms(terms)
         patterns = rounding_shifts(problem.box_fit(x, v), terms[0][0], terms[1][0],
                                    FOLD_FRACTION * radius / k, side_face=view.side_face)[1]
         for pattern in patterns:

@@ -28,6 +28,7 @@ from prismcore.geometry.perspective import (
     _camera,
     _n_line_terms,
     _residual_jac_fn,
+    cauchy_weights,
     fit_box,
 )
 from prismcore.multiview.views import _Prepared
@@ -88,10 +89,16 @@ class _Problem:
         # Each view's residuals reweighted from the solver's sigmas to the view's own measured
         # noise (`_measured_noise`; 1 until measured).
         self.weights: list[np.ndarray] = []
+        # Each view's residuals' sigma in px (lines, then clicks), made once: the whitening
+        # every residual call undoes and redoes.
+        self.units: list[np.ndarray] = []
         for v, n, size in zip(views, self.n_lines, self.sizes, strict=True):
             w = np.full(size, SIGMA_CLICK_PX / v.click_sigma_px)
             w[:n] = SIGMA_LINE_PX / v.line_sigma_px
             self.weights.append(w)
+            unit = np.full(size, SIGMA_CLICK_PX)
+            unit[:n] = SIGMA_LINE_PX
+            self.units.append(unit)
         self.focal_px = focal_px
 
     def view_x(self, x: np.ndarray, v: int) -> np.ndarray:
@@ -105,20 +112,15 @@ class _Problem:
 
     def view_residual(self, x: np.ndarray, v: int) -> np.ndarray:
         """View v's residuals as the solver sees them (whitened by the view's noise)."""
-        whitened: np.ndarray = self.view_px(x, v) * self.weights[v] / self._unit(v)
+        whitened: np.ndarray = self.view_px(x, v) * self.weights[v] / self.units[v]
         return whitened
 
     def view_px(self, x: np.ndarray, v: int) -> np.ndarray:
         """View v's residuals in px: line end points' distances, then click offsets."""
         r: np.ndarray = self.fns[v](self.view_x(x, v))
         offset = self.offsets[v]
-        px: np.ndarray = (r if offset is None else r - offset) * self._unit(v)
+        px: np.ndarray = (r if offset is None else r - offset) * self.units[v]
         return px
-
-    def _unit(self, v: int) -> np.ndarray:
-        unit = np.full(self.sizes[v], SIGMA_CLICK_PX)
-        unit[:self.n_lines[v]] = SIGMA_LINE_PX
-        return unit
 
     def focal(self, x: np.ndarray) -> float:
         return float(np.exp(x[2])) if self.free_focal else float(self.focal_px or 0.0)
@@ -201,7 +203,7 @@ def _dims_gradient(scale: KnownEdge, x: np.ndarray) -> np.ndarray:
 def _covariance(problem: _Problem, res: OptimizeResult) -> np.ndarray:
     """The single-view sandwich (`perspective._covariance`) over all views' residuals."""
     J = np.asarray(res.jac, dtype=np.float64)
-    w = 1.0 / (1.0 + (res.fun / _F_SCALE) ** 2)
+    w = cauchy_weights(res.fun)
     noise = problem.noise()
     Jw = J * w[:, None]
     A_inv = np.linalg.pinv(J.T @ Jw, rcond=1e-12)

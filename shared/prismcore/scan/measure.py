@@ -42,8 +42,8 @@ from prismcore.geometry.perspective import (
 from prismcore.geometry.rounding import RadiusEstimate, estimate_edge_radius
 from prismcore.spec import KnownEdge, MmPerPx, Pinhole, Scale
 
-__all__ = ["Dimensions", "Obliqueness", "camera_matrix", "measure_affine", "measure_perspective",
-           "obliqueness", "quad_size_px"]
+__all__ = ["Dimensions", "Obliqueness", "box_edge_radius", "camera_matrix", "measure_affine",
+           "measure_perspective", "obliqueness", "quad_size_px"]
 
 _MC_DRAWS = 256  # Monte Carlo draws of the click noise through the affine model
 
@@ -356,7 +356,7 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     fit = fit_box(K, front, side, free_focal=free_focal, side_face=side_face)
     k, unit = _scale_factor(scale, fit.width, fit.depth, fit.centre_depth, fit.focal_px)
     shape = np.array([fit.width, fit.depth, fit.centre_depth, fit.focal_px])
-    rounding = _edge_radius(image, fit, lens, k) if unit == "mm" and image is not None else None
+    rounding = box_edge_radius(image, fit, lens, k) if unit == "mm" and image is not None else None
     notes: tuple[str, ...] = ()
     if rounding is None:
         silhouette_std = fold_radius = ROUNDING_RMS_MM / k if unit == "mm" else 0.0
@@ -387,9 +387,12 @@ def measure_box(front: FaceEvidence, side: FaceEvidence, scale: Scale | None, *,
     return Dimensions(*_three(dims), unit, True, notes, _three(sigma)), fit
 
 
-def _edge_radius(image: np.ndarray, fit: BoxFit, lens: RadialDistortion, mm_per_unit: float
-                 ) -> RadiusEstimate | None:
-    """The edges' radius read from the photo through the fitted box (model units scaled to mm)."""
+def box_edge_radius(image: np.ndarray, fit: BoxFit, lens: RadialDistortion, mm_per_unit: float
+                    ) -> RadiusEstimate | None:
+    """The edges' radius read from the photo through the fitted box (model units scaled to mm):
+    `rounding.estimate_edge_radius` with the box's projection (pose, focal length, principal
+    point and `lens`'s distortion) and its camera centre. A view of a joint fit reads it the same
+    way (`multiview.model_sigma`)."""
     assert fit.principal is not None
     K = camera_matrix(fit.focal_px, (float(fit.principal[0]), float(fit.principal[1])))
     R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
