@@ -40,7 +40,7 @@ import cv2
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.faces import SideFace, clicked_quads, quad_area, resolve_side_face
+from prismcore.geometry.faces import SideFace, clicked_quads, quad_area, resolve_side_face, shared_edges
 from prismcore.spec import ReferencePoints
 
 __all__ = [
@@ -52,10 +52,15 @@ __all__ = [
     "track_points",
 ]
 
-POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
-_FRONT = (0, 1, 2, 5)  # P1, P2, P3, P6: the front face's corners
+POINT_NAMES: tuple[str, ...] = tuple(ReferencePoints.model_fields)  # the spec's p1..p7
+_FRONT = (0, 1, 2, 5)  # P1, P2, P3, P6: the front face's corners, in its quad's order
 _SIDE_ONLY = (4, 6)  # P5, P7: the second face's far corners (P4 is a front corner)
-_SHARED_CORNERS = {"right": (1, 2), "left": (0, 5), "top": (0, 1)}  # the front corners on the fold
+
+
+def _fold_corners(side_face: SideFace) -> list[int]:
+    """The two front corners (indices into P1..P7) on the edge the front shares with the second face."""
+    edge = shared_edges(side_face)[0]
+    return [_FRONT[edge], _FRONT[(edge + 1) % 4]]
 
 
 @dataclass(frozen=True)
@@ -113,7 +118,7 @@ class TrackQuality:
         Median forward-backward error of the features kept, px (0 on the marked frame).
     confidence : float
         0..1: more inliers, smaller forward-backward errors and a small refinement shift are
-        more sure (1 on the marked frame).
+        more sure (on the marked frame: its features and how far the refinement moved the marks).
     refine_shift_px : float or None
         Largest move of a point by the refinement on the edges, px (None: not refined).
     steps : int
@@ -238,9 +243,11 @@ def _inset_mask(shape: tuple[int, int], quad: np.ndarray, inset_px: float) -> np
     return mask
 
 
-def _features(grey: np.ndarray, quad: np.ndarray, s: TrackerSettings) -> np.ndarray:
-    """Features inside `quad` (inset), shape (N, 2) float32."""
-    mask = _inset_mask(grey.shape[:2], quad, s.inset_px)
+def _features(grey: np.ndarray, quad: np.ndarray, s: TrackerSettings, mask: np.ndarray | None = None
+              ) -> np.ndarray:
+    """Features inside `quad` (inset; `mask`: that inset quad's mask, already drawn), shape (N, 2) float32."""
+    if mask is None:
+        mask = _inset_mask(grey.shape[:2], quad, s.inset_px)
     if not mask.any():
         return np.zeros((0, 2), np.float32)
     found = cv2.goodFeaturesToTrack(grey, s.max_features, s.quality, s.min_distance_px, mask=mask,
@@ -311,35 +318,38 @@ class _Step:
     reason: str | None = None
     cut: bool = False
     faces: list[_Face] = field(default_factory=list)
+    hist: np.ndarray | None = None  # the frame's grey-level histogram (the cut check's)
 
 
 class _Tracker:
     """Frame-to-frame tracking of one box's seven points (one direction in time)."""
 
     def __init__(self, grey: np.ndarray, points: np.ndarray, side_face: SideFace, index: int,
-                 s: TrackerSettings) -> None:
+                 s: TrackerSettings, features: Sequence[np.ndarray] | None = None) -> None:
         self.s = s
         self.side_face = side_face
-        self.state = self._seed(grey, points, index, steps=0)
+        self.state = self._seed(grey, points, index, steps=0, features=features)
 
-    def _seed(self, grey: np.ndarray, points: np.ndarray, index: int, steps: int) -> _State:
-        quads = _quads(points, self.side_face)
-        faces = [(_features(grey, q, self.s)) for q in quads]
-        return _State(grey, points.copy(), points.copy(), [_Face(f, f.copy()) for f in faces],
-                      [len(f) for f in faces], _histogram(grey), index, steps)
+    def _seed(self, grey: np.ndarray, points: np.ndarray, index: int, steps: int,
+              features: Sequence[np.ndarray] | None = None, hist: np.ndarray | None = None) -> _State:
+        if features is None:
+            features = [_features(grey, q, self.s) for q in _quads(points, self.side_face)]
+        return _State(grey, points.copy(), points.copy(), [_Face(f.copy(), f.copy()) for f in features],
+                      [len(f) for f in features], _histogram(grey) if hist is None else hist, index, steps)
 
     def reanchor(self, points: np.ndarray) -> None:
         """The points of the current (last good) frame are now `points` (refined): features and
         anchor taken again there."""
         st = self.state
-        self.state = self._seed(st.grey, points, st.index, st.steps)
+        self.state = self._seed(st.grey, points, st.index, st.steps, hist=st.hist)
 
     def step(self, grey: np.ndarray, index: int, *, wide: bool = False) -> _Step:
         """Track the last good frame's features to `grey` (frame `index`)."""
         st, s = self.state, self.s
         hist = _histogram(grey)
         if not wide and cv2.compareHist(st.hist, hist, cv2.HISTCMP_BHATTACHARYYA) > s.cut_distance:
-            return _Step(None, reason="a cut to another scene (the picture changed at once)", cut=True)
+            return _Step(None, reason="a cut to another scene (the picture changed at once)", cut=True,
+                         hist=hist)
         win, levels = (s.wide_win_px, s.wide_levels) if wide else (s.win_px, s.levels)
         sizes = [len(f.now) for f in st.faces]
         allpts = np.concatenate([f.now for f in st.faces]) if sum(sizes) else np.zeros((0, 2), np.float32)
@@ -372,7 +382,7 @@ class _Tracker:
             if s.side_model == "affine":
                 # A narrow second face's homography extrapolates its far corners badly: an affine
                 # motion of its inliers with the fold's two corners as the front moved them.
-                shared = list(_SHARED_CORNERS[self.side_face])
+                shared = _fold_corners(self.side_face)
                 src = np.concatenate([faces[1].anchor.astype(np.float64), pts[shared]])
                 dst = np.concatenate([faces[1].now.astype(np.float64), moved[shared]])
                 w = np.r_[np.ones(len(faces[1].now)), np.full(2, max(len(faces[1].now), 8.0))]
@@ -387,7 +397,7 @@ class _Tracker:
             moved[list(_SIDE_ONLY)] = _apply(hs[0], pts[list(_SIDE_ONLY)])
         if not np.isfinite(moved).all():
             return _Step(None, reason="track lost: the front's motion is degenerate")
-        return _Step(moved, inliers=(inl[0], inl[1]), fb_px=fb_med, faces=faces)
+        return _Step(moved, inliers=(inl[0], inl[1]), fb_px=fb_med, faces=faces, hist=hist)
 
     def accept(self, grey: np.ndarray, index: int, step: _Step) -> None:
         """Frame `index` was tracked (`step`): it becomes the last good frame."""
@@ -396,11 +406,11 @@ class _Tracker:
         faces = step.faces
         refresh = any(len(f.now) < s.refresh_fraction * max(c, 1)
                       for f, c in zip(faces, st.counts, strict=True))
-        self.state = _State(grey, step.points, st.anchor_points, faces, st.counts, _histogram(grey), index,
-                            st.steps + 1)
+        hist = _histogram(grey) if step.hist is None else step.hist
+        self.state = _State(grey, step.points, st.anchor_points, faces, st.counts, hist, index, st.steps + 1)
         if refresh:
             # Fresh features, anchored on this frame's points.
-            self.state = self._seed(grey, step.points, index, st.steps + 1)
+            self.state = self._seed(grey, step.points, index, st.steps + 1, hist=hist)
 
 
 def _confidence(inliers: tuple[int, int], fb_px: float, shift: float | None, s: TrackerSettings) -> float:
@@ -410,12 +420,19 @@ def _confidence(inliers: tuple[int, int], fb_px: float, shift: float | None, s: 
     return float(more * steady * snapped)
 
 
+def _colour(image: np.ndarray) -> np.ndarray:
+    """The image as the refinement takes it: (H, W, 3) (a grey frame repeated in three channels)."""
+    return image if image.ndim == 3 else cv2.cvtColor(_grey(image), cv2.COLOR_GRAY2RGB)
+
+
 def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndarray, start_points: np.ndarray,
                    start_index: int, side_face: SideFace, report: Collection[int],
-                   refine: Refiner | None, s: TrackerSettings, k: float) -> dict[int, TrackedFrame]:
+                   refine: Refiner | None, s: TrackerSettings, k: float,
+                   start_features: Sequence[np.ndarray]) -> dict[int, TrackedFrame]:
     """Track from the marked frame along `frames` (one direction; each (index, image) with image
-    (H, W, 3) RGB or (H, W) grey already reduced by `k`), reporting the frames in `report`."""
-    tracker = _Tracker(start_grey, start_points * k, side_face, start_index, s)
+    (H, W, 3) RGB or (H, W) grey), reporting the frames in `report`; the marked frame's grey
+    image, features and points are already reduced by `k`."""
+    tracker = _Tracker(start_grey, start_points * k, side_face, start_index, s, start_features)
     out: dict[int, TrackedFrame] = {}
     lost_since: int | None = None
     ended: str | None = None
@@ -443,17 +460,22 @@ def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndar
                 out[index] = TrackedFrame(index, None, None, step.reason)
             continue
         lost_since = None
+        last_good = tracker.state
         tracker.accept(grey, index, step)
         if not wanted:
             continue
         points = step.points / k
         shift: float | None = None
-        if refine is not None and image.ndim == 3:
+        if refine is not None:
             try:
-                refined = refine(image, points)
+                refined = refine(_colour(image), points)
             except InputError as exc:
                 out[index] = TrackedFrame(index, None, _quality(step, None, tracker.state.steps, s),
                                           f"the box no longer fits the tracked points: {exc}")
+                # A refused box anchors nothing: the track goes on from the last good frame, as
+                # after a lost one.
+                tracker.state = last_good
+                lost_since = index
                 continue
             shift = float(np.linalg.norm(refined - points, axis=1).max())
             points = refined
@@ -478,8 +500,8 @@ def track_points(frames: Iterable[tuple[int, np.ndarray]],
     ----------
     frames : iterable of (int, ndarray)
         The video's frames in increasing index order, each RGB uint8 of shape (H, W, 3) (or
-        grey (H, W) for frames that are not reported or not refined); it must hold `start` and
-        should hold every frame between the reported ones (tracking takes small steps; a gap is
+        grey (H, W): a grey frame is refined in grey, repeated in three channels); it must hold
+        `start` and should hold every frame between the reported ones (tracking takes small steps; a gap is
         bridged as a larger one). Frames before `start` are kept in grey (and in RGB when
         reported) until `start` is reached, then tracked backwards.
     points : ReferencePoints or array-like, shape (7, 2)
@@ -519,7 +541,7 @@ def track_points(frames: Iterable[tuple[int, np.ndarray]],
             break
         if index > start:
             break
-        keep = image if (wanted is None or index in wanted) and image.ndim == 3 else _grey(image)
+        keep = image if wanted is None or index in wanted else _grey(image)
         before.append((index, keep))
     if first is None:
         raise InputError(f"the marked frame {start} is not among the video's frames")
@@ -529,29 +551,33 @@ def track_points(frames: Iterable[tuple[int, np.ndarray]],
     grey0 = _grey(image0)
     if k != 1.0:
         grey0 = cv2.resize(grey0, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
-    marks = _quads(pts, face)
-    for name, quad in zip(("front", "second"), marks, strict=True):
-        if not (_inset_mask(grey0.shape[:2], quad * k, settings.inset_px)).any():
-            raise InputError(f"the {name} face the points mark on frame {start} is too small to track")
     everything: Collection[int] = wanted if wanted is not None else _Everything()
     out: dict[int, TrackedFrame] = {}
     start_points = pts
+    shift: float | None = None
+    if start in everything and refine is not None:
+        try:
+            refined = refine(_colour(image0), pts)
+        except InputError as exc:
+            raise InputError(f"the points marked on frame {start} do not fit a box: {exc}") from None
+        shift = float(np.linalg.norm(refined - pts, axis=1).max())
+        start_points = refined
+    features0 = []
+    for name, quad in zip(("front", "second"), _quads(start_points, face), strict=True):
+        mask = _inset_mask(grey0.shape[:2], quad * k, settings.inset_px)
+        if not mask.any():
+            raise InputError(f"the {name} face the points mark on frame {start} is too small to track")
+        features0.append(_features(grey0, quad * k, settings, mask))
     if start in everything:
-        shift: float | None = None
-        if refine is not None and image0.ndim == 3:
-            try:
-                refined = refine(image0, pts)
-            except InputError as exc:
-                raise InputError(f"the points marked on frame {start} do not fit a box: {exc}") from None
-            shift = float(np.linalg.norm(refined - pts, axis=1).max())
-            start_points = refined
-        n0 = [len(_features(grey0, q * k, settings)) for q in marks]
-        out[start] = TrackedFrame(start, start_points,
-                                  TrackQuality(sum(n0), n0[0], n0[1], 0.0, 1.0, shift, 0))
-    out.update(_track_one_way(it, grey0, start_points, start, face, everything, refine, settings, k))
+        n0 = (len(features0[0]), len(features0[1]))
+        confidence = _confidence(n0, 0.0, shift, settings)
+        quality = TrackQuality(sum(n0), n0[0], n0[1], 0.0, confidence, shift, 0)
+        out[start] = TrackedFrame(start, start_points, quality)
+    out.update(_track_one_way(it, grey0, start_points, start, face, everything, refine, settings, k,
+                              features0))
     if before:
         out.update(_track_one_way(reversed(before), grey0, start_points, start, face, everything, refine,
-                                  settings, k))
+                                  settings, k, features0))
     return dict(sorted(out.items()))
 
 

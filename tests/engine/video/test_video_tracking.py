@@ -108,6 +108,52 @@ def test_a_box_that_no_longer_fits_is_named() -> None:
     assert out[10].points is not None and out[30].points is not None
 
 
+def test_a_refused_box_anchors_nothing() -> None:
+    """The track goes on from the last good frame: the refused frame is no step of it."""
+    images, truth = _clip(0)
+
+    def refuse_at_20(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        if image is images[20]:
+            raise InputError("the fitted box sits 40 px from P5")
+        return points
+
+    out = track_points(list(enumerate(images)), truth[0], 0, report={19, 20, 21}, refine=refuse_at_20)
+    assert out[20].points is None
+    q19, q21 = out[19].quality, out[21].quality
+    assert q19 is not None and q21 is not None and (q19.steps, q21.steps) == (19, 20)
+    assert out[21].points is not None and _worst(out[21].points, truth[21], FRONT) < 2.5
+
+
+@pytest.mark.parametrize("shift_px", [0.0, 8.0])
+def test_the_marked_frames_confidence_tells_how_far_the_refinement_moved_it(shift_px: float) -> None:
+    images, truth = _clip(0)
+
+    def move(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        return points + np.array([shift_px, 0.0])
+
+    out = track_points(list(enumerate(images[:3])), truth[0], 0, report={0}, refine=move)
+    q = out[0].quality
+    assert q is not None and q.refine_shift_px == pytest.approx(shift_px)
+    # The confidence's refinement factor: exp(-(shift - 1 px) / 4 px) past a pixel.
+    assert q.confidence <= np.exp(-max(shift_px - 1.0, 0.0) / 4.0) + 1e-12
+    assert (q.confidence < 0.2) == (shift_px > 5)
+
+
+def test_a_grey_frame_is_refined_too() -> None:
+    images, truth = _clip(0)
+    seen: list[tuple[int, ...]] = []
+
+    def record(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        seen.append(image.shape)
+        return points
+
+    grey = [img if i != 10 else img.mean(axis=2).astype(np.uint8) for i, img in enumerate(images[:12])]
+    out = track_points(list(enumerate(grey)), truth[0], 0, report={0, 10}, refine=record)
+    assert seen == [images[0].shape, images[10].shape]
+    q = out[10].quality
+    assert q is not None and q.refine_shift_px == 0.0
+
+
 def test_bad_input_is_refused() -> None:
     images, truth = _clip(0)
     with pytest.raises(InputError, match="not among"):
