@@ -3,6 +3,9 @@
 FastAPI reads a JSON body whole before any dependency runs, the API key check included, so
 without a cap anyone could make an API process buffer as much as they care to send. Uploads
 have their own, larger limit (routes/uploads.py) and are checked after the key, so they pass.
+So does a station (POST /v1/stations: the photos to calibrate it from, a dozen or more full-size
+photos, or its station.json with the plate), read by its route after the key check: it has a cap
+of its own, `Settings.station_max_bytes` (PRISM_STATION_MAX_BYTES), counted as it arrives.
 A declared Content-Length over the cap is refused unread; a chunked body is counted as it comes
 and refused as soon as it passes the cap.
 """
@@ -18,14 +21,16 @@ from .problems import instance_of, problem_response
 __all__ = ["BodyLimit"]
 
 _EXEMPT = ("/v1/uploads",)  # streamed to storage under PRISM_UPLOAD_MAX_BYTES
+_STATIONS = "/v1/stations"  # under PRISM_STATION_MAX_BYTES
 
 
-def _too_large(limit: int) -> str:
-    return f"the request body is larger than {limit} bytes (PRISM_REQUEST_MAX_BYTES)"
+def _too_large(limit: int, setting: str = "PRISM_REQUEST_MAX_BYTES") -> str:
+    return f"the request body is larger than {limit} bytes ({setting})"
 
 
 class BodyLimit:
-    """ASGI middleware: 413 for bodies over `Settings.request_max_bytes`, outside uploads."""
+    """ASGI middleware: 413 for bodies over `Settings.request_max_bytes`, outside uploads;
+    a station's over `Settings.station_max_bytes`."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
@@ -39,10 +44,13 @@ class BodyLimit:
             await self.app(scope, receive, send)
             return
         # The settings the routes see, overrides included (as in main.lifespan).
-        limit = scope["app"].dependency_overrides.get(get_settings, get_settings)().request_max_bytes
+        settings = scope["app"].dependency_overrides.get(get_settings, get_settings)()
+        limit, setting = settings.request_max_bytes, "PRISM_REQUEST_MAX_BYTES"
+        if path.rstrip("/") == _STATIONS and scope.get("method") == "POST":
+            limit, setting = settings.station_max_bytes, "PRISM_STATION_MAX_BYTES"
         length = dict(scope["headers"]).get(b"content-length", b"")
         if length.isdigit() and int(length) > limit:
-            response = problem_response(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit),
+            response = problem_response(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit, setting),
                                         instance=instance_of(scope), headers={"Connection": "close"})
             await response(scope, receive, send)
             return
@@ -54,7 +62,7 @@ class BodyLimit:
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > limit:
-                    raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit),
+                    raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE, _too_large(limit, setting),
                                         headers={"Connection": "close"})
             return message
 

@@ -40,7 +40,8 @@ _V1_RESPONSES: dict[int | str, dict] = {
     401: {"description": "Missing or invalid X-API-Key"},
     429: {"description": "Rate limit of this key, or of refused keys from this address, exceeded",
           "headers": _RETRY_AFTER},
-    413: {"description": "Body over PRISM_REQUEST_MAX_BYTES (uploads: PRISM_UPLOAD_MAX_BYTES)"},
+    413: {"description": "Body over PRISM_REQUEST_MAX_BYTES (uploads: PRISM_UPLOAD_MAX_BYTES; "
+                          "POST /v1/stations: PRISM_STATION_MAX_BYTES)"},
     503: {"description": "At capacity or a backend is unavailable", "headers": _RETRY_AFTER},
 }
 

@@ -8,7 +8,9 @@ and plane, the calibration photos unless a camera is given, the plate), calibrat
 CPU; the answer is the stored station, so a client needs no second round trip); GET one (its
 summary, without the plate), GET its station.json (the plate included), list them, DELETE one.
 Another tenant's station answers 404, as an unknown one does. Storage: `prism_common.stations`
-(the object store alone).
+(the object store alone). The body has a cap of its own, PRISM_STATION_MAX_BYTES (256 MiB: a
+dozen full-size PNGs pass the 16 MiB every other body is held to; `bodylimit`), and is read only
+after the key is checked.
 """
 
 from __future__ import annotations
