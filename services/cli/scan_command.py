@@ -339,11 +339,12 @@ def scan(
         from .station_scan import scan_on_board_photo, scan_on_station
 
         if station is not None:
-            scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels)
+            scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels,
+                            overlay_format=overlay_format)
         else:
             assert board is not None
             scan_on_board_photo(images[0], board, out, camera=_camera_file(camera) if camera else None,
-                                formats=formats, max_pixels=max_pixels)
+                                formats=formats, max_pixels=max_pixels, overlay_format=overlay_format)
         return
     if points_file is not None or len(images) > 1:
         if points_file is None:
@@ -404,7 +405,7 @@ def scan(
                 spec = spec.model_copy(update={"camera": _camera_file(camera)})
             from .tracked_scan import scan_tracked
 
-            scan_tracked(spec, base, out, tiles=tiles, max_frames=max_frames)
+            scan_tracked(spec, base, out, tiles=tiles, max_frames=max_frames, overlay_format=overlay_format)
             return
         if spec.views is not None or spec.fit == "joint":
             if camera is not None:
@@ -423,7 +424,7 @@ def scan(
         if spec.is_video or is_video(base / spec.image):
             from .video_scan import scan_video
 
-            scan_video(spec, base, out, tiles=tiles, max_frames=max_frames)
+            scan_video(spec, base, out, tiles=tiles, max_frames=max_frames, overlay_format=overlay_format)
             return
         from prismcore.io.exif import exif_focal
         from prismcore.io.images import load_image

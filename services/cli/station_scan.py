@@ -30,7 +30,8 @@ def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
 
 
 def scan_on_station(
-    image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000
+    image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000,
+    overlay_format: str = "jpeg",
 ) -> dict[str, Any]:
     """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report."""
     from prismcore.io.images import load_image
@@ -41,12 +42,13 @@ def scan_on_station(
     started = time.perf_counter()
     station = load_station(station_file)
     photo = load_image(image, max_pixels=max_pixels)
-    return _write(scan(photo, station, str(image), _spec_extra(formats, max_pixels)), photo, out, started)
+    return _write(scan(photo, station, str(image), _spec_extra(formats, max_pixels)), photo, out, started,
+                  overlay_format)
 
 
 def scan_on_board_photo(
     image: Path, board_file: Path, out: Path, camera: CameraModel | None = None, formats: str = "csv,ply",
-    max_pixels: int = 50_000_000,
+    max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
 ) -> dict[str, Any]:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
     from prismcore.io.images import load_image
@@ -58,10 +60,12 @@ def scan_on_board_photo(
     board = load_board(board_file)
     photo = load_image(image, max_pixels=max_pixels)
     return _write(scan_on_board(photo, board, camera, str(image), _spec_extra(formats, max_pixels)), photo,
-                  out, started)
+                  out, started, overlay_format)
 
 
-def _write(done: StationScan, photo: np.ndarray, out: Path, started: float) -> dict[str, Any]:
+def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
+           overlay_format: str = "jpeg") -> dict[str, Any]:
+    """Write the outputs, the overlay in `overlay_format` (jpeg, png or webp) and report.json."""
     from .outputs import report_path, write_outputs, write_overlays
 
     out.mkdir(parents=True, exist_ok=True)
@@ -69,7 +73,7 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float) -> d
     report = done.report
     if done.result is not None and done.spec is not None:
         paths = write_outputs(done.result, done.spec, out, [photo])
-        paths.update(write_overlays(report, photo, None, out))
+        paths.update(write_overlays(report, photo, None, out, overlay_format))
     station_report = report["station"]
     report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = report_path(out)

@@ -38,7 +38,8 @@ __all__ = ["TRACKED_NAME", "scan_tracked"]
 console = Console()
 
 
-def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int) -> dict[str, Any]:
+def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int,
+                 overlay_format: str = "jpeg") -> dict[str, Any]:
     """Track the points of `spec` (`points_frame`) and measure the tracked frames; returns the
     summary (frames one by one) or the joint report (fit "joint").
 
@@ -70,7 +71,8 @@ def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frame
     from .video_scan import scan_video
 
     return scan_video(per_frame_spec(spec, tracking), base, out, tiles=tiles,
-                      max_frames=max(max_frames, len(tracking.good)), extra={"tracking": tracking.block()})
+                      max_frames=max(max_frames, len(tracking.good)), extra={"tracking": tracking.block()},
+                      overlay_format=overlay_format)
 
 
 def _joint(spec: ScanSpec, path: Path, out: Path, tracking: Tracking) -> dict[str, Any]:

@@ -69,14 +69,14 @@ class _FrameSpecs:
 
 
 def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
-             decode_ms: float, pooled: PooledFocal | None) -> dict:
+             decode_ms: float, pooled: PooledFocal | None, overlay_format: str) -> dict:
     one, auto = specs.spec(index)
     result = scan_found(one, auto, frame, tiles=tiles, pooled_focal=pooled)
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
     write_outputs(result, one, folder, [frame])
-    write_overlays(result.report, frame, None, folder)
+    write_overlays(result.report, frame, None, folder, overlay_format)
     report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
     return result.report
 
@@ -120,10 +120,11 @@ def _table(summary: dict) -> Table:
 
 
 def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int,
-               extra: dict | None = None) -> dict:
+               extra: dict | None = None, overlay_format: str = "jpeg") -> dict:
     """Measure the frames `spec.frames` selects in the video `base / spec.image`; returns the summary.
 
     extra : more blocks for summary.json (the tracking of points marked on one frame).
+    overlay_format : each frame's overlay picture as jpeg (overlay.jpg), png or webp.
 
     Raises
     ------
@@ -151,7 +152,7 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
         for index, frame in frames:
             decode_ms = (time.perf_counter() - tick) * 1000
             try:
-                report = _measure(specs, index, frame, info, out, tiles, decode_ms, pooled)
+                report = _measure(specs, index, frame, info, out, tiles, decode_ms, pooled, overlay_format)
             except InputError as exc:
                 per_frame[index] = {"error": str(exc)}
                 console.print(f"[red]{frame_folder(index)} failed:[/] {exc}")

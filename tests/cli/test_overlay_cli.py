@@ -1,5 +1,5 @@
 """`prism scan` writes overlay.jpg (overlay.png with --overlay-format png) beside the clouds: the
-sample photo, two photos, a video's frames."""
+sample photo, two photos, a video's frames (in the format asked for)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from prismcore.outputs.overlay import FACE_COLORS
 from prismsynth import Box, render_clip, write_video
@@ -107,20 +108,24 @@ def test_two_photos_get_one_overlay_each(tmp_path):
     assert not np.all(np.abs(side.astype(int) - FACE_COLORS["front"]) <= 12, axis=2).any()
 
 
-def test_every_measured_video_frame_gets_its_overlay(tmp_path):
+@pytest.mark.parametrize(("flags", "name", "magic"), [([], "overlay.jpg", b"\xff\xd8\xff"),
+                                                 (["--overlay-format", "png"], "overlay.png", b"\x89PNG")])
+def test_every_measured_video_frame_gets_its_overlay(tmp_path, flags, name, magic):
     scenes = render_clip(Box(120.0, 80.0, 60.0), 4, seed=5)
     clip = tmp_path / "clip.avi"
     write_video((s.image for s in scenes), clip, codec="MJPG")
     points = " ".join(f"{x},{y}" for x, y in (np.rint(scenes[0].points[n]).astype(int) for n in NAMES))
     out = tmp_path / "out"
     run = prism("scan", str(clip), "--points", points, "--focal-px", str(scenes[0].focal_px),
-                "--distance-mm", str(scenes[0].distance_mm), "--frames", "0,3", "--out", str(out))
+                "--distance-mm", str(scenes[0].distance_mm), "--frames", "0,3", "--out", str(out), *flags)
     assert run.returncode == 0, run.stderr
     h, w = scenes[0].image.shape[:2]
     for index in (0, 3):
         folder = out / f"frame_{index:06d}"
         report = json.loads((folder / "report.json").read_text())
-        picture = _rgb(folder / "overlay.jpg")
+        assert (folder / name).read_bytes()[:len(magic)] == magic
+        assert not any(p.name.startswith("overlay.") and p.name != name for p in folder.iterdir())
+        picture = _rgb(folder / name)
         assert picture.shape == (h, w, 3)
         assert _on_edges(picture, report["faces"]["front"]["corners"], FACE_COLORS["front"]) == 1.0
     assert not (out / "frame_000001").exists()

@@ -71,6 +71,14 @@ def test_a_station_calibrated_from_board_photos_measures_a_part_with_no_click(st
             key, report["dimensions"], true)
         assert report["uncertainty"][key] > 0
     assert len(report["station"]["points"]) == 7 and (d / "out/cloud.ply").is_file()
+    assert (d / "out/overlay.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
+    # --overlay-format reaches a station scan too: the same measurement, the overlay as PNG.
+    run = prism("scan", "photo.jpg", "--station", "station.json", "--overlay-format", "png", "--out", "png",
+                cwd=d)
+    assert run.returncode == 0, run.stderr
+    assert (d / "png/overlay.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (d / "png/overlay.jpg").exists()
+    assert json.loads((d / "png/report.json").read_text())["dimensions"] == report["dimensions"]
 
 
 @pytest.mark.parametrize(("args", "says"), [
