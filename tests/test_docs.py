@@ -137,6 +137,8 @@ MARKERS = {
     "a test file": "-m pytest ",
     "cluster": "scripts/test-cluster",
     "station": "prism station calibrate",
+    "station upload": "prism station upload",
+    "station submit": "prism submit --station",
 }
 
 
@@ -519,6 +521,49 @@ def test_serve_refuses_a_taken_port_in_one_line(served):
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0 and "taken" in run.stderr, run.stderr
     assert "ready" not in run.stdout
+
+
+def test_station_service_blocks_store_a_station_and_measure_its_photos(served, user_dir: Path):
+    """The station how-to's service blocks, run as written against `prism serve`: the station.json
+    (calibrated with the render's camera from its plate) stored and listed, then its photos
+    submitted as one job with nothing else given, each part measured within max(2 %, 1.5 mm)."""
+    import cv2
+
+    from prism_cli.client import ApiClient
+    from prismcore.camera import CameraModel
+    from prismcore.station import calibrate_station
+    from prismsynth.station import station_scene, station_setup
+
+    setup = station_setup(STATION_SEED)
+    plate = station_scene(STATION_SEED, setup).plate
+    w, h = setup.image_size
+    camera = CameraModel(fx=setup.K[0, 0], fy=setup.K[1, 1], cx=setup.K[0, 2], cy=setup.K[1, 2],
+                         dist=[float(v) for v in setup.dist], image_width=w, image_height=h)
+    station = calibrate_station(setup.board, plate, camera=camera, plate=plate)
+    (user_dir / "station.json").write_text(station.model_dump_json())
+    (user_dir / "photos").mkdir()
+    parts = [station_scene(seed, setup) for seed in (21, 22, 23)]
+    for k, part in enumerate(parts):
+        cv2.imwrite(str(user_dir / "photos" / f"{k}.jpg"), cv2.cvtColor(part.photo, cv2.COLOR_RGB2BGR),
+                    [cv2.IMWRITE_JPEG_QUALITY, 95])
+    env = _client_env(served)
+    upload = _block(MARKERS["station upload"])
+    run = _bash(_as_user(upload + '\necho "ID=$ID"', served), cwd=user_dir, env=env, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    station_id = run.stdout.split("ID=")[-1].strip()
+    assert re.fullmatch(r"[0-9a-f]{32}", station_id), run.stdout
+    assert any(station_id in line and "line 1" in line for line in run.stdout.splitlines()), run.stdout
+    run = _bash(_as_user(_block(MARKERS["station submit"]), served), cwd=user_dir,
+                env={**env, "ID": station_id}, timeout=600)
+    assert run.returncode == 0, run.stdout + run.stderr
+    with ApiClient(env["PRISM_API_URL"], served["key"]) as client:
+        job = client.job(run.stdout.split()[0])
+    assert [item.state for item in job.items] == ["succeeded"] * len(parts), job
+    for item, part in zip(job.items, parts, strict=True):
+        assert item.result is not None and part.box is not None
+        dims = item.result.dimensions.model_dump()
+        for key, true in part.box.dimensions.items():
+            assert abs(dims[key] - true) <= max(0.02 * true, 1.5), (key, dims, part.box.dimensions)
 
 
 def test_mistakes_block_refuses_a_text_file_and_a_point_outside_in_one_line_each(served, user_dir: Path):
