@@ -29,8 +29,9 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from datetime import UTC, datetime
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
+from urllib.parse import urlsplit
 
 import httpx
 from prism_common.public import JobList, JobPublic, ResultsTable
@@ -86,6 +87,17 @@ def _message(response: httpx.Response) -> tuple[str, dict[str, Any]]:
         if named and not all(n.split(": ", 1)[1] in text for n in named):
             text += " (" + "; ".join(named) + ")"
     return " ".join(text.split()), body
+
+
+def _file_name(kind: str, url: str) -> str:
+    """The file an output is saved as: FILE_NAMES' name, the overlay with its stored suffix
+    (overlay.jpg; overlay.png for a job from before the overlay was a JPEG)."""
+    name = FILE_NAMES.get(kind, kind)
+    if kind in ("overlay", "overlay_side"):
+        suffix = PurePosixPath(urlsplit(url).path).suffix
+        if suffix in (".jpg", ".png", ".webp"):
+            name = PurePosixPath(name).stem + suffix
+    return name
 
 
 class ApiClient:
@@ -249,7 +261,7 @@ class ApiClient:
                 (folder / frame_folder(f.index), f.downloads) for f in item.frames]
             for where, downloads in places:
                 for kind, url in downloads.items():
-                    saved.append(self._save(url, where / FILE_NAMES.get(kind, kind)))
+                    saved.append(self._save(url, where / _file_name(kind, url)))
         return saved
 
     def results(self, job_id: str) -> ResultsTable:

@@ -49,7 +49,7 @@ def stack(tmp_path_factory):
 def _expected_files(spec: ScanSpec, photo: bytes, items: int) -> set[str]:
     plan = plan_scan(spec, load_image(photo))
     tiles = {f"tiles/{face}-{r0}-{r1}.npz" for face, r0, r1 in plan_tiles(plan, TILES_PER_FACE)}
-    names = {"front", "plan.json", "cloud.csv", "cloud.ply", "preview.ply", "overlay.png", "report.json",
+    names = {"front", "plan.json", "cloud.csv", "cloud.ply", "preview.ply", "overlay.jpg", "report.json",
              *tiles}
     return {"job.json"} | {f"items/{i}/{name}" for i in range(items) for name in names}
 

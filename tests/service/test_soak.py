@@ -21,7 +21,7 @@ from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene
 
 JOBS, CLIENTS, KILL_AFTER = 1000, 4, 300
-OUTPUTS = {"cloud.csv", "cloud.ply", "overlay.png", "report.json"}  # the default outputs
+OUTPUTS = {"cloud.csv", "cloud.ply", "overlay.jpg", "report.json"}  # the default outputs
 # What else an item may leave, depending on how the worker ran it (whole, or planned and tiled).
 INTERMEDIATE = re.compile(
     r"^items/\d+/(front|side|plan\.json|tiles/(front|side)-\d+-\d+\.npz|preview\.ply)$")

@@ -136,6 +136,12 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     assert other["result"]["points"] == local.report["points"] == csv.shape[0] == ply.count
     np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]),
                                   local.cloud.points)
+    # The overlay is a JPEG, served under its name and under the one it had as a PNG (old links).
+    picture = httpx.get(other["downloads"]["overlay"]).content
+    assert picture[:3] == b"\xff\xd8\xff"
+    for route in ("overlay.jpg", "overlay.png"):
+        r = stack.http.get(f"/v1/jobs/{job['id']}/items/1/{route}", headers=ACME)
+        assert r.status_code == 200 and r.content == picture and r.headers["Content-Type"] == "image/jpeg"
 
 
 def test_idempotent_submit(stack, scene):
@@ -225,7 +231,7 @@ def test_a_video_through_the_api_and_the_cli_client(stack, tmp_path):
         client.close()
     names = {p.relative_to(tmp_path / "out").as_posix() for p in saved}
     assert names == {"item-0/summary.json"} | {f"item-0/{frame_folder(n)}/{f}" for n in (0, 2) for f in
-                                               ("cloud.csv", "cloud.ply", "preview.ply", "overlay.png",
+                                               ("cloud.csv", "cloud.ply", "preview.ply", "overlay.jpg",
                                                                 "report.json")}  # the defaults
     report = json.loads((tmp_path / "out/item-0/frame_000002/report.json").read_text())
     assert report["dimensions"] == item["frames"][1]["result"]["dimensions"]

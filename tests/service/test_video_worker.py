@@ -24,7 +24,7 @@ BOX = Box(120.0, 80.0, 60.0)
 FRAMES = 6
 FPS = 12.0
 CAP = 5  # frames per job
-FRAME_FILES = {"frame.png", "cloud.csv", "cloud.ply", "preview.ply", "overlay.png", "report.json"}
+FRAME_FILES = {"frame.png", "cloud.csv", "cloud.ply", "preview.ply", "overlay.jpg", "report.json"}
 
 
 @pytest.fixture(scope="module")

@@ -139,3 +139,37 @@ def test_without_a_build_the_page_says_how_to_build_it(tmp_path):
     mount_web(app, tmp_path)  # an empty folder: nothing built
     r = TestClient(app).get("/app/")
     assert r.status_code == 404 and r.text == NOT_BUILT
+
+
+@pytest.mark.parametrize(("stored", "media"), [("overlay.jpg", "image/jpeg"), ("overlay.png", "image/png")],
+                         ids=["jpeg", "png-from-before"])
+@pytest.mark.parametrize("route", ["overlay.jpg", "overlay.png"])
+def test_overlay_is_served_under_both_names_with_its_own_type(api, store, objects, stored, media, route):
+    # The worker stores overlay.jpg; a job from before the overlay was a JPEG has overlay.png.
+    # Both routes answer either, with the type of what is stored (old links keep working).
+    ok, encoded = cv2.imencode(os.path.splitext(stored)[1], np.full((16, 24, 3), 90, np.uint8))
+    assert ok
+    data = encoded.tobytes()
+    job_id = submit(api, [item(upload(api))]).json()["id"]
+    record = store.get(job_id)
+    key = f"jobs/{job_id}/items/0/{stored}"
+    objects.put_bytes(key, data)
+    store.put_item(job_id, record.items[0].model_copy(update={"state": State.succeeded,
+                                                              "outputs": {"overlay": key}}))
+    r = api.get(f"/v1/jobs/{job_id}/items/0/{route}", headers=ACME)
+    assert r.status_code == 200, r.text
+    assert r.content == data and r.headers["Content-Type"] == media
+
+
+@pytest.mark.parametrize("route", ["overlay.jpg", "overlay.png"])
+def test_a_frames_overlay_under_both_names(api, store, objects, route):
+    job_id = submit(api, [item(upload(api, _clip(), name="clip.avi"), frames={"every": 2})]).json()["id"]
+    data = cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes()
+    key = f"jobs/{job_id}/items/0/frame_000004/overlay.jpg"
+    objects.put_bytes(key, data)
+    store.put_frame(job_id, 0, FrameRecord(index=4, state=State.succeeded, outputs={"overlay": key}))
+    store.put_frame(job_id, 0, FrameRecord(index=6, state=State.failed, error="x"))
+    r = api.get(f"/v1/jobs/{job_id}/items/0/frames/4/{route}", headers=ACME)
+    assert r.status_code == 200 and r.content == data and r.headers["Content-Type"] == "image/jpeg"
+    missing = api.get(f"/v1/jobs/{job_id}/items/0/frames/6/{route}", headers=ACME)
+    assert missing.status_code == 404 and "has no overlay (the frame is failed)" in missing.json()["detail"]

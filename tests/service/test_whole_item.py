@@ -22,7 +22,7 @@ from prismsynth import Box, render_oblique_view
 
 from .worker_env import Env, encode, spec_for, worker_env
 
-OUTPUTS = {"cloud.csv", "cloud.ply", "preview.ply", "overlay.png", "report.json"}
+OUTPUTS = {"cloud.csv", "cloud.ply", "preview.ply", "overlay.jpg", "report.json"}
 
 
 @pytest.fixture(scope="module")

@@ -49,7 +49,7 @@ def scene():
 
 def _item_files(i: int, tile_names: list[str]) -> set[str]:
     return {f"items/{i}/{name}" for name in ("front", "plan.json", "cloud.csv", "cloud.ply",
-                                             "preview.ply", "overlay.png", "report.json")} | {
+                                             "preview.ply", "overlay.jpg", "report.json")} | {
         f"items/{i}/tiles/{t}.npz" for t in tile_names}
 
 
@@ -99,7 +99,7 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     first, other = job.items
     assert first.outputs == {kind: f"jobs/{job_id}/items/0/{name}" for kind, name in
                              (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("preview", "preview.ply"),
-                              ("overlay", "overlay.png"), ("report", "report.json"))}
+                              ("overlay", "overlay.jpg"), ("report", "report.json"))}
     assert set(other.outputs) == {"ply", "preview", "overlay", "report"}  # the formats the spec asked for
     names = _tile_names(specs[0], load_image(photo))
     assert len(names) == 2 * TILES_PER_FACE

@@ -93,7 +93,7 @@ def test_one_oblique_photo_with_perspective(page, stack, tmp_path):
     # The service's default outputs (CSV and PLY), the report and the overlay.
     expect(page.locator(".downloads a")).to_have_text(
         [f"Download {name}" for name in
-         ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (PNG)")])
+         ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (JPEG)")])
     expect(page.locator(f"#jobs tr[data-job='{job['id']}']")).to_contain_text("succeeded")
 
     pixels = d.viewer_pixels()  # the 3D view rendered: many colours, not one flat fill

@@ -18,7 +18,7 @@ import { DIMENSIONS as DIMS, flag, warningList } from "./warnings";
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
   ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"],
-  ["overlay", "Fit overlay (PNG)"]];
+  ["overlay", "Fit overlay (JPEG)"]];
 const SOURCES: Record<string, string> = {
   given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
   fitted: "fitted to the box", none: "not used (square-on model)",
@@ -163,7 +163,7 @@ export class ResultPanel {
     $("viewer").dataset.points = "0";
   }
 
-  /** The fit drawn on the photo (overlay.png), beside the dimensions. */
+  /** The fit drawn on the photo (overlay.jpg; a PNG for a job from before), beside the dimensions. */
   private async showOverlay(path: string, load: number): Promise<void> {
     const figure = $("overlay-figure");
     const img = $<HTMLImageElement>("overlay");
@@ -171,7 +171,7 @@ export class ResultPanel {
     if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
     img.removeAttribute("src");
     try {
-      const blob = await (await call(`${path}/overlay.png`)).blob();
+      const blob = await (await call(`${path}/overlay.jpg`)).blob();
       if (load !== this.loading) return;
       img.src = URL.createObjectURL(blob);
       figure.hidden = false;

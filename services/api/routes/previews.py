@@ -1,7 +1,8 @@
 """An item's (or a video frame's) display cloud and overlay picture, streamed through the API.
 
 ``GET /v1/jobs/{id}/items/{n}/preview.ply`` and ``.../items/{n}/frames/{f}/preview.ply``; the
-same with ``overlay.png`` (the fit drawn on the photo), and ``items/{n}/box.glb`` (the fitted box
+same with ``overlay.jpg`` (the fit drawn on the photo; ``overlay.png``, the name before it was a
+JPEG, still answers, with the picture as stored), and ``items/{n}/box.glb`` (the fitted box
 as a textured glTF model, when the item asked for the glb format), and ``items/{n}/tracked_points.json``
 (a video whose points were marked on one frame: each frame's tracked points, or why it was left
 out). The web page draws the cloud with WebGL
@@ -11,6 +12,7 @@ Another tenant's job answers 404, like every job route.
 
 from __future__ import annotations
 
+from pathlib import PurePosixPath
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path, status
@@ -33,7 +35,7 @@ _RESPONSES: dict[int | str, dict[str, Any]] = {
     200: _PLY, 404: {"description": "No such job, item, frame or preview"}
 }
 Index = Annotated[int, Path(ge=0)]
-_MEDIA = {"overlay": "image/png", "glb": "model/gltf-binary", "tracked_points": "application/json"}
+_MEDIA = {"overlay": "image/jpeg", "glb": "model/gltf-binary", "tracked_points": "application/json"}
 
 
 def _item(store: JobStore, job_id: str, index: int, tenant: str) -> ItemRecord:
@@ -48,6 +50,8 @@ def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: s
     if key is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"{what} has no {kind} (the {noun} is {state})")
     media = _MEDIA.get(kind, "application/octet-stream")
+    if kind == "overlay":  # a JPEG (overlay.jpg), or a PNG for a job from before
+        media = _OVERLAY_MEDIA.get(PurePosixPath(key).suffix, media)
     response = relay_object(objects, key, media, max_age_s=300)
     if response is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"the {kind} of {what} is gone")
@@ -81,30 +85,49 @@ def get_frame_preview(job_id: str, index: Index, frame: Index, tenant: TenantDep
                   "frame", record.state.value)
 
 
-_PNG_RESPONSES: dict[int | str, dict[str, Any]] = {
-    200: {"content": {"image/png": {}}, "description": "The fit drawn on the photo: "
-          "clicks, fitted faces and corners, residuals, dimensions."},
+_OVERLAY_MEDIA = {".jpg": "image/jpeg", ".png": "image/png", ".webp": "image/webp"}
+_OVERLAY_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"image/jpeg": {}, "image/png": {}}, "description": "The fit drawn on the photo: "
+          "clicks, fitted faces and corners, residuals, dimensions. A JPEG; a job from before the "
+          "overlay was a JPEG has a PNG (its Content-Type says which)."},
     404: {"description": "No such job, item, frame or overlay"}}
 
 
-@router.get("/{job_id}/items/{index}/overlay.png", response_class=StreamingResponse,
-            responses=_PNG_RESPONSES)
+@router.get("/{job_id}/items/{index}/overlay.jpg", response_class=StreamingResponse,
+            responses=_OVERLAY_RESPONSES)
 def get_overlay(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
                 objects: ObjectsDep) -> StreamingResponse:
-    """The item's overlay picture (PNG): whether the fit sits on the box, at a glance."""
+    """The item's overlay picture (JPEG): whether the fit sits on the box, at a glance."""
     item = _item(store, job_id, index, tenant)
     return _relay(objects, item.outputs.get("overlay"), f"item {index} of job {job_id}", "item",
                   item.state.value, "overlay")
 
 
-@router.get("/{job_id}/items/{index}/frames/{frame}/overlay.png", response_class=StreamingResponse,
-            responses=_PNG_RESPONSES)
+@router.get("/{job_id}/items/{index}/overlay.png", response_class=StreamingResponse,
+            responses=_OVERLAY_RESPONSES, deprecated=True)
+def get_overlay_png(job_id: str, index: Index, tenant: TenantDep, store: StoreDep,
+                    objects: ObjectsDep) -> StreamingResponse:
+    """The same picture as overlay.jpg, under the name it had when it was a PNG (links made then
+    keep working): the overlay as stored, with its own Content-Type."""
+    return get_overlay(job_id, index, tenant, store, objects)
+
+
+@router.get("/{job_id}/items/{index}/frames/{frame}/overlay.jpg", response_class=StreamingResponse,
+            responses=_OVERLAY_RESPONSES)
 def get_frame_overlay(job_id: str, index: Index, frame: Index, tenant: TenantDep, store: StoreDep,
                       objects: ObjectsDep) -> StreamingResponse:
-    """One measured frame's overlay picture (PNG) of a video item."""
+    """One measured frame's overlay picture (JPEG) of a video item."""
     record = _frame(_item(store, job_id, index, tenant), job_id, index, frame)
     return _relay(objects, record.outputs.get("overlay"), f"frame {frame} of item {index} of job {job_id}",
                   "frame", record.state.value, "overlay")
+
+
+@router.get("/{job_id}/items/{index}/frames/{frame}/overlay.png", response_class=StreamingResponse,
+            responses=_OVERLAY_RESPONSES, deprecated=True)
+def get_frame_overlay_png(job_id: str, index: Index, frame: Index, tenant: TenantDep, store: StoreDep,
+                          objects: ObjectsDep) -> StreamingResponse:
+    """The same picture as the frame's overlay.jpg, under its name from when it was a PNG."""
+    return get_frame_overlay(job_id, index, frame, tenant, store, objects)
 
 
 @router.get("/{job_id}/items/{index}/box.glb", response_class=StreamingResponse,
