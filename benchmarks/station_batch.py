@@ -18,7 +18,7 @@ call, `scan_on_station` on the decoded photo, in this process with OpenCV on one
 sample of the photos), and the API's CPU per photo.
 
     nice .venv/bin/python benchmarks/station_batch.py [--photos 500] [--engine-sample 20]
-        [--cache /tmp/prism-station-batch] [--client]
+        [--cache /tmp/prism-station-batch] [--distinct N] [--client]
 
 --client submits with the Python client (`ApiClient.upload` each photo, one `submit`) instead of
 the CLI.
@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import secrets
 import statistics
 import subprocess
@@ -42,7 +43,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-import psutil
+import psutil  # type: ignore[import-untyped]
 
 from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, start_api, start_redis, start_s3, start_worker
@@ -112,6 +113,27 @@ def render(count: int, cache: Path) -> tuple[list[Path], list[dict[str, float]]]
         print(f"  rendered in {time.perf_counter() - started:.0f} s", flush=True)
     _station_json(folder)
     return ([folder / "photos" / known[s]["photo"] for s in seeds], [known[s]["truth"] for s in seeds])
+
+
+Truth = list[dict[str, float]]
+
+
+def reuse(photos: list[Path], truth: Truth, count: int) -> tuple[list[Path], Truth]:
+    """`count` photos from fewer renders: photo i >= len(photos) is render i % len(photos) encoded
+    again at another JPEG quality (its own bytes, so its own upload; the same truth)."""
+    out, out_truth = list(photos), list(truth)
+    for i in range(len(photos), count):
+        source, copy = photos[i % len(photos)], i // len(photos)
+        target = source.with_name(f"{source.stem}-copy{copy}.jpg")
+        if not target.exists():
+            image = cv2.imread(str(source))
+            assert image is not None, source
+            ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95 - copy])
+            assert ok
+            target.write_bytes(data.tobytes())
+        out.append(target)
+        out_truth.append(truth[i % len(photos)])
+    return out, out_truth
 
 
 def _cpu_s(proc: ManagedProcess) -> float:
@@ -236,12 +258,17 @@ def report(n: int, truth: list[dict[str, float]], run: dict[str, Any], engine_ms
     final = {"succeeded", "failed", "cancelled"}
     lost = n - sum(item["state"] in final for item in items)
     reasons: Counter[str] = Counter()
+    examples: dict[str, str] = {}
     within = in3 = total = silent = 0
     worst: list[tuple[float, str]] = []
     for item in items:
         if item["state"] == "failed":
-            text = str(item.get("error") or "")
-            reasons[text.split(": ", 1)[-1][:90]] += 1
+            text = str(item.get("error") or "(no reason given)")
+            head, _, rest = text.partition(": ")
+            reason = rest if rest and " " not in head else text  # without the photo's name
+            shape = re.sub(r"\d+(\.\d+)?", "#", reason)  # one line per kind of refusal
+            reasons[shape] += 1
+            examples.setdefault(shape, reason)
             continue
         if item["state"] != "succeeded":
             continue
@@ -257,15 +284,16 @@ def report(n: int, truth: list[dict[str, float]], run: dict[str, Any], engine_ms
                                              f"+- {sigma.get(key, float('nan')):.2f} mm"
                                              f"{' (warned)' if warned else ''}"))
     found = states["succeeded"]
-    print(f"\n{n} photos of {SIZE[0]}x{SIZE[1]} on one station, one job, worker of {PROCESSES} processes")
+    print(f"\n{n} photos of {SIZE[0]}x{SIZE[1]} ({len(set(map(json.dumps, truth)))} parts) on one "
+          f"station, one job, worker of {PROCESSES} processes")
     print(f"items submitted                {n}")
     print(f"items listed                   {len(items)} (pages of {PAGE}); whole job GET: "
           f"{run['whole_items']} items; results table rows: {run['table_rows']}")
     print(f"job state                      {run['job']['state']}, items done {run['job']['items_done']}")
     print(f"done (final)                   {sum(states[s] for s in final)}   {dict(states)}")
     print(f"found (measured)               {found} ({found / n:.1%})")
-    for reason, count in reasons.most_common():
-        print(f"  refused x{count}: {reason}")
+    for shape, count in reasons.most_common():
+        print(f"  refused x{count}: {examples[shape]}")
     print(f"lost                           {lost}   must be 0")
     print(f"within max(1 %, 1 mm)          {within / max(total, 1):7.1%}   ({total} dimensions)")
     print(f"within 3 sigma                 {in3 / max(total, 1):7.1%}")
@@ -288,14 +316,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--photos", type=int, default=500)
     parser.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "prism-station-batch")
+    parser.add_argument("--distinct", type=int, default=0, help="render only this many parts and "
+                        "make up --photos from them, each again at another JPEG quality (0: all distinct)")
     parser.add_argument("--engine-sample", type=int, default=20, help="photos timed in the engine alone")
     parser.add_argument("--client", action="store_true", help="submit with the Python client, not the CLI")
+    parser.add_argument("--dump", type=Path, help="write the items (JSON, with their truth) here")
     args = parser.parse_args()
-    photos, truth = render(args.photos, args.cache)
+    distinct = min(args.distinct or args.photos, args.photos)
+    photos, truth = reuse(*render(distinct, args.cache), args.photos)
     station_file = photos[0].parent.parent / "station.json"
     engine_ms = engine_cpu_ms(photos, station_file, args.engine_sample)
     with tempfile.TemporaryDirectory() as tmp:
         run = through_service(photos, station_file, args.client, Path(tmp))
+    if args.dump:
+        args.dump.write_text(json.dumps([{**item, "photo": str(photos[item["index"]]),
+                                          "truth": truth[item["index"]]} for item in run["items"]]))
     report(len(photos), truth, run, engine_ms)
 
 
