@@ -379,6 +379,38 @@ def out_laz(ctx: Ctx) -> Measured:
     return sample_writer_ms(ctx, "laz")
 
 
+@figure("out.laz_floor", "2 outputs", "LAZ: lazrs' compression alone, the sample's cloud", unit="ms",
+        target="(the floor of LAZ)")
+def out_laz_floor(ctx: Ctx) -> Measured:
+    """What the LAZ writer cannot go below on one core: lazrs compressing the sample's points as
+    point format 2 (XYZ + RGB, what the writer writes), and format 0 (XYZ alone) for the note;
+    the records are built beforehand, as the writer builds them."""
+    import lazrs
+
+    from prismcore.outputs.las import COLOR_SCALE, SCALE_M
+    result, _ = sample_result(ctx)
+    points, colors = result.cloud.points.astype(np.float64), result.cloud.colors
+    rgb = np.dtype([("X", "<i4"), ("Y", "<i4"), ("Z", "<i4"), ("intensity", "<u2"), ("bits", "u1"),
+                    ("classification", "u1"), ("scan_angle", "i1"), ("user_data", "u1"),
+                    ("point_source_id", "<u2"), ("red", "<u2"), ("green", "<u2"), ("blue", "<u2")])
+    record = np.zeros(len(points), rgb)  # LAS point format 2, 26 bytes
+    for name, axis, sign in (("X", 0, 1.0), ("Y", 2, 1.0), ("Z", 1, -1.0)):
+        record[name] = np.rint(sign * points[:, axis] / 1000.0 / SCALE_M)
+    for name, channel in (("red", 0), ("green", 1), ("blue", 2)):
+        record[name] = colors[:, channel].astype(np.uint16) * COLOR_SCALE
+    plain = np.zeros(len(points), np.dtype([(n, rgb.fields[n][0]) for n in rgb.names[:9]]))  # format 0
+    for name in plain.dtype.names or ():
+        plain[name] = record[name]
+    xyz_bytes = plain.tobytes()
+    runs = 3 if ctx.quick else 7
+    with_rgb = median_cpu_ms(lambda: lazrs.compress_points(lazrs.LazVlr.new_for_compression(2, 0),
+                                                           record.tobytes(), False), runs)
+    xyz = median_cpu_ms(lambda: lazrs.compress_points(lazrs.LazVlr.new_for_compression(0, 0),
+                                                      xyz_bytes, False), runs)
+    return Measured(with_rgb, f"format 2 (XYZ + RGB); without the colours (format 0) {xyz:.0f} ms; "
+                              "parallel compression spreads it over cores, the CPU stays")
+
+
 @figure("out.csv_sample", "2 outputs", "CSV writer, the sample's cloud", unit="ms")
 def out_csv_sample(ctx: Ctx) -> Measured:
     return sample_writer_ms(ctx, "csv")
@@ -479,6 +511,36 @@ def cmd_scan_fixed(ctx: Ctx) -> Measured:
     process = sample_command(ctx)["cpu_ms"]
     work = sum(in_command(ctx).values())
     return Measured(process - work, f"process {process:.0f} ms CPU, its work {work:.0f} ms")
+
+
+# What a photo scan imports, each in fresh processes (CPU ms beyond what it is added to): what
+# the fixed cost is made of. The last is everything `prism scan` of a photo imports, less Python.
+_IMPORTS = (("numpy + OpenCV", "", "import numpy, cv2"),
+            ("scipy.optimize (box fit's least_squares)", "import numpy", "import numpy, scipy.optimize"),
+            ("polars (CSV)", "import numpy", "import numpy, polars"),
+            ("pydantic (the spec)", "", "import pydantic"),
+            ("typer + rich", "", "import typer, rich.console"),
+            ("all a photo scan imports", "", "import prism_cli.main, prism_cli.outputs, "
+             "prismcore.locate.auto_points, prismcore.io.exif, prismcore.outputs.writers"))
+
+
+def import_costs(ctx: Ctx) -> dict[str, float]:
+    def make() -> dict[str, float]:
+        runs = 3 if ctx.quick else 7
+        cpu: dict[str, float] = {}
+        for code in {c for _, before, after in _IMPORTS for c in (before, after)}:
+            cmd = [sys.executable, "-c", code or "pass"]
+            cpu[code] = statistics.median(run_child_process(cmd)[1] * 1000 for _ in range(runs))
+        return {label: cpu[after] - cpu[before] for label, before, after in _IMPORTS}
+    return ctx.once("imports", make)
+
+
+@figure("cmd.scan_imports", "3 command", "prism scan: its imports (process CPU less bare Python)", unit="ms",
+        target="(fixed cost's floor)")
+def cmd_scan_imports(ctx: Ctx) -> Measured:
+    t = import_costs(ctx)
+    whole = t.pop("all a photo scan imports")
+    return Measured(whole, "; ".join(f"{k} {v:.0f}" for k, v in t.items()))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -587,6 +649,61 @@ def search_worst(ctx: Ctx) -> Measured:
     r = search_runs(ctx)
     cpu = sorted(r["cpu"])
     return Measured(cpu[-1], f"scene {r['worst_seed']}; p90 {cpu[int(0.9 * (len(cpu) - 1))]:.0f} ms")
+
+
+def worker_parts(ctx: Ctx) -> dict[str, Any]:
+    """The worker's own work per photo, in this process (no Celery, Redis or uploads): the
+    service's default outputs (CSV, PLY), the preview, the overlay as the worker stores it, the
+    report; median CPU ms per photo over the throughput model's 1280x1024 photos (the first
+    round a warm-up), beside the engine's."""
+    def make() -> dict[str, Any]:
+        import io
+
+        sys.path.insert(0, str(ctx.tree / "benchmarks"))
+        from throughput_model import _photos
+
+        from prism_worker import artifacts
+        from prismcore import ScanSpec, run_scan
+        from prismcore.io.images import load_image
+        from prismcore.outputs import writers
+        from prismcore.scan.cloud import decimate
+        single_thread()
+        draw, fmt = _overlay_drawer(), getattr(artifacts, "OVERLAY_FORMAT", "png")
+        rounds: list[dict[str, float]] = []
+        for _ in range(3 if ctx.quick else 4):
+            for data, item in _photos(4):
+                spec = ScanSpec.model_validate({"image": "x", **item})
+                marks = [("", time.process_time())]
+                image = load_image(data)
+                marks.append(("decode", time.process_time()))
+                result = run_scan(spec, image)
+                marks.append(("engine", time.process_time()))
+                for kind in spec.formats:
+                    writers.write_format(kind, io.BytesIO(), result.cloud, spec, report=result.report,
+                                         images=[image])
+                marks.append(("outputs", time.process_time()))
+                preview = decimate(result.cloud)
+                writers.write_ply(io.BytesIO(), preview.points, preview.colors)
+                marks.append(("preview", time.process_time()))
+                picture = artifacts._display_size(draw(image, result.report, photo="front"))
+                writers.encode_overlay(picture, fmt) if fmt != "png" else writers.encode_png(picture)
+                marks.append(("overlay", time.process_time()))
+                json.dumps(result.report, indent=2).encode()
+                marks.append(("report", time.process_time()))
+                rounds.append({name: (t - marks[k][1]) * 1000 for k, (name, t) in enumerate(marks[1:])})
+        kept = rounds[4:]
+        return {"format": fmt} | {k: statistics.median(r[k] for r in kept) for k in kept[0]}
+    return ctx.once("worker_parts", make)
+
+
+@figure("worker.own_floor", "4 views", "worker's own steps + engine / engine, in process", unit="x",
+        target="(the ratio's floor)")
+def worker_own_floor(ctx: Ctx) -> Measured:
+    t = worker_parts(ctx)
+    fmt = t.pop("format")
+    whole = sum(t.values())
+    return Measured(whole / t["engine"], ", ".join(f"{k} {v:.0f}" for k, v in t.items())
+                    + f" ms CPU (overlay as {fmt}); the stack (Celery, Redis, uploads) comes on top")
 
 
 @figure("worker.ratio", "4 views", "worker CPU per photo / engine CPU", unit="x", target="<= 2",

@@ -9,7 +9,7 @@
    process and its pool, from psutil) from the first submit to the last job's end, per photo.
 
 It prints both, and the ratio of worker CPU per photo to the engine's CPU per photo (target:
-at most 3). With `--profile`, py-spy (`pip install py-spy`; not in the locks) samples the
+at most 2). With `--profile`, py-spy (`pip install py-spy`; not in the locks) samples the
 worker's processes meanwhile, and the samples are summed per kind of work (a sample's stack
 counts for the first kind in KINDS it contains); each kind's share of the busy samples is
 printed, and that share of the measured worker CPU as ms per photo.
@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from throughput_model import _photos  # the same photos: 1280x1024, with a scale
 
 PROCESSES = 2
-TARGET_RATIO = 3.0
+TARGET_RATIO = 2.0
 SAMPLE_HZ = 100
 # Kinds of work, by a marker in a sampled stack's frames; a stack counts for the first it has.
 # py-spy's own idle detection does not tell a thread blocked in epoll or on a lock from a
@@ -60,7 +60,7 @@ KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("PLY writer", ("write_ply (",)),
     ("LAS/LAZ writer", ("write_las (",)),
     ("glb model", ("box_glb (",)),
-    ("overlay.png", ("overlay_from_report (", "encode_png (", "_display_size (")),
+    ("overlay (JPEG)", ("overlay_from_report (", "encode_overlay (", "encode_png (", "_display_size (")),
     ("report.json (JSON)", ("json/",)),
     ("photo decode", ("load_image (",)),
     ("engine (scan)", ("scan_found (", "run_scan (", "plan_scan (", "finish_scan (", "resolve_points (")),
