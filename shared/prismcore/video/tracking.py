@@ -33,15 +33,25 @@ grey, until the marked one is reached). Pure functions over arrays: no I/O.
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from typing import Any
 
 import cv2
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.faces import SideFace, clicked_quads, quad_area, resolve_side_face, shared_edges
+from prismcore.geometry.faces import SideFace, clicked_quads, resolve_side_face, shared_edges
 from prismcore.spec import ReferencePoints
+from prismcore.video.box_motion import BoxTracker
+from prismcore.video.track_parts import DEFAULT_SETTINGS, TrackerSettings
+from prismcore.video.track_parts import Face as _Face
+from prismcore.video.track_parts import State as _State
+from prismcore.video.track_parts import Step as _Step
+from prismcore.video.track_parts import features as _features
+from prismcore.video.track_parts import grey as _grey
+from prismcore.video.track_parts import histogram as _histogram
+from prismcore.video.track_parts import inset_mask as _inset_mask
+from prismcore.video.track_parts import lk as _lk
 
 __all__ = [
     "POINT_NAMES",
@@ -62,49 +72,6 @@ def _fold_corners(side_face: SideFace) -> list[int]:
     edge = shared_edges(side_face)[0]
     return [_FRONT[edge], _FRONT[(edge + 1) % 4]]
 
-
-@dataclass(frozen=True)
-class TrackerSettings:
-    """The tracker's knobs (defaults measured on the real cookie-box video and on renders)."""
-
-    max_features: int = 160
-    """Most features kept per face."""
-    min_distance_px: float = 5.0
-    """Least distance between two features (goodFeaturesToTrack's minDistance), px."""
-    quality: float = 0.005
-    """goodFeaturesToTrack's qualityLevel."""
-    inset_px: float = 3.0
-    """Features are taken this far inside a face's sides, px."""
-    win_px: int = 21
-    """Lucas-Kanade window side, px (odd)."""
-    levels: int = 3
-    """Pyramid levels beyond the image itself."""
-    fb_max_px: float = 1.0
-    """A feature tracked forward then back must land this close to where it started, px."""
-    ransac_px: float = 1.5
-    """RANSAC reprojection threshold of each face's homography, px."""
-    min_inliers: int = 10
-    """The front's homography needs this many inliers, else the frame is lost."""
-    min_side_inliers: int = 8
-    """Fewer on the second face: its far corners move with the front's homography instead."""
-    refresh_fraction: float = 0.6
-    """Features are taken again on a face once fewer than this fraction of them survive."""
-    cut_distance: float = 0.5
-    """A grey-level histogram Bhattacharyya distance from one frame to the next past this is a cut."""
-    max_gap: int = 30
-    """Frames after the last good one over which a lost track is searched for again."""
-    wide_win_px: int = 41
-    """The re-seeding search's window side, px."""
-    wide_levels: int = 5
-    """The re-seeding search's pyramid levels."""
-    side_model: str = "homography"
-    """How the second face's far corners move: "homography" (its own RANSAC homography) or
-    "affine" (an affine motion of its inliers held to the fold as the front moved it)."""
-    max_width_px: int = 1280
-    """Frames wider than this are tracked at a reduced size (the points are scaled back)."""
-
-
-DEFAULT_SETTINGS = TrackerSettings()
 
 
 @dataclass(frozen=True)
@@ -199,78 +166,6 @@ def _quads(points: np.ndarray, side_face: SideFace) -> tuple[np.ndarray, np.ndar
     return q.front, q.side
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
-    if image.ndim == 2:
-        return image if image.dtype == np.uint8 else np.clip(image, 0, 255).astype(np.uint8)
-    if image.dtype != np.uint8:
-        image = np.clip(image, 0, 255).astype(np.uint8)
-    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-
-
-def _histogram(grey: np.ndarray) -> np.ndarray:
-    small = grey[::4, ::4]
-    return cv2.calcHist([small], [0], None, [32], [0, 256])
-
-
-def _inset_mask(shape: tuple[int, int], quad: np.ndarray, inset_px: float) -> np.ndarray:
-    """uint8 mask of `quad` shrunk by `inset_px` toward its centre (along each side's normal)."""
-    centre = quad.mean(axis=0)
-    lines = []
-    for i in range(4):
-        p, q = quad[i], quad[(i + 1) % 4]
-        n = np.array([q[1] - p[1], p[0] - q[0]])
-        norm = float(np.linalg.norm(n))
-        if norm < 1e-9:
-            return np.zeros(shape, np.uint8)
-        n /= norm
-        c = -float(n @ p)
-        if n @ centre + c < 0:
-            n, c = -n, -c
-        lines.append((n, c - inset_px))
-    corners = []
-    for i in range(4):
-        (n1, c1), (n2, c2) = lines[(i - 1) % 4], lines[i]
-        a = np.stack([n1, n2])
-        if abs(np.linalg.det(a)) < 1e-9:
-            return np.zeros(shape, np.uint8)
-        corners.append(np.linalg.solve(a, -np.array([c1, c2])))
-    mask = np.zeros(shape, np.uint8)
-    poly = np.array(corners)
-    # An inset that turned the quad inside out (a face thinner than twice the inset) is empty.
-    if np.sign(quad_area(poly)) != np.sign(quad_area(quad)):
-        return mask
-    cv2.fillConvexPoly(mask, np.round(poly * 16).astype(np.int32), 255, lineType=cv2.LINE_8, shift=4)
-    return mask
-
-
-def _features(grey: np.ndarray, quad: np.ndarray, s: TrackerSettings, mask: np.ndarray | None = None
-              ) -> np.ndarray:
-    """Features inside `quad` (inset; `mask`: that inset quad's mask, already drawn), shape (N, 2) float32."""
-    if mask is None:
-        mask = _inset_mask(grey.shape[:2], quad, s.inset_px)
-    if not mask.any():
-        return np.zeros((0, 2), np.float32)
-    found = cv2.goodFeaturesToTrack(grey, s.max_features, s.quality, s.min_distance_px, mask=mask,
-                                    blockSize=5)
-    return np.zeros((0, 2), np.float32) if found is None else found.reshape(-1, 2).astype(np.float32)
-
-
-def _lk(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray, win: int, levels: int
-        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Features `pts` of `prev` tracked to `cur`, checked back: (new positions (N, 2), kept mask,
-    forward-backward error (N,) px)."""
-    if len(pts) == 0:
-        return pts, np.zeros(0, bool), np.zeros(0)
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
-    p0 = pts.reshape(-1, 1, 2)
-    p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev, cur, p0, None, winSize=(win, win), maxLevel=levels,
-                                          criteria=crit)
-    p0r, st2, _ = cv2.calcOpticalFlowPyrLK(cur, prev, p1, None, winSize=(win, win), maxLevel=levels,
-                                           criteria=crit)
-    fb = np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1)
-    ok = (st1.ravel() == 1) & (st2.ravel() == 1) & np.isfinite(fb)
-    return p1.reshape(-1, 2), ok, fb
-
 
 def _homography(src: np.ndarray, dst: np.ndarray, ransac_px: float) -> tuple[np.ndarray | None, np.ndarray]:
     """RANSAC homography src -> dst and its inlier mask (None, all False with fewer than 4)."""
@@ -287,38 +182,6 @@ def _apply(H: np.ndarray, pts: np.ndarray) -> np.ndarray:
     out = cv2.perspectiveTransform(pts.reshape(-1, 1, 2).astype(np.float64), H)
     return np.asarray(out.reshape(-1, 2), dtype=np.float64)
 
-
-@dataclass
-class _Face:
-    """One face's features: where they are now and where they were on the anchor frame."""
-
-    now: np.ndarray  # (N, 2) float32, current frame
-    anchor: np.ndarray  # (N, 2) float32, the anchor frame
-
-
-@dataclass
-class _State:
-    """The tracker's state after a good frame."""
-
-    grey: np.ndarray
-    points: np.ndarray  # (7, 2) in this frame
-    anchor_points: np.ndarray  # (7, 2) on the anchor frame
-    faces: list[_Face]  # front, side
-    counts: list[int]  # features per face when last taken
-    hist: np.ndarray
-    index: int
-    steps: int = 0
-
-
-@dataclass
-class _Step:
-    points: np.ndarray | None
-    inliers: tuple[int, int] = (0, 0)
-    fb_px: float = 0.0
-    reason: str | None = None
-    cut: bool = False
-    faces: list[_Face] = field(default_factory=list)
-    hist: np.ndarray | None = None  # the frame's grey-level histogram (the cut check's)
 
 
 class _Tracker:
@@ -413,8 +276,9 @@ class _Tracker:
             self.state = self._seed(grey, step.points, index, st.steps + 1, hist=hist)
 
 
-def _confidence(inliers: tuple[int, int], fb_px: float, shift: float | None, s: TrackerSettings) -> float:
-    more = min(1.0, inliers[0] / (4 * s.min_inliers))
+def _confidence(inliers: int, fb_px: float, shift: float | None, s: TrackerSettings) -> float:
+    """0..1 from the features that decide the points (`inliers`: the front's, or the whole box's)."""
+    more = min(1.0, inliers / (4 * s.min_inliers))
     steady = float(np.exp(-fb_px / s.fb_max_px))
     snapped = 1.0 if shift is None else float(np.exp(-max(shift - 1.0, 0.0) / 4.0))
     return float(more * steady * snapped)
@@ -432,7 +296,12 @@ def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndar
     """Track from the marked frame along `frames` (one direction; each (index, image) with image
     (H, W, 3) RGB or (H, W) grey), reporting the frames in `report`; the marked frame's grey
     image, features and points are already reduced by `k`."""
-    tracker = _Tracker(start_grey, start_points * k, side_face, start_index, s, start_features)
+    tracker: _Tracker | BoxTracker
+    if s.motion == "box":
+        scaled = s if s.focal_px is None else replace(s, focal_px=s.focal_px * k)
+        tracker = BoxTracker(start_grey, start_points * k, side_face, start_index, scaled)
+    else:
+        tracker = _Tracker(start_grey, start_points * k, side_face, start_index, s, start_features)
     out: dict[int, TrackedFrame] = {}
     lost_since: int | None = None
     ended: str | None = None
@@ -485,8 +354,10 @@ def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndar
 
 
 def _quality(step: _Step, shift: float | None, steps: int, s: TrackerSettings) -> TrackQuality:
-    return TrackQuality(sum(step.inliers), step.inliers[0], step.inliers[1], step.fb_px,
-                        _confidence(step.inliers, step.fb_px, shift, s), shift, steps)
+    total = sum(step.inliers) if step.total is None else step.total
+    follow = step.inliers[0] if step.total is None else step.total
+    return TrackQuality(total, step.inliers[0], step.inliers[1], step.fb_px,
+                        _confidence(follow, step.fb_px, shift, s), shift, steps)
 
 
 def track_points(frames: Iterable[tuple[int, np.ndarray]],
@@ -570,7 +441,7 @@ def track_points(frames: Iterable[tuple[int, np.ndarray]],
         features0.append(_features(grey0, quad * k, settings, mask))
     if start in everything:
         n0 = (len(features0[0]), len(features0[1]))
-        confidence = _confidence(n0, 0.0, shift, settings)
+        confidence = _confidence(n0[0], 0.0, shift, settings)
         quality = TrackQuality(sum(n0), n0[0], n0[1], 0.0, confidence, shift, 0)
         out[start] = TrackedFrame(start, start_points, quality)
     out.update(_track_one_way(it, grey0, start_points, start, face, everything, refine, settings, k,
