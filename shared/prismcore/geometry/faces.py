@@ -144,7 +144,10 @@ def _xy(p: np.ndarray) -> str:
 def quad_area(quad: np.ndarray) -> float:
     """Signed shoelace area; positive for a clockwise quad in image coordinates (y down)."""
     x, y = quad[:, 0], quad[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    # np.roll's generality cost more than the sum: the next vertex's coordinates by slicing.
+    x_next = np.concatenate((x[1:], x[:1]))
+    y_next = np.concatenate((y[1:], y[:1]))
+    return 0.5 * float(np.dot(x, y_next) - np.dot(x_next, y))
 
 
 def clicked_quads(
