@@ -246,21 +246,25 @@ def _polygon_of(contour: np.ndarray, sides: int = 4, eps: float = 0.03) -> np.nd
     if quad_area(approx) < 0:
         approx = approx[::-1]
     pts = contour.reshape(-1, 2).astype(np.float64)
+    pts32 = pts.astype(np.float32)
     centre = approx.mean(axis=0)
+    # Every side at once: where each outline point lies along it and off it.
+    d = np.concatenate((approx[1:], approx[:1])) - approx
+    lengths = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    if lengths.min() < 6:
+        return None
+    u = d / lengths[:, None]
+    rel_x = pts[None, :, 0] - approx[:, 0, None]  # (sides, N)
+    rel_y = pts[None, :, 1] - approx[:, 1, None]
+    along = rel_x * u[:, 0, None] + rel_y * u[:, 1, None]
+    off = rel_y * u[:, 0, None] - rel_x * u[:, 1, None]
+    near = ((along > 0.1 * lengths[:, None]) & (along < 0.9 * lengths[:, None])
+            & (np.abs(off) < 0.03 * peri + 2))
+    if near.sum(axis=1).min() < 5:
+        return None
     lines = []
     for i in range(sides):
-        p, q = approx[i], approx[(i + 1) % sides]
-        d = q - p
-        length = float(np.linalg.norm(d))
-        if length < 6:
-            return None
-        u = d / length
-        along = (pts - p) @ u
-        off = (pts - p) @ np.array([-u[1], u[0]])
-        near = (along > 0.1 * length) & (along < 0.9 * length) & (np.abs(off) < 0.03 * peri + 2)
-        if near.sum() < 5:
-            return None
-        vx, vy, x0, y0 = cv2.fitLine(pts[near].astype(np.float32), cv2.DIST_HUBER, 0, 0.01, 0.01).ravel()
+        vx, vy, x0, y0 = cv2.fitLine(pts32[near[i]], cv2.DIST_HUBER, 0, 0.01, 0.01).ravel()
         line = _line(np.array([x0, y0]), np.array([x0 + vx, y0 + vy]))
         if line[:2] @ centre + line[2] < 0:
             line = -line
