@@ -16,7 +16,6 @@ feature on the box holds every corner.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -222,7 +221,7 @@ class BoxTracker:
     """Frame-to-frame tracking of the box's pose (one direction in time), as `tracking._Tracker`."""
 
     def __init__(self, grey: np.ndarray, points: np.ndarray, side_face: SideFace, index: int,
-                 s: TrackerSettings, features: Sequence[np.ndarray] | None = None) -> None:
+                 s: TrackerSettings) -> None:
         self.s = s
         self.side_face = side_face
         self.model, pose = fit_box_model(points, side_face, grey.shape, s.focal_px)

@@ -1,7 +1,11 @@
 """Seven points marked on one frame of a hand-held video, carried to the other frames by tracking.
 
 A person marks the box's seven reference points (P1..P7, the engine's order) on one frame; the
-points of every other selected frame follow from the box's own motion:
+points of every other selected frame follow from the box's own motion. By default
+(`TrackerSettings.motion == "box"`) the box moves as one rigid body: the marked points fix a box
+model, features on every face the camera sees (the lid too) are placed on it, and each frame's
+camera pose is fitted to all of them at once (`prismcore.video.box_motion`), the points being the
+box's corners projected. With `motion == "faces"` each marked face moves on its own:
 
 * features (`cv2.goodFeaturesToTrack`) are taken inside each face's quadrilateral (the front,
   and the second face the points mark), a few px inside its sides so that the background past
@@ -79,8 +83,10 @@ class TrackQuality:
     """How well one frame's points were tracked.
 
     inliers : int
-        The faces' homography inliers together (front + second face).
+        The features that follow the box: the faces' homography inliers together (front + second
+        face), or with the box's motion ("box") those on every face the pose was fitted to.
     inliers_front, inliers_side : int
+        Of them, those on the front and on the second face.
     fb_error_px : float
         Median forward-backward error of the features kept, px (0 on the marked frame).
     confidence : float
@@ -401,6 +407,8 @@ def track_points(frames: Iterable[tuple[int, np.ndarray]],
         The points are not seven finite points, describe no box face, or `start` is not in `frames`.
     """
     pts = _as_points(points)
+    if settings.motion not in ("box", "faces"):
+        raise InputError(f"the tracker's motion is 'box' or 'faces', not {settings.motion!r}")
     face = resolve_side_face(to_reference(pts), side_face)
     wanted: set[int] | None = None if report is None else set(report)
     before: list[tuple[int, np.ndarray]] = []

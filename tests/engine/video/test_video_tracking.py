@@ -174,6 +174,8 @@ def test_bad_input_is_refused() -> None:
         track_points(list(enumerate(images[:5])), truth[0], 9)
     with pytest.raises(InputError, match="seven"):
         track_points(list(enumerate(images[:5])), truth[0][:5], 0)
+    with pytest.raises(InputError, match="motion"):
+        track_points(list(enumerate(images[:5])), truth[0], 0, settings=TrackerSettings(motion="spline"))
 
 
 def test_viewing_spread_keeps_the_extremes_of_a_sweep() -> None:
