@@ -252,9 +252,10 @@ def engine_photo_like_total(ctx: Ctx) -> float:
     return photo_like_engine(ctx)["total"]
 
 
-@figure("engine.photo_like.measure", "1 engine", "photo-like: measure (incl. rounding)", unit="ms")
-def engine_photo_like_measure(ctx: Ctx) -> float:
-    return photo_like_engine(ctx)["measure"]
+for _stage_name in ENGINE_STAGES:
+    _label = "measure (incl. rounding)" if _stage_name == "measure" else _stage_name
+    figure(f"engine.photo_like.{_stage_name}", "1 engine", f"photo-like: {_label}", unit="ms")(
+        _stage(photo_like_engine, _stage_name))
 
 
 def _dims(report: dict) -> str:
