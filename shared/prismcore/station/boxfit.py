@@ -7,7 +7,7 @@ its eight projected corners; the fit moves the six until that hull lies on the o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, cast
 
 import cv2
@@ -22,6 +22,10 @@ _EDGE_BIAS_PX = 0.5  # the outline's pixel centres lie half a pixel inside the t
 _COARSE_POINTS = 40  # outline points while choosing among the starts
 _DENSE_POINTS = 200
 _FITTED_STARTS = 8  # at most
+# The starts' fits only choose the basin the dense fit refines: each stops once a step changes its
+# cost or its parameters by less than this share (least_squares' default, 1e-8, spent half the fit's
+# time on steps that changed no choice).
+_COARSE_TOL = 1e-4
 _AGREEING = 3  # fits of the starts ending at the best cost: the multi-start stops there
 _AGREE = 0.02  # relative cost: the same minimum
 _AGREE_SIZE = 0.03  # of the box's largest side: the same box
@@ -61,19 +65,42 @@ def _clip(a: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return cast("np.ndarray", np.minimum(np.maximum(a, lo), hi))
 
 
-def _signed_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Distance of each point (N, 2) to a convex polygon's outline (M, 2), negative inside."""
+@dataclass(frozen=True)
+class _Nearest:
+    """Where each outline point lies against a convex polygon: its nearest edge `k` (N,), the
+    parameter `t` (N,) of its nearest point along that edge (0 at the edge's start, 1 at its end),
+    the point from the edge's start `pa` (N, 2), the edge `e` (N, 2) and its squared length (N,),
+    the polygon's orientation (+1 counter-clockwise in x right, y down... as its signed area),
+    and the signed distance (N,), negative inside."""
+
+    k: np.ndarray
+    t: np.ndarray
+    pa: np.ndarray
+    e: np.ndarray
+    length2: np.ndarray
+    orient: float
+    signed: np.ndarray
+
+
+def _nearest(points: np.ndarray, poly: np.ndarray) -> _Nearest:
+    """Each point (N, 2) against a convex polygon's outline (M, 2): see :class:`_Nearest`."""
     ax, ay = poly[:, 0], poly[:, 1]
     bx, by = _next(ax), _next(ay)
     ex, ey = bx - ax, by - ay
     px, py = points[:, 0:1] - ax, points[:, 1:2] - ay  # (N, M)
-    t = _clip((px * ex + py * ey) / np.maximum(ex * ex + ey * ey, 1e-12), 0.0, 1.0)
+    length2 = np.maximum(ex * ex + ey * ey, 1e-12)
+    t = _clip((px * ex + py * ey) / length2, 0.0, 1.0)
     dx, dy = px - t * ex, py - t * ey
-    dist = np.sqrt((dx * dx + dy * dy).min(axis=1))
+    d2 = dx * dx + dy * dy
+    k = d2.argmin(axis=1)
+    rows = np.arange(len(points))
+    dist = np.sqrt(d2[rows, k])
     cross = ex * py - ey * px
     orient = 1.0 if float(np.sum(ax * by - bx * ay)) >= 0 else -1.0
     inside = (cross * orient >= 0).all(axis=1)
-    return cast("np.ndarray", np.where(inside, -dist, dist))
+    return _Nearest(k=k, t=t[rows, k], pa=np.column_stack([px[rows, k], py[rows, k]]),
+                    e=np.column_stack([ex[k], ey[k]]), length2=length2[k], orient=orient,
+                    signed=np.where(inside, -dist, dist))
 
 
 @dataclass(frozen=True)
@@ -185,6 +212,9 @@ class _Problem:
     vertex_weight: float
     fold_weight: float
     edge_bias: float = _EDGE_BIAS_PX
+    # The last parameters' projected corners, hull and nearest edges: least_squares asks for the
+    # Jacobian where it last evaluated the residuals, and the Jacobian needs the same geometry.
+    last: dict[str, Any] = field(default_factory=dict, compare=False)
 
 
 def _lookup(dt: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -204,11 +234,14 @@ def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
     X = box_corners(params)
     depth = X @ p.R[2] + p.t[2]
     n = len(p.outline) + 8 + 3 * len(_FOLD_SAMPLES)
+    p.last.clear()
     if not (np.all(np.isfinite(X)) and np.all(depth > 1.0)):
         return np.full(n, 1e3)  # a box reaching behind the camera: as far off as can be
     pts = project(X, p.K, p.R, p.t)
     hull = _hull(pts)
-    r1 = _signed_distance(p.outline, pts[hull]) - p.edge_bias
+    near = _nearest(p.outline, pts[hull])
+    p.last.update(key=params.tobytes(), hull=hull, near=near)
+    r1 = near.signed - p.edge_bias
     # Each hull vertex on the outline too, so the hull cannot outgrow it where no outline lies.
     r2 = np.zeros(8)
     r2[hull] = _lookup(p.signed, pts[hull] - p.origin) - _EDGE_BIAS_PX
@@ -284,23 +317,15 @@ def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
     J = np.zeros((n + 8 + n_fold, 6))
     if not (np.all(np.isfinite(pts))):
         return J
-    hull = _hull(pts)
-    poly = pts[hull]
-    ax, ay = poly[:, 0], poly[:, 1]
-    ex, ey = _next(ax) - ax, _next(ay) - ay
-    px, py = p.outline[:, 0:1] - ax, p.outline[:, 1:2] - ay
-    length2 = np.maximum(ex * ex + ey * ey, 1e-12)
-    t = _clip((px * ex + py * ey) / length2, 0.0, 1.0)
-    dx, dy = px - t * ex, py - t * ey
-    k = np.argmin(dx * dx + dy * dy, axis=1)
-    rows = np.arange(n)
-    orient = 1.0 if float(np.sum(ax * _next(ay) - _next(ax) * ay)) >= 0 else -1.0
-    tk = t[rows, k]
-    ek = np.column_stack([ex[k], ey[k]])
-    el = np.sqrt(length2[k])
+    if p.last.get("key") != params.tobytes():
+        _residuals(params, p)
+        if "near" not in p.last:
+            return J
+    hull, near = p.last["hull"], p.last["near"]
+    k, tk, pa, ek, orient = near.k, near.t, near.pa, near.e, near.orient
+    el = np.sqrt(near.length2)
     # the outward normal of a counter-clockwise (orient > 0, y down) edge is (ey, -ex) / |e|
     nrm = -orient * np.column_stack([-ek[:, 1], ek[:, 0]]) / el[:, None]
-    pa = np.column_stack([px[rows, k], py[rows, k]])
     d_s = np.sum(nrm * pa, axis=1)
     # d n / d e = (Jr - n ê^T) / |e| with Jr the rotation n = Jr e / |e|
     jr = -orient * np.array([[0.0, -1.0], [1.0, 0.0]])
@@ -479,7 +504,7 @@ def fit_box(
     fits: list[Any] = []
     for i in np.argsort(costs)[:_FITTED_STARTS]:
         fits.append(least_squares(_residuals, starts[i], jac=_jacobian, args=(coarse,), method="lm",
-                                  x_scale="jac", max_nfev=25))
+                                  x_scale="jac", max_nfev=25, ftol=_COARSE_TOL, xtol=_COARSE_TOL))
         lowest = min(fits, key=lambda f: f.cost)
         if sum(f.cost <= lowest.cost * (1 + _AGREE) and _same_box(f.x, lowest.x) for f in fits) >= _AGREEING:
             break

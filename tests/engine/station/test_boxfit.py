@@ -5,7 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismcore.station.boxfit import _EDGES, _folds, box_corners, visible_faces
+from prismcore.station.boxfit import (
+    _EDGES,
+    _folds,
+    _hull,
+    _jacobian,
+    _Problem,
+    _residuals,
+    box_corners,
+    project,
+    visible_faces,
+)
 
 
 def _folds_of_faces(corners: np.ndarray, centre: np.ndarray) -> set[tuple[int, int]]:
@@ -32,3 +42,53 @@ def test_visible_faces_gives_the_seen_faces_areas_in_the_image() -> None:
     assert "top" in faces and "s0" in faces and "s2" not in faces
     assert all(area > 0 for _, area in faces.values())
     assert all(area == 0 for _, area in visible_faces(corners, centre).values())
+
+
+def _problem(rng: np.random.Generator) -> tuple[np.ndarray, _Problem]:
+    """A box seen from above and in front, its outline a perturbed copy of its own silhouette, with
+    smooth distance maps (so the bilinear lookups have a gradient to compare)."""
+    K = np.array([[1400.0, 0, 640], [0, 1400.0, 512], [0, 0, 1]])
+    tilt = np.radians(rng.uniform(35, 55))
+    R = np.array([[1.0, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    t = np.array([0.0, 0.0, rng.uniform(700, 1000)])
+    params = np.array([*rng.uniform(-40, 40, 2), rng.uniform(0, np.pi), *np.log(rng.uniform(60, 200, 3))])
+    pts = project(box_corners(params), K, R, t)
+    hull = pts[_hull(pts)]
+    s = np.linspace(0, 1, 25, endpoint=False)[:, None]
+    outline = np.concatenate([a + s * (b - a) for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
+    outline = outline + rng.normal(0, 1.5, outline.shape)
+    yy, xx = np.mgrid[0:1024, 0:1280].astype(np.float32)
+    smooth = (np.sin(xx / 37.0) * np.cos(yy / 23.0) * 3).astype(np.float32)  # any smooth map will do
+    p = _Problem(outline, smooth, np.zeros(2), K, R, t, -R.T @ t, smooth, np.zeros(2),
+                 vertex_weight=0.7, fold_weight=0.6)
+    return params + rng.normal(0, [3, 3, 0.05, 0.05, 0.05, 0.05]), p
+
+
+def test_the_fits_jacobian_matches_central_differences_over_random_boxes() -> None:
+    """The closed-form Jacobian (which reuses the residuals' last nearest edges) against central
+    differences of the residuals, asked in both orders: after the residuals at the same point and
+    at another point first (the reuse must not hand it stale geometry)."""
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(40):
+        x, p = _problem(rng)
+        numeric = np.empty((len(_residuals(x, p)), 6))
+        for j in range(6):
+            step = np.zeros(6)
+            step[j] = 1e-6
+            numeric[:, j] = (_residuals(x + step, p) - _residuals(x - step, p)) / 2e-6
+        # the residuals were last evaluated elsewhere (x - step): the Jacobian must not reuse them
+        stale_first = _jacobian(x, p)
+        _residuals(x, p)
+        after = _jacobian(x, p)
+        np.testing.assert_array_equal(stale_first, after)
+        # A row agrees to 0.1 %; rows whose nearest edge, hull or lookup pixel changes within the
+        # step have no derivative there, and are few.
+        agree = np.abs(numeric - after).max(axis=1) <= 1e-3 * (1 + np.abs(numeric).max(axis=1))
+        n = len(p.outline)
+        blocks = {"outline": np.arange(n), "hull vertices": n + np.flatnonzero(after[n:n + 8].any(axis=1)),
+                  "folds": n + 8 + np.flatnonzero(after[n + 8:].any(axis=1))}
+        for name, rows in blocks.items():
+            assert len(rows) and agree[rows].mean() > 0.85, (name, rows[~agree[rows]])
+        checked += int(agree.sum())
+    assert checked > 40 * 100
