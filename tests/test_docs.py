@@ -494,7 +494,7 @@ def test_curl_block_uploads_submits_polls_and_downloads(served, user_dir: Path):
     assert run.returncode == 0, run.stdout + run.stderr
     got = user_dir / "out" / "curl"
     assert run.stdout.split() == sorted(p.name for p in got.iterdir()), run.stdout
-    assert run.stdout.split() == ["cloud.csv", "cloud.ply", "overlay.png", "preview.ply", "report.json",
+    assert run.stdout.split() == ["cloud.csv", "cloud.ply", "overlay.jpg", "preview.ply", "report.json",
                                   "results.csv"], run.stdout
     dims = json.loads((got / "report.json").read_text())["dimensions"]
     assert dims["unit"] == "mm" and dims["width"] == pytest.approx(120, rel=1e-6)
@@ -628,4 +628,4 @@ def test_python_client_block_measures_the_sample(served, user_dir: Path):
     assert "succeeded 100" in run.stdout and "fitted" in run.stdout, run.stdout
     report = json.loads((user_dir / "out" / "client" / "item-0" / "report.json").read_text())
     assert report["camera"]["focal_source"] == "fitted"
-    assert (user_dir / "out" / "client" / "item-0" / "overlay.png").stat().st_size > 0
+    assert (user_dir / "out" / "client" / "item-0" / "overlay.jpg").stat().st_size > 0
