@@ -14,18 +14,23 @@ import numpy as np
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
 from prismcore.station import background
-from prismcore.station.background import board_cover, shadow_difference, table_zone, with_table
+from prismcore.station.background import board_cover, shadow_difference, smooth_level, table_zone, with_table
 from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
-from prismcore.station.segment import Registration, undistorter
+from prismcore.station.segment import SHADOW_RANGE, Registration, norm2, planes, undistorter
 
-__all__ = ["board_camera", "expected_board", "measure_on_board"]
+__all__ = ["board_camera", "expected_board", "measure_on_board", "shadow_floor"]
 
 _LEVEL_SQUARES = 0.7  # the light's level is smoothed over this many squares
 _DIFFERS = 25.0  # RGB levels (after the shadow's scale): a pixel this far from the board is not the board's
 _MAX_K1 = 0.5  # a radial distortion beyond this from one view of a board is not trusted
 _PATTERN_PX = 3.0  # the pattern is drawn at this many of its pixels per photo pixel, then averaged
+_SHADOW_TOLERANCE = 0.7  # a shadow darkens the board's white at least this share as much as its black
+_MAX_FLOOR = 0.9  # the least scale a pixel's shadow is held to, at most
+_LIT = 0.85  # a square this much darker than the board's light nearby is in a shadow
+_LIT_PASSES = 3  # the light found again without the shadowed squares (each pass nearer the lit)
+_BLACK_LIT = 1.5  # a black square's pixel brighter than this against the plate's black is not lit so
 
 
 def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
@@ -100,20 +105,33 @@ def board_camera(
     )
 
 
+def _corners(board: BoardSpec, pose_h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The board's four corners (4, 2), in mm on the board and in px in the undistorted photo
+    (through the homography `pose_h`), in order round it."""
+    bw, bh = board.size_mm
+    corners_mm = np.array([[0, 0], [bw, 0], [bw, bh], [0, bh]], np.float64)
+    return corners_mm, cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
+
+
 def expected_board(
-    photo_u: np.ndarray, board: BoardSpec, camera: CameraModel, pose_h: np.ndarray
+    photo_u: np.ndarray, board: BoardSpec, camera: CameraModel, pose_h: np.ndarray,
+    notes: list[str] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The support as it would look without the part: the board's pattern drawn where the board
     lies (homography `pose_h`: board mm -> undistorted photo px), its white and black lit as the
     photo's own white and black squares are lit nearby; elsewhere the photo itself (no part is
-    looked for there). Returns (plate (H, W, 3) uint8, board region (H, W) bool)."""
+    looked for there). Returns (plate (H, W, 3) uint8, board region (H, W) bool); a fallback
+    that may change the outline is said in `notes`.
+
+    The light is found without what differs from the board (a part), a dark part over white
+    squares told from a shadow by the black squares nearby (:func:`shadow_floor`), and without the
+    squares a shadow darkens: the board is modelled lit, the shadow left to the segmentation's
+    scale (a shadow's edge within the light's smoothing made the plate darker than the photo on
+    its lit side)."""
+    notes = [] if notes is None else notes
     h, w = photo_u.shape[:2]
     # Pixels of the pattern per mm so that one photo pixel covers ~_PATTERN_PX of them.
-    corners_mm = np.array(
-        [[0, 0], [board.size_mm[0], 0], [board.size_mm[0], board.size_mm[1]], [0, board.size_mm[1]]],
-        np.float64,
-    )
-    corners_px = cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
+    _, corners_px = _corners(board, pose_h)
     span_px = max(
         np.linalg.norm(corners_px[1] - corners_px[0]), np.linalg.norm(corners_px[2] - corners_px[1])
     )
@@ -125,61 +143,101 @@ def expected_board(
     pattern = cv2.warpPerspective(art, to_photo, (w, h), flags=cv2.INTER_LINEAR)
     region = cv2.warpPerspective(np.ones_like(art), to_photo, (w, h), flags=cv2.INTER_NEAREST) > 0.5
     pattern = cv2.GaussianBlur(pattern, (0, 0), 0.7)
-    square_px = span_px / max(board.squares_x, board.squares_y)
+    drawn = np.where(region, pattern, 1.0).astype(np.float32)
+    square_px = float(span_px / max(board.squares_x, board.squares_y))
     sigma = max(2.0, float(_LEVEL_SQUARES * square_px))
-    P = photo_u.astype(np.float32)
-    inner = cv2.erode(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    # The board's box in the photo only: elsewhere the plate is the photo itself.
+    plate_u = photo_u.copy()
+    rows, cols = np.nonzero(region.any(axis=1))[0], np.nonzero(region.any(axis=0))[0]
+    if len(rows) == 0:
+        return plate_u, region
+    win = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    P = photo_u[win].astype(np.float32)
+    reg, pat = region[win], pattern[win]
+    inner = cv2.erode(reg.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     weights = []
     levels = []
-    for sel in (pattern > 0.85, pattern < 0.15):
+    for sel in (pat > 0.85, pat < 0.15):
         m = (sel & inner).astype(np.float32)
-        level = _smooth(P, m, sigma)
+        level = smooth_level(P, m, sigma)
         # Again without the pixels far from that first level: the part's own colour, where it
         # covers white (or black) squares, is not the squares' light.
-        close = np.linalg.norm(P - level, axis=2) < 0.25 * (np.linalg.norm(level, axis=2) + 40)
+        close = norm2(planes(P - level)) < np.square(0.25 * (np.sqrt(norm2(planes(level))) + 40))
         weights.append(m * close)
-        levels.append(_smooth(P, m * close, sigma))
+        levels.append(smooth_level(P, m * close, sigma))
     white, black = levels
-    plate = black + (white - black) * pattern[..., None]
+    plate = black + (white - black) * pat[..., None]
     # And again without what that board differs from (a part large against the squares pulls
-    # their light towards its colour): the squares' light from the squares alone.
-    differs = shadow_difference(P, plate) > _DIFFERS
+    # their light towards its colour): the squares' light from the squares alone. A shadow is
+    # held to darken the white as the black squares nearby show (:func:`shadow_floor`): a dark
+    # part over white squares differs, not taken for a shadow's white.
+    floor = shadow_floor(P, plate, drawn[win], square_px)
+    # (and the board lit up to _BLACK_LIT times that board's light is the board: the light's
+    # edge lies within the smoothing)
+    differs = shadow_difference(P, plate, (floor, _BLACK_LIT)) > _DIFFERS
     differs = cv2.dilate(differs.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
-    white, black = (_hue(_smooth(P, wgt * differs, sigma), P, wgt) for wgt in weights)
-    plate = black + (white - black) * pattern[..., None]
-    plate = np.where(region[..., None], plate, P)
-    return np.clip(plate, 0, 255).astype(np.uint8), region
+    # And the light without the shadow: the squares darker than that board by a shadow's least
+    # left out too, so that the board is modelled lit where the shadow's edge lies within the
+    # smoothing (the lit side was darker than the photo: a lit marker beside a shadow read as a
+    # second part); the shadow is the segmentation's scale.
+    lit = np.ones_like(differs)
+    for _ in range(_LIT_PASSES):
+        white, black = (_hue(smooth_level(P, wgt * differs * lit, sigma), P, wgt, notes) for wgt in weights)
+        plate = black + (white - black) * pat[..., None]
+        pb = planes(plate)
+        lit = (sum(a * b for a, b in zip(planes(P), pb, strict=True)) / (norm2(pb) + 1.0)) >= _LIT
+    plate_u[win] = np.where(reg[..., None], np.clip(plate, 0, 255), P).astype(np.uint8)
+    return plate_u, region
 
 
-def _hue(level: np.ndarray, P: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def shadow_floor(photo_u: np.ndarray, plate_u: np.ndarray, pattern: np.ndarray, square_px: float
+                 ) -> np.ndarray:
+    """The least a shadow may scale the board at each pixel, from its black squares nearby: (H, W)
+    float32.
+
+    A shadow scales the board's white and black alike (it takes a share of the light off both),
+    and keeps its pattern; a dark part hides it: over the white squares it is as dark as a deep
+    shadow, over the black ones as bright as the black or brighter. So the scale the black squares
+    show near a pixel (photo `photo_u` on plate `plate_u`, (H, W, 3); `pattern` (H, W) < 0.1: the
+    plate's black; a black pixel over _BLACK_LIT times the plate's left out: a part that bright
+    over it is no light's evidence), its least over a quarter of a square (`square_px`, px) round
+    it (a shadow's edge), _SHADOW_TOLERANCE times over, is the least a shadow darkens that pixel;
+    away from the board's black, SHADOW_RANGE's least.
+    """
+    h, w = pattern.shape
+    P, B = photo_u.astype(np.float32), plate_u.astype(np.float32)
+    p, b = planes(P), planes(B)
+    ratio = (p[0] * b[0] + p[1] * b[1] + p[2] * b[2]) / (norm2(b) + 1.0)
+    dark = cv2.erode((pattern < 0.1).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
+    dark *= ratio < _BLACK_LIT
+    sigma = max(1.5, 0.15 * square_px)
+    f = float(min(1.0, 2.0 / sigma))
+    small = (max(1, round(w * f)), max(1, round(h * f)))
+    num = cv2.GaussianBlur(cv2.resize(ratio * dark, small, interpolation=cv2.INTER_AREA), (0, 0), sigma * f)
+    den = cv2.GaussianBlur(cv2.resize(dark, small, interpolation=cv2.INTER_AREA), (0, 0), sigma * f)
+    scale = np.where(den > 0.05, num / np.maximum(den, 1e-6), SHADOW_RANGE[0] / _SHADOW_TOLERANCE)
+    k = max(3, round(0.5 * square_px * f) | 1)
+    least = cv2.erode(scale.astype(np.float32), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    floor = np.clip(_SHADOW_TOLERANCE * least, SHADOW_RANGE[0], _MAX_FLOOR).astype(np.float32)
+    return cast("np.ndarray", cv2.resize(floor, (w, h), interpolation=cv2.INTER_LINEAR))
+
+
+def _hue(level: np.ndarray, P: np.ndarray, weight: np.ndarray, notes: list[str]) -> np.ndarray:
     """`level` (H, W, 3) with its colour's direction made the board's own for that print, the
     median over all its squares (a part is a minority of them), its brightness kept: a part whose
-    colour pulled the squares' light near it towards its own differs from them again."""
+    colour pulled the squares' light near it towards its own differs from them again. Under 100
+    of its pixels seen: `level` as it is, said in `notes`."""
     sel = weight > 0
     if sel.sum() < 100:
+        note = (f"only {int(sel.sum())} pixels of the board's squares of one print seen (under 100): "
+                "their colour not checked against a part's nearby; the part's outline may be off")
+        if note not in notes:
+            notes.append(note)
         return level
     colours = P[sel]
     hue = np.median(colours / (np.linalg.norm(colours, axis=1, keepdims=True) + 1.0), axis=0)
     hue = hue / max(float(np.linalg.norm(hue)), 1e-6)
-    return cast("np.ndarray", np.linalg.norm(level, axis=2, keepdims=True) * hue.astype(np.float32))
-
-
-def _smooth(P: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
-    """Normalised convolution: the weighted mean colour near each pixel, computed on a copy
-    reduced to a few pixels a sigma (the light varies slowly) and brought back up."""
-    h, w = weight.shape
-    f = float(min(1.0, 3.0 / sigma))
-    small = (max(1, round(w * f)), max(1, round(h * f)))
-    Ps = cv2.resize(P * weight[..., None], small, interpolation=cv2.INTER_AREA)
-    Ws = cv2.resize(weight, small, interpolation=cv2.INTER_AREA)
-    s = sigma * f
-    num, den = cv2.GaussianBlur(Ps, (0, 0), s), cv2.GaussianBlur(Ws, (0, 0), s)
-    far, far_den = cv2.GaussianBlur(Ps, (0, 0), 4 * s), cv2.GaussianBlur(Ws, (0, 0), 4 * s)
-    near = num / np.maximum(den, 1e-6)[..., None]
-    wide = far / np.maximum(far_den, 1e-6)[..., None]
-    # where no such square lies near (under the part), the wider neighbourhood's light
-    level = np.where((den > 0.05)[..., None], near, wide).astype(np.float32)
-    return cast("np.ndarray", cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR))
+    return cast("np.ndarray", np.sqrt(norm2(planes(level)))[..., None] * hue.astype(np.float32))
 
 
 def measure_on_board(
@@ -205,15 +263,14 @@ def measure_on_board(
     R, t = pose.rotation(), pose.translation()
     pose_h = K @ np.column_stack([R[:, 0], R[:, 1], t])
     t1 = time.perf_counter()
-    plate_u, region = expected_board(photo_u, board, cam, pose_h)
+    notes: list[str] = []
+    plate_u, region = expected_board(photo_u, board, cam, pose_h, notes)
     # The table round the board from the photo itself: a part rising past the board's edge in
     # the photo is outlined against the table there.
-    corners_mm = np.array([[0, 0], [board.size_mm[0], 0], [board.size_mm[0], board.size_mm[1]],
-                           [0, board.size_mm[1]]], np.float64)
-    corners_px = cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
+    corners_mm, corners_px = _corners(board, pose_h)
     tall = background.TABLE_HEIGHT * max(board.size_mm)
     zone = table_zone(corners_mm, K, R, t, tall)
-    plate_u, region = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)), zone)
+    plate_u, region, table_notes = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)), zone)
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {
         "undistort": 0.0,
@@ -228,6 +285,7 @@ def measure_on_board(
             "with the board all round it, and photograph from higher up or use a larger board"
         ),
     )
+    measured.warnings.extend([*notes, *table_notes])
     if camera is None:
         measured.warnings.append(
             f"focal length {cam.fx:.0f} px and lens distortion k1 {cam.dist[0]:+.3f} found from the "

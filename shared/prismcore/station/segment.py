@@ -17,10 +17,21 @@ from prismcore.errors import InputError
 from prismcore.station.board import BoardSpec, find_board_corners
 from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
 
-__all__ = ["MAX_SHIFT_PX", "Registration", "Silhouette", "register", "segment_part", "undistorter"]
+__all__ = [
+    "MAX_SHIFT_PX",
+    "SHADOW_RANGE",
+    "Registration",
+    "Silhouette",
+    "difference2",
+    "norm2",
+    "planes",
+    "register",
+    "segment_part",
+    "undistorter",
+]
 
 MAX_SHIFT_PX = 25.0  # the camera moved further than this since calibration: refused
-_SHADOW_RANGE = (0.25, 1.08)  # a shadow (or the light's change) scales the background by this
+SHADOW_RANGE = (0.25, 1.08)  # a shadow (or the light's change) scales the background by this
 _MIN_AREA_FRACTION = 2e-4  # of the photo: smaller blobs are noise or dust
 _SECOND_PART = 0.2  # a second blob this large against the first is a second part
 _LOW_CONTRAST = 25.0  # RGB levels: a part whose colour differs less from the support is flagged
@@ -282,25 +293,29 @@ class Silhouette:
         return slice(y0, y0 + h), slice(x0, x0 + w)
 
 
-def _planes(image: np.ndarray) -> list[np.ndarray]:
+def planes(image: np.ndarray) -> list[np.ndarray]:
+    """`image` (H, W, C) as its C channel planes (views, (H, W) each)."""
     return [image[..., c] for c in range(image.shape[2])]
 
 
-def _norm2(planes: list[np.ndarray]) -> np.ndarray:
+def norm2(planes: list[np.ndarray]) -> np.ndarray:
+    """The squared norm (H, W) over channel `planes` (a new array; the planes are left as they are)."""
     out: np.ndarray = planes[0] * planes[0]
     for q in planes[1:]:
         out += q * q
     return out
 
 
-def _difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray) -> np.ndarray:
+def difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray,
+                shadow: tuple[np.ndarray | float, np.ndarray | float] = SHADOW_RANGE) -> np.ndarray:
     """The squared distance of photo planes `p` from support planes `b` (`b2` their squared norm)
-    scaled by the best shadow factor, per pixel, float32: a channel-plane loop (numpy reduces a
-    last axis of 3 slowly)."""
+    scaled by the best shadow factor within `shadow` (the least and the most: numbers, or (H, W)
+    arrays, per pixel), per pixel, float32: a channel-plane loop (numpy reduces a last axis of 3
+    slowly)."""
     dot = p[0] * b[0]
     for pc, bc in zip(p[1:], b[1:], strict=True):
         dot += pc * bc
-    s = np.clip(dot / (b2 + 1.0), *_SHADOW_RANGE, out=dot).astype(np.float32, copy=False)
+    s = np.clip(dot / (b2 + 1.0), *shadow, out=dot).astype(np.float32, copy=False)
     out: np.ndarray | None = None
     for pc, bc in zip(p, b, strict=True):
         # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
@@ -317,7 +332,7 @@ _LIGHT_MIN_PIXELS = 100  # unclipped support pixels needed to measure the light'
 def _gain(P: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, str | None]:
     """The light's change: one gain per channel, the median ratio (the part is a minority), and a
     warning when too few of the support's pixels are unclipped to measure it (gain 1 then)."""
-    b, p = _planes(bg), _planes(P)
+    b, p = planes(bg), planes(P)
     ok = (np.minimum(np.minimum(b[0], b[1]), b[2]) > 30) & (np.maximum(np.maximum(b[0], b[1]), b[2]) < 245)
     ok &= np.maximum(np.maximum(p[0], p[1]), p[2]) < 245  # no clipped channel
     count = int(ok.sum())
@@ -334,13 +349,13 @@ def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     then shows no difference along the board's edges, while the part differs from every shift.
     (The shifts wrap round the window, as np.roll.)"""
     h, w = P.shape[:2]
-    p = [np.ascontiguousarray(q) for q in _planes(P)]
-    padded = [np.ascontiguousarray(q) for q in _planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
-    padded2 = _norm2(padded)
+    p = [np.ascontiguousarray(q) for q in planes(P)]
+    padded = [np.ascontiguousarray(q) for q in planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
+    padded2 = norm2(padded)
     best: np.ndarray | None = None
     for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
         rows, cols = slice(1 - dy, 1 - dy + h), slice(1 - dx, 1 - dx + w)
-        d2 = _difference2(p, [q[rows, cols] for q in padded], padded2[rows, cols])
+        d2 = difference2(p, [q[rows, cols] for q in padded], padded2[rows, cols])
         best = d2 if best is None else np.minimum(best, d2, out=best)
     assert best is not None
     return cast("np.ndarray", np.sqrt(best, out=best))
@@ -385,7 +400,7 @@ def _residual_around(P: np.ndarray, bg: np.ndarray, core: np.ndarray) -> np.ndar
     out = np.full((h, w), _INSIDE, np.float32)
     for r0 in range(0, h, _STRIP):
         r1 = min(h, r0 + _STRIP)
-        inside = core[r0:r1].all(axis=0)
+        inside = np.asarray(core[r0:r1].all(axis=0))
         runs = [(0, w)]
         if inside.any():
             a, b = int(np.argmax(inside)), w - int(np.argmax(inside[::-1]))

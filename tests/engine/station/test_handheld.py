@@ -21,7 +21,7 @@ from .conftest import true_camera
 # Seeds measured with the camera known as well; seed 0's part (66 mm tall, seen from 32 degrees
 # up) rises past the board's far edge in the photo.
 KNOWN = (0, 2, 9)
-MANY = range(12)
+MANY = range(20)
 
 
 @cache
@@ -36,8 +36,10 @@ def _off_unwarned(m, true: dict[str, float]) -> list[str]:
 
 
 def test_hand_held_photos_meet_the_station_targets_with_a_margin() -> None:
-    """Over 12 renders (the benchmark's first 12; its 40 give the figures): found, within
-    max(1 %, 1 mm), within 3 sigma, none over 5 % off without a warning."""
+    """Over 20 renders (the benchmark's first 20, seed 18's part beside its shadow's edge where
+    the board's light is smoothed across it; its 40 and those of --seed 1 give the figures):
+    found >= 90 %, within max(1 %, 1 mm) >= 90 %, within 3 sigma >= 95 %, none over 5 % off
+    without a warning."""
     found, within, in3, total, silent = 0, 0, 0, 0, []
     for seed in MANY:
         sc = _scene(seed)
@@ -53,9 +55,9 @@ def test_hand_held_photos_meet_the_station_targets_with_a_margin() -> None:
             within += err <= max(0.01 * true, 1.0)
             in3 += err <= 3 * m.uncertainty[key]
         silent += _off_unwarned(m, sc.box.dimensions)
-    assert found >= 10, found
-    assert within >= 0.85 * total, (within, total)
-    assert in3 >= 0.9 * total, (in3, total)
+    assert found >= 0.9 * len(MANY), found
+    assert within >= 0.9 * total, (within, total)
+    assert in3 >= 0.95 * total, (in3, total)
     assert not silent
 
 
@@ -127,3 +129,14 @@ def test_a_photo_without_the_board_is_refused() -> None:
     sc = _scene(2)
     with pytest.raises(InputError, match="board corners found"):
         measure_on_board(sc.plate[:200, :300].copy(), sc.setup.board)
+
+
+def test_the_board_lit_beside_a_shadow_s_edge_is_not_taken_for_a_second_part() -> None:
+    """Seed 18: a marker lit beside the part's shadow, the board's light smoothed across the
+    shadow's edge darker than it, was refused as a second part 21 mm across; it is the board."""
+    sc = _scene(18)
+    assert sc.box is not None
+    m = measure_on_board(sc.photo, sc.setup.board)
+    assert not any("speck" in w for w in m.warnings), m.warnings
+    for key, true in sc.box.dimensions.items():
+        assert abs(m.dimensions[key] - true) <= max(0.015 * true, 1.0), (key, m.dimensions, true)

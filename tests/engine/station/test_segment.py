@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from prismcore.station.segment import _SHADOW_RANGE, _gain, _residual
+from prismcore.station.segment import SHADOW_RANGE, _gain, _residual
 
 
 def _difference(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     """The photo's distance from the support scaled by the best shadow factor, as first written."""
     dot = np.einsum("ijc,ijc->ij", P, bg)
     nb = np.einsum("ijc,ijc->ij", bg, bg) + 1.0
-    s = np.clip(dot / nb, *_SHADOW_RANGE)
+    s = np.clip(dot / nb, *SHADOW_RANGE)
     return np.linalg.norm(P - np.minimum(s[..., None] * bg, 255.0), axis=2)
 
 
