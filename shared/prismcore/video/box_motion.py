@@ -254,6 +254,15 @@ class BoxTracker:
                      histogram(grey) if hist is None else hist, index, steps, pose=pose, model_points=X,
                      face_ids=ids)
 
+    def misfit(self, points: np.ndarray) -> float:
+        """RMS px between `points` (7, 2) and the box model at the pose fitted to them (from the
+        current one): how far they are from any view of the tracked box."""
+        st = self.state
+        assert st.pose is not None
+        pose = fit_pose(self.model, points, st.pose)
+        d = self.model.project(pose)[_DISTINCT] - np.asarray(points, np.float64)[_DISTINCT]
+        return float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+
     def reanchor(self, points: np.ndarray) -> None:
         """The current (last good) frame's points are `points` (refined): the pose is fitted to
         them and the features are taken again."""

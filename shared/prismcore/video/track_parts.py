@@ -61,6 +61,10 @@ class TrackerSettings:
     features, `prismcore.video.box_motion`) or "faces" (each marked face's own homography)."""
     focal_px: float | None = None
     """The box tracker's focal length, px, when known (else fitted to the marked frame's points)."""
+    refine_max_px: float = 1.0
+    """The box tracker takes a refinement only when a pose of its box model projects within this
+    of the refined points (RMS px; else the tracked points are kept, with the refinement's shift
+    in their quality and a lower confidence)."""
 
 
 DEFAULT_SETTINGS = TrackerSettings()

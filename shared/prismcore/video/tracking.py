@@ -353,8 +353,11 @@ def _track_one_way(frames: Iterable[tuple[int, np.ndarray]], start_grey: np.ndar
                 lost_since = index
                 continue
             shift = float(np.linalg.norm(refined - points, axis=1).max())
-            points = refined
-            tracker.reanchor(points * k)
+            if not isinstance(tracker, BoxTracker) or tracker.misfit(refined * k) / k <= s.refine_max_px:
+                points = refined
+                tracker.reanchor(points * k)
+            # else: a refinement no pose of the tracked box reproduces (a corner snapped to another
+            # edge) is not taken: the box's points are kept, the shift lowers their confidence.
         out[index] = TrackedFrame(index, points, _quality(step, shift, tracker.state.steps, s))
     return out
 

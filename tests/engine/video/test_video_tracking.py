@@ -153,6 +153,28 @@ def test_the_marked_frames_confidence_tells_how_far_the_refinement_moved_it(shif
     assert (q.confidence < 0.2) == (shift_px > 5)
 
 
+@pytest.mark.parametrize("motion", ["box", "faces"])
+def test_a_refinement_no_box_reproduces_is_not_taken_by_the_box(motion: str) -> None:
+    """A refinement that snapped one corner 6 px away: the rigid box keeps its own points (and
+    says how far the refinement would have moved them); each face's homography takes it."""
+    images, truth = _clip(0)
+
+    def snap_p5(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+        out = points.copy()
+        if image is images[10]:
+            out[4] += (0.0, 6.0)
+        return out
+
+    frames, settings = list(enumerate(images[:11])), TrackerSettings(motion=motion)
+    frame = track_points(frames, truth[0], 0, report={10}, refine=snap_p5, settings=settings)[10]
+    tracked = track_points(frames, truth[0], 0, report={10}, settings=settings)[10].points
+    assert frame.points is not None and frame.quality is not None and tracked is not None
+    assert frame.quality.refine_shift_px == pytest.approx(6.0)
+    assert frame.quality.confidence < 0.5
+    taken = snap_p5(images[10], tracked)
+    np.testing.assert_allclose(frame.points, tracked if motion == "box" else taken, atol=1e-9)
+
+
 def test_a_grey_frame_is_refined_too() -> None:
     images, truth = _clip(0)
     seen: list[tuple[int, ...]] = []
