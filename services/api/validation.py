@@ -21,7 +21,18 @@ from prism_common.stations import StationPublic
 from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
-from prismcore.spec import JOINT_MAX_PIXELS, ReferencePoints, ScanSpec, search_area_problem, view_spec
+from prismcore.errors import InputError
+from prismcore.io.video_decode import VideoInfo
+from prismcore.spec import (
+    JOINT_MAX_PIXELS,
+    FrameSelection,
+    ReferencePoints,
+    ScanSpec,
+    search_area_problem,
+    view_spec,
+)
+from prismcore.video.frames import select_frames
+from prismcore.video.tracked import points_frame_problem, span_problem
 
 from .schemas import JobCreate
 
@@ -80,10 +91,12 @@ def _size(probe: dict[str, Any] | None) -> tuple[int, int] | None:
     return None
 
 
-def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> tuple[tuple, str] | None:
+def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None,
+                  max_span: int) -> tuple[tuple, str] | None:
     """Where and why the upload named by `field` is the wrong kind for the item: a video as a
     photo, a photo as a video, frame indices (or the marked frame, points_frame) past the video's
-    end; None when it fits (or its probe is unknown). `field` "view": a photo of an item's views."""
+    end, a tracking from points_frame that would read over `max_span` frames; None when it fits
+    (or its probe is unknown). `field` "view": a photo of an item's views."""
     kind = (probe or {}).get("kind")
     if field == "view":
         return ((), "the upload is a video: a view is a photo (a video's frames are measured as one "
@@ -95,9 +108,8 @@ def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> t
         return ("frames",), "frames: the image is a photo, not a video: drop frames (and frame_points)"
     count = (probe or {}).get("frame_count")
     marked = item.points_frame
-    if kind == "video" and isinstance(count, int) and marked is not None and marked >= count:
-        return ("points_frame",), (f"points_frame {marked} is past the video's end: it has {count} "
-                                   f"frames (0-{count - 1})")
+    if kind == "video" and isinstance(count, int) and (problem := points_frame_problem(marked, count)):
+        return ("points_frame",), problem
     indices = item.frames.indices if item.frames is not None else None
     if kind == "video" and isinstance(count, int) and indices:
         past = sorted(n for n in indices if n >= count)
@@ -105,7 +117,27 @@ def _kind_problem(item: ScanSpec, field: str, probe: dict[str, Any] | None) -> t
             where = ("frame_points", str(past[0])) if item.frame_points else ("frames", "indices")
             return where, (f"frames: indices {past} are past the video's end: it has {count} "
                            f"frames (0-{count - 1})")
+    if kind == "video" and isinstance(count, int) and marked is not None and item.frames is not None:
+        frames = _selected(item.frames, probe or {})
+        if frames is not None and (problem := span_problem(frames, marked, max_span)):
+            return ("points_frame",), problem
     return None
+
+
+def _selected(selection: FrameSelection, probe: dict[str, Any]) -> list[int] | None:
+    """The frames `selection` picks of the probed video, when that is known before it is decoded
+    (not for `sharpest`, nor a selection the worker will refuse)."""
+    if selection.sharpest is not None:
+        return None
+    fps = probe.get("fps")
+    rate = float(fps) if isinstance(fps, int | float) else 0.0
+    info = VideoInfo(frame_count=probe["frame_count"], fps=rate,
+                     width=int(probe.get("width") or 0), height=int(probe.get("height") or 0),
+                     codec=str(probe.get("codec") or ""), duration_s=0.0)
+    try:  # no decoding without `sharpest`: the path only names the video in messages
+        return select_frames("upload", selection, info, max_frames=max(1, probe["frame_count"]))
+    except InputError:
+        return None
 
 
 def _check_views(item: ScanSpec, i: int, shapes: dict[str, tuple[int, int] | None],
@@ -199,7 +231,8 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                     sizes[ref.upload_id] = _size(probes[ref.upload_id])
                 check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
                 shapes[key] = sizes.get(ref.upload_id) if ref.kind == "upload" else None
-                if ref.kind == "upload" and (problem := _kind_problem(item, field, probes[ref.upload_id])):
+                if ref.kind == "upload" and (problem := _kind_problem(item, field, probes[ref.upload_id],
+                                                                       settings.tracked_max_span)):
                     if field == "view":
                         fail(("items", i, *where), f"item {i} {'.'.join(map(str, where))}: {problem[1]}")
                     else:

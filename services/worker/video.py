@@ -14,8 +14,11 @@ Points marked on one frame (``points_frame``): the split's first part tracks the
 selected frames (`prismcore.video.tracked`, as `prism scan VIDEO --points-frame N`) and stores
 ``tracked_points.json`` beside the item's results (per frame its points and quality, or the
 reason the tracking left it out); each frame is then measured with its own tracked points, and
-a frame left out fails with the tracking's reason. The tracking runs whole in that task (its
-time limit bounds it: every frame from the first selected one to the last is read).
+a frame left out fails with the tracking's reason. The tracking runs whole in that task: every
+frame from the first selected one (or the marked one) to the last is read, at most
+`settings.tracked_max_span` of them (the frames before the marked one are held until it is
+reached); one that still runs out of the task's time limit fails the item saying so. A failed
+tracking frees the item's frames from the job's cap.
 
 Frames (`scan_frame`): each frame is measured as a photo of its own (`prismcore.video.frames.frame_spec`)
 and gets its own outputs and record; after the item's last frame (`frame_finished`) the item's
@@ -48,6 +51,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from billiard.exceptions import SoftTimeLimitExceeded
 from botocore.exceptions import ClientError
 from prism_common.queue import TASK_SCAN_FRAME, TASK_SPLIT_VIDEO
 from prism_common.records import FINAL_STATES, FrameRecord, ItemResult, ItemView, State
@@ -66,10 +70,11 @@ from prismcore.video.summary import frame_info, summarize
 from prismcore.video.tracked import (
     Tracking,
     check_points_frame,
-    left_out_message,
-    per_frame_spec,
+    check_points_frame_span,
     track_video,
+    tracked_frame_spec,
     tracked_json,
+    tracked_span,
 )
 
 from . import lifecycle
@@ -137,7 +142,11 @@ def split_video(ctx: WorkerContext, view: ItemView, part: int = 0) -> None:
         if part == 0:
             frames = _select(ctx, view, path, label)
             if spec.points_frame is not None:
-                track_item(ctx, view, path, label, frames)
+                try:
+                    track_item(ctx, view, path, label, frames)
+                except InputError:  # the item fails: its frames no longer count against the job's cap
+                    ctx.store.release_frames(job_id, item)
+                    raise
             left = _Split(next=0, hint=None, estimates=[], stored=[])
         else:
             frames = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["frames"]
@@ -181,6 +190,8 @@ def _select(ctx: WorkerContext, view: ItemView, path: Path, label: str) -> list[
         info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
         check_points_frame(spec, info)
         frames = select_frames(path, spec.frames, info, max_frames=cap)
+        if spec.points_frame is not None:
+            check_points_frame_span(frames, spec.points_frame, ctx.settings.tracked_max_span)
     except InputError as exc:  # quote the client's name for the video, not our temp file
         raise InputError(client_message(exc, path, label)) from None
     total = store.claim_frames(job_id, item, len(frames))
@@ -200,7 +211,9 @@ def track_item(ctx: WorkerContext, view: ItemView, path: Path, label: str, frame
     Raises
     ------
     InputError
-        The points do not fit a box on the marked frame, or no frame could be tracked.
+        The points do not fit a box on the marked frame, no frame could be tracked, the span
+        is over `settings.tracked_max_span`, or the tracking ran out of the task's time limit
+        (what was tracked, and what to do).
     """
     spec, objects = view.item.spec, ctx.objects
     assert spec.points_frame is not None
@@ -209,13 +222,27 @@ def track_item(ctx: WorkerContext, view: ItemView, path: Path, label: str, frame
         if objects.exists(key):
             doc = objects.get_json(key)
         else:
-            doc = tracked_json(track_video(spec, path, frames))
+            try:
+                tracked = track_video(spec, path, frames, max_span=ctx.settings.tracked_max_span)
+            except SoftTimeLimitExceeded:
+                raise InputError(_too_long(ctx, spec.points_frame, frames)) from None
+            doc = tracked_json(tracked)
             objects.put_json(key, doc)
         tracking = Tracking.from_json(spec.points_frame, doc)
         tracking.require_some(repr(label))
     except InputError as exc:
         raise InputError(client_message(exc, path, label)) from None
     return tracking
+
+
+def _too_long(ctx: WorkerContext, points_frame: int, frames: list[int]) -> str:
+    """Why an item whose tracking ran out of the task's time limit failed, and what to do."""
+    lo, hi = tracked_span(frames, points_frame)
+    return (f"tracking the points of frame {points_frame} to the {len(frames)} selected frames (reading "
+            f"frames {lo}-{hi}, {hi - lo + 1} frames) took longer than the worker's time limit of "
+            f"{ctx.settings.task_time_limit_s:g} s: mark the points on a frame nearer the selected ones "
+            "or select frames nearer it (a shorter span), or the operator can lower "
+            "PRISM_TRACKED_MAX_SPAN or raise PRISM_TASK_TIME_LIMIT_S")
 
 
 @lru_cache(maxsize=32)
@@ -233,9 +260,7 @@ def _tracked_spec(ctx: WorkerContext, view: ItemView, frame: int) -> ScanSpec:
     spec = view.item.spec
     assert spec.points_frame is not None
     tracking = _tracking(ctx, item_key(view.job_id, view.item.index, TRACKED_NAME), spec.points_frame)
-    if frame not in tracking.good:
-        raise InputError(left_out_message(frame, tracking.left.get(frame, "not among the frames tracked")))
-    return frame_spec(per_frame_spec(spec, tracking), frame)
+    return tracked_frame_spec(spec, tracking, frame)
 
 
 def _split_frames(ctx: WorkerContext, view: ItemView, path: Path, frames: list[int], left: _Split,

@@ -39,30 +39,75 @@ from prismcore.video.tracking import TrackedFrame, to_reference, track_points
 
 __all__ = [
     "JOINT_TRACKED_VIEWS",
+    "TRACKED_MAX_SPAN",
     "TRACKED_NAME",
     "Tracking",
     "check_points_frame",
+    "check_points_frame_span",
     "fit_tracked",
     "joint_frames",
     "left_out_message",
     "per_frame_spec",
+    "points_frame_problem",
     "refine_fields",
+    "span_problem",
     "track_video",
+    "tracked_frame_spec",
     "tracked_json",
+    "tracked_span",
     "tracked_views",
 ]
 
 JOINT_TRACKED_VIEWS = 30
 """The most tracked frames one joint fit takes (those whose views differ most)."""
 
+TRACKED_MAX_SPAN = 300
+"""The most frames one tracking reads (`tracked_span`; the service's ``PRISM_TRACKED_MAX_SPAN``).
+The tracker holds every frame before the marked one, grey at full size, until it reaches it:
+300 frames of 1920x1080 are 620 MB (8.3 MB a frame at 3840x2160: lower the cap for such videos).
+Time is not what bounds it: reading and tracking a 1920x1080 frame costs about 20 ms of CPU
+(benchmark figures in the commit), 6 s for 300, well inside a worker task's 240 s."""
+
 _NOT_PHOTO = {"image", "points", "formats"}  # what box_refiner sets itself
+
+
+def points_frame_problem(points_frame: int | None, frame_count: int) -> str | None:
+    """Why `points_frame` is not one of a video's `frame_count` frames, or None (also for none)."""
+    if points_frame is not None and frame_count and points_frame >= frame_count:
+        return (f"points_frame {points_frame} is past the video's end: it has {frame_count} frames "
+                f"(0-{frame_count - 1})")
+    return None
 
 
 def check_points_frame(spec: ScanSpec, info: VideoInfo) -> None:
     """Raise InputError when `spec.points_frame` is past the video's last frame (`info`: its probe)."""
-    if spec.points_frame is not None and info.frame_count and spec.points_frame >= info.frame_count:
-        raise InputError(f"points_frame {spec.points_frame} is past the video's end: it has "
-                         f"{info.frame_count} frames (0-{info.frame_count - 1})")
+    if (problem := points_frame_problem(spec.points_frame, info.frame_count)) is not None:
+        raise InputError(problem)
+
+
+def tracked_span(frames: Iterable[int], points_frame: int) -> tuple[int, int]:
+    """The first and last frame a tracking from `points_frame` to `frames` reads (every frame
+    between them is decoded)."""
+    every = [*frames, points_frame]
+    return min(every), max(every)
+
+
+def span_problem(frames: Iterable[int], points_frame: int, max_span: int) -> str | None:
+    """Why tracking from `points_frame` to `frames` is refused (it reads more than `max_span`
+    frames), or None."""
+    lo, hi = tracked_span(frames, points_frame)
+    if hi - lo + 1 <= max_span:
+        return None
+    return (f"points_frame {points_frame}: tracking the points to the selected frames reads frames "
+            f"{lo}-{hi}, {hi - lo + 1} frames, over the cap of {max_span} frames one tracking may "
+            "read: mark the points on a frame nearer the selected ones, or select frames nearer "
+            f"frame {points_frame} (start_s/end_s or indices)")
+
+
+def check_points_frame_span(frames: Iterable[int], points_frame: int, max_span: int) -> None:
+    """Raise InputError (`span_problem`'s words) when the tracking would read over `max_span` frames."""
+    if (problem := span_problem(frames, points_frame, max_span)) is not None:
+        raise InputError(problem)
 
 
 def refine_fields(spec: ScanSpec) -> dict[str, Any]:
@@ -76,10 +121,12 @@ def refine_fields(spec: ScanSpec) -> dict[str, Any]:
     return photo.model_dump(mode="json", exclude=_NOT_PHOTO, exclude_none=True)
 
 
-def track_video(spec: ScanSpec, path: Path | str, indices: Iterable[int]) -> dict[int, TrackedFrame]:
+def track_video(spec: ScanSpec, path: Path | str, indices: Iterable[int], *,
+                max_span: int = TRACKED_MAX_SPAN) -> dict[int, TrackedFrame]:
     """Track `spec.points` (marked on frame `spec.points_frame`) through the video at `path` to
     the frames `indices`: every frame from the first of them (or the marked one) to the last is
-    decoded, one at a time.
+    decoded, one at a time; at most `max_span` frames (`check_points_frame_span`), as the frames
+    before the marked one are held until it is reached.
 
     Returns
     -------
@@ -90,14 +137,15 @@ def track_video(spec: ScanSpec, path: Path | str, indices: Iterable[int]) -> dic
     Raises
     ------
     InputError
-        The points describe no box, do not fit one on the marked frame, or the video does not
-        decode as far as the marked frame.
+        The points describe no box, do not fit one on the marked frame, the span is over
+        `max_span`, or the video does not decode as far as the marked frame.
     """
     if spec.points is None or spec.points_frame is None:
         raise ValueError("track_video needs a spec with points and points_frame")
     wanted = sorted(set(indices))
     start = spec.points_frame
-    lo, hi = min([*wanted, start]), max([*wanted, start])
+    check_points_frame_span(wanted, start, max_span)
+    lo, hi = tracked_span(wanted, start)
     frames = iter_frames(path, range(lo, hi + 1))
     try:
         return track_points(frames, spec.points, start, report=set(wanted), side_face=spec.side_face,
@@ -163,9 +211,29 @@ class Tracking:
 def per_frame_spec(spec: ScanSpec, tracking: Tracking) -> ScanSpec:
     """The video spec that measures each tracked frame one by one with its own points:
     ``frame_points`` the tracked points (frames left out have none; the spec's frames are then
-    the tracked ones); `frame_spec(result, i)` is frame i's photo spec."""
+    the tracked ones); `frame_spec(result, i)` is frame i's photo spec (`tracked_frame_spec`
+    gives it without building the whole)."""
+    return _with_points(spec, tracking.good)
+
+
+def tracked_frame_spec(spec: ScanSpec, tracking: Tracking, frame: int) -> ScanSpec:
+    """Frame `frame`'s photo spec with its tracked points: ``frame_spec(per_frame_spec(spec,
+    tracking), frame)``, built from that frame's points alone (the whole per-frame spec costs
+    time in proportion to the frames tracked, per frame measured).
+
+    Raises
+    ------
+    InputError
+        The tracking left `frame` out (its reason), or did not track it.
+    """
+    if frame not in tracking.good:
+        raise InputError(left_out_message(frame, tracking.left.get(frame, "not among the frames tracked")))
+    return frame_spec(_with_points(spec, {frame: tracking.good[frame]}), frame)
+
+
+def _with_points(spec: ScanSpec, good: dict[int, np.ndarray]) -> ScanSpec:
     data = spec.model_dump(mode="json", exclude={"points", "points_frame", "frames", "fit", "frame_points"})
-    data["frame_points"] = {str(i): to_reference(p).model_dump(mode="json") for i, p in tracking.good.items()}
+    data["frame_points"] = {str(i): to_reference(p).model_dump(mode="json") for i, p in good.items()}
     return ScanSpec.model_validate(data)
 
 

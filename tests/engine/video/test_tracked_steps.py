@@ -1,7 +1,7 @@
 """The steps the CLI and the worker share for points marked on one frame (`prismcore.video.tracked`):
 the refinement plans with the marked frame's own photo spec, the per-frame spec gives each
 tracked frame its points, tracked_points.json reads back as it was written, and a marked frame
-past the video's end is refused."""
+past the video's end, or a tracking over the span cap, is refused."""
 
 from __future__ import annotations
 
@@ -15,8 +15,12 @@ from prismcore.video.frames import frame_spec
 from prismcore.video.tracked import (
     Tracking,
     check_points_frame,
+    check_points_frame_span,
     per_frame_spec,
     refine_fields,
+    span_problem,
+    track_video,
+    tracked_frame_spec,
     tracked_json,
 )
 from prismcore.video.tracking import TrackedFrame, TrackQuality
@@ -79,3 +83,49 @@ def test_nothing_tracked_and_a_marked_frame_past_the_end_are_refused() -> None:
         check_points_frame(_spec(), info)
     check_points_frame(_spec(), VideoInfo(width=640, height=360, frame_count=4, fps=25.0, codec="MJPG",
                                           duration_s=0.16))
+
+
+@pytest.mark.parametrize("extra", [{}, {"scale": EDGE, "focal_px": 600.0, "side_face": "right"},
+                                   {"max_pixels": 1_000_000, "tolerance": 12, "method": "default"}],
+                         ids=["bare", "scale-focal-face", "caps"])
+def test_one_frames_spec_is_the_one_the_whole_per_frame_spec_gives(extra: dict) -> None:
+    # The oracle: the photo spec of the per-frame spec built from every tracked frame.
+    base = np.array(POINTS, dtype=np.float64)
+    quality = TrackQuality(40, 30, 10, 0.2, 0.9, 0.3, 2)
+    tracked = {i: TrackedFrame(i, base + 0.37 * i, quality) for i in range(0, 200, 3)}
+    tracked[7] = TrackedFrame(7, None, None, "lost: 3 inliers")
+    tracking = Tracking.of(3, tracked)
+    spec = _spec(**extra)
+    whole = per_frame_spec(spec, tracking)
+    for index in (0, 3, 99, 198):
+        assert tracked_frame_spec(spec, tracking, index) == frame_spec(whole, index)
+    with pytest.raises(InputError, match="frame 7 left out by the tracking: lost: 3 inliers"):
+        tracked_frame_spec(spec, tracking, 7)
+    with pytest.raises(InputError, match="frame 8 left out by the tracking: not among the frames tracked"):
+        tracked_frame_spec(spec, tracking, 8)
+
+
+@pytest.mark.parametrize(("frames", "marked", "cap", "read"), [
+    ([10, 20], 15, 11, None), ([10, 20], 15, 10, (10, 20)),  # 10..20 is 11 frames
+    ([100], 5, 96, None), ([100], 5, 95, (5, 100)),  # the marked frame before the selection
+    ([0, 1, 2], 299, 300, None), ([0, 1, 2], 300, 300, (0, 300)),  # after it
+])
+def test_the_span_a_tracking_reads_is_capped(frames: list[int], marked: int, cap: int,
+                                             read: tuple[int, int] | None) -> None:
+    problem = span_problem(frames, marked, cap)
+    if read is None:
+        assert problem is None
+        check_points_frame_span(frames, marked, cap)
+        return
+    lo, hi = read
+    assert problem == (f"points_frame {marked}: tracking the points to the selected frames reads frames "
+                       f"{lo}-{hi}, {hi - lo + 1} frames, over the cap of {cap} frames one tracking may "
+                       "read: mark the points on a frame nearer the selected ones, or select frames "
+                       f"nearer frame {marked} (start_s/end_s or indices)")
+    with pytest.raises(InputError, match="over the cap"):
+        check_points_frame_span(frames, marked, cap)
+    # The engine refuses before it opens the video: the path need not exist.
+    spec = ScanSpec.model_validate({"image": "clip.avi", "points": POINTS, "points_frame": marked,
+                                    "frames": {"indices": frames}})
+    with pytest.raises(InputError, match="over the cap"):
+        track_video(spec, "/nonexistent/clip.avi", frames, max_span=cap)
