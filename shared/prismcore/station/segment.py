@@ -343,22 +343,63 @@ def _gain(P: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, str | None]:
     return np.array([np.median(pc[ok] / bc[ok]) for pc, bc in zip(p, b, strict=True)], np.float32), None
 
 
-def _residual(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
+_CORE = 5  # coarse px: the part's coarse blob shrunk by this lies inside its outline for sure
+_STRIP = 48  # rows of the window whose residual is computed together
+_MIN_RUN = 64  # columns: a shorter run inside the part is computed (each block costs some fixed work)
+_INSIDE = np.float32(442.0)  # the residual read inside the part where it is not computed (> any RGB distance)
+
+
+def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None) -> np.ndarray:
     """A shadow scales the support; the part does not. The support is also compared shifted by a
     pixel each way and the least difference kept: the registration's last fraction of a pixel
     then shows no difference along the board's edges, while the part differs from every shift.
-    (The shifts wrap round the window, as np.roll.)"""
+    (The shifts wrap round the window, as np.roll.)
+
+    core : (H, W) bool, optional: pixels deep inside the part. In each strip of _STRIP rows, the
+        run of columns inside it on every row of the strip is not computed and reads _INSIDE: the
+        outline cannot lie there, and a large part's inside was most of the segmentation's time.
+        Every pixel computed has the value it has without `core`.
+    """
     h, w = P.shape[:2]
-    p = [np.ascontiguousarray(q) for q in planes(P)]
+    p = planes(P)
     padded = [np.ascontiguousarray(q) for q in planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
     padded2 = norm2(padded)
-    best: np.ndarray | None = None
-    for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
-        rows, cols = slice(1 - dy, 1 - dy + h), slice(1 - dx, 1 - dx + w)
-        d2 = difference2(p, [q[rows, cols] for q in padded], padded2[rows, cols])
-        best = d2 if best is None else np.minimum(best, d2, out=best)
-    assert best is not None
-    return cast("np.ndarray", np.sqrt(best, out=best))
+    runs = _runs(core, h, w)
+    out = np.full((h, w), _INSIDE, np.float32) if len(runs) > 1 else None
+    for r0, r1, c0, c1 in runs:
+        pr = [np.ascontiguousarray(q[r0:r1, c0:c1]) for q in p]
+        best: np.ndarray | None = None
+        for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
+            rows, cols = slice(r0 + 1 - dy, r1 + 1 - dy), slice(c0 + 1 - dx, c1 + 1 - dx)
+            d2 = difference2(pr, [q[rows, cols] for q in padded], padded2[rows, cols])
+            best = d2 if best is None else np.minimum(best, d2, out=best)
+        assert best is not None
+        if out is None:
+            return cast("np.ndarray", np.sqrt(best, out=best))
+        out[r0:r1, c0:c1] = np.sqrt(best, out=best)
+    assert out is not None
+    return out
+
+
+def _runs(core: np.ndarray | None, h: int, w: int) -> list[tuple[int, int, int, int]]:
+    """The blocks (row from, row to, column from, column to) of an (h, w) window :func:`_residual`
+    computes: all of it without `core`; else, strip by strip, the columns either side of the run
+    inside `core` on every row of the strip (one run: the part is convex), rows with no such run
+    together (each block costs some fixed work)."""
+    if core is None:
+        return [(0, h, 0, w)]
+    blocks: list[tuple[int, int, int, int]] = []
+    for r0 in range(0, h, _STRIP):
+        r1 = min(h, r0 + _STRIP)
+        inside: np.ndarray = np.all(core[r0:r1], axis=0)
+        a, b = int(np.argmax(inside)), w - int(np.argmax(inside[::-1]))
+        if inside.any() and b - a >= _MIN_RUN and inside[a:b].all():
+            blocks += [(r0, r1, c0, c1) for c0, c1 in ((0, a), (b, w)) if c1 > c0]
+        elif blocks and blocks[-1][1] == r0 and blocks[-1][2:] == (0, w):
+            blocks[-1] = (blocks[-1][0], r1, 0, w)
+        else:
+            blocks.append((r0, r1, 0, w))
+    return blocks
 
 
 def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
@@ -380,37 +421,6 @@ def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
     return cv2.morphologyEx(
         keep[weak_labels], cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close, close))
     )
-
-
-_CORE = 5  # coarse px: the part's coarse blob shrunk by this lies inside its outline for sure
-_STRIP = 32  # rows of the window whose residual is computed together
-_INSIDE = np.float32(442.0)  # the residual read inside the part where it is not computed (> any RGB distance)
-
-
-def _residual_around(P: np.ndarray, bg: np.ndarray, core: np.ndarray) -> np.ndarray:
-    """:func:`_residual` of the window, computed only round the part: in each strip of rows, the
-    run of columns inside `core` ((H, W) bool: deep inside the part) for every row of the strip is
-    not computed and reads _INSIDE. The outline cannot lie there, and a large part's inside was
-    most of the segmentation's time. Each run is computed with a pixel of its neighbours round it
-    (the window wrapped round at its edges, as :func:`_residual` does), so every pixel computed
-    has the value the whole window's residual gives it."""
-    h, w = core.shape
-    wrap = ((1, 1), (1, 1), (0, 0))
-    Pw, bgw = np.pad(P, wrap, mode="wrap"), np.pad(bg, wrap, mode="wrap")
-    out = np.full((h, w), _INSIDE, np.float32)
-    for r0 in range(0, h, _STRIP):
-        r1 = min(h, r0 + _STRIP)
-        inside = np.asarray(core[r0:r1].all(axis=0))
-        runs = [(0, w)]
-        if inside.any():
-            a, b = int(np.argmax(inside)), w - int(np.argmax(inside[::-1]))
-            if inside[a:b].all():  # one run (the part is convex): the columns either side of it
-                runs = [(0, a), (b, w)]
-        for c0, c1 in runs:
-            if c1 > c0:
-                block = _residual(Pw[r0:r1 + 2, c0:c1 + 2], bgw[r0:r1 + 2, c0:c1 + 2])
-                out[r0:r1, c0:c1] = block[1:-1, 1:-1]
-    return out
 
 
 _SPLIT_GAP_PX = 3.0  # coarse px
@@ -486,7 +496,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     rows = np.minimum(np.arange(Y0, Y1) * small[1] // h, small[1] - 1)
     blob = np.isin(labels, pieces).astype(np.uint8)
     core = cv2.erode(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * _CORE + 1,) * 2))
-    resid = _residual_around(P, bg, core[np.ix_(rows, cols)] > 0)
+    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0)
     near: np.ndarray = blob[np.ix_(rows, cols)]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from prismcore.station.segment import _INSIDE, _STRIP, _residual, _residual_around
+from prismcore.station.segment import _INSIDE, _STRIP, _residual
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -21,7 +21,7 @@ def test_the_residual_round_the_part_is_the_whole_windows_where_computed(seed: i
                                        [w * 0.1, h * 0.8]], np.int32), 1)
     P[core > 0] = rng.uniform(0, 255, 3).astype(np.float32)  # the part
     whole = _residual(P, bg)
-    around = _residual_around(P, bg, core > 0)
+    around = _residual(P, bg, core > 0)
     computed = around != _INSIDE
     np.testing.assert_array_equal(around[computed], whole[computed])
     # what was left out is inside the core, whole strips' runs of it
@@ -34,4 +34,4 @@ def test_without_a_core_every_pixel_is_computed() -> None:
     rng = np.random.default_rng(9)
     bg = rng.uniform(0, 255, (70, 90, 3)).astype(np.float32)
     P = rng.uniform(0, 255, (70, 90, 3)).astype(np.float32)
-    np.testing.assert_array_equal(_residual_around(P, bg, np.zeros((70, 90), bool)), _residual(P, bg))
+    np.testing.assert_array_equal(_residual(P, bg, np.zeros((70, 90), bool)), _residual(P, bg))
