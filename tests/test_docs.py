@@ -15,6 +15,7 @@ Docker engine or cluster), a test file run on its own (the suite runs it), `scri
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -26,6 +27,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from prismsynth import Box
+from prismsynth.video import moving_clip
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -121,6 +125,7 @@ MARKERS = {
     "exit codes": 'echo "exit $?"',
     "several photos": "--points-file",
     "video": "render_clip",
+    "tracked video": "--points-frame",
     "calibrate": "prism calibrate",
     "serve": "&& .venv/bin/prism serve",
     "webhook secret": "export PRISM_WEBHOOK_SECRET=",
@@ -241,6 +246,24 @@ def test_several_photos_block_measures_one_box(user_dir: Path):
                                   SAMPLE_SIZE, strict=True):
         assert abs(value - true) <= 2 * sigma + 0.05, joint
     assert set(joint) <= _table_fields(OUTPUTS, "joint.json"), set(joint)
+
+
+def test_tracked_video_block_tracks_and_measures_the_frames(user_dir: Path):
+    run = _bash(_block(MARKERS["tracked video"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    scan = user_dir / "out" / "tracked" / "scan"
+    # The oracle: the renderer's own corners of each selected frame (the block marks frame 6's).
+    _, corners = moving_clip(Box(120, 80, 60), 13, image_size=(640, 360), focal_px=600, seed=0)
+    tracked = json.loads((scan / "tracked_points.json").read_text())
+    assert sorted(map(int, tracked)) == [0, 4, 8, 12], tracked
+    for index, entry in tracked.items():
+        worst = max(math.dist(p, q) for p, q in zip(entry["points"], corners[int(index)], strict=True))
+        assert worst < 2.0, (index, worst)
+    summary = json.loads((scan / "summary.json").read_text())
+    assert summary["frames"] == {"selected": 4, "measured": 4, "failed": 0}, summary
+    assert summary["tracking"]["tracked"] == [0, 4, 8, 12]
+    for name, true_mm in (("height", 80.0), ("depth", 60.0)):
+        assert abs(summary["dimensions"][name]["median"] / true_mm - 1) < 0.02, summary["dimensions"]
 
 
 def test_video_block_measures_the_frames(user_dir: Path):
