@@ -2,8 +2,11 @@
 worker (Redis, SeaweedFS, Celery): the points tracked to the selected frames and stored as
 tracked_points.json beside the results, each frame measured with its own points (or the frames
 as ONE box, fit "joint"), and a frame the tracking leaves out named with its reason. The truth
-is the renderer's: each frame's exact corners and the box's size. At submit, a marked frame past
-the video's end is refused with a pointer to points_frame."""
+is the renderer's: each frame's exact corners and the box's size. A tracking that fails frees its
+frames from the job's cap (the job's next video is still measured); one that would read more
+frames than PRISM_TRACKED_MAX_SPAN is refused by the worker for a job that skipped the API. At
+submit, a marked frame past the video's end, or too far from the selected frames, is refused with
+a pointer to points_frame."""
 
 # ruff: noqa: F811 - `client` is test_api's fixture, imported to be used as such
 from __future__ import annotations
@@ -33,6 +36,8 @@ SELECTED = [0, 4, MARKED, 12, 15, 17]  # 17: after the cut, left out
 EDGE = {"kind": "edge", "edge": "width", "length_mm": BOX.width_mm}
 POINT_PX = 2.0  # MJPEG-decoded frames against the renderer's exact corners
 SIZE_REL = 0.03  # each frame's (and the joint box's) height and depth against the box's
+MAX_FRAMES = 10  # the job's cap, PRISM_MAX_FRAMES_PER_JOB
+MAX_SPAN = 18  # PRISM_TRACKED_MAX_SPAN: SELECTED reads frames 0-17, 18 frames
 
 
 @functools.cache
@@ -48,16 +53,17 @@ def _clip() -> tuple[bytes, tuple[np.ndarray, ...]]:
 @pytest.fixture(scope="module")
 def env(redis_server, s3_server, tmp_path_factory) -> Iterator[Env]:
     with worker_env(redis_server, s3_server, tmp_path_factory.mktemp("worker"), db=13,
-                    bucket="t-tracked", tiles_per_face=1, items_in_flight=2, max_frames=20) as made:
+                    bucket="t-tracked", tiles_per_face=1, items_in_flight=1, max_frames=MAX_FRAMES,
+                    extra_env={"TRACKED_MAX_SPAN": str(MAX_SPAN)}) as made:
         yield made
 
 
-def _spec(env: Env, fit: str) -> ScanSpec:
+def _spec(env: Env, fit: str, frames: list[int] = SELECTED, marked: int = MARKED) -> ScanSpec:
     video, truth = _clip()
     points = [[round(float(x), 2), round(float(y), 2)] for x, y in truth[MARKED]]
     return ScanSpec.model_validate({
-        "image": env.upload(video, name="handheld.avi"), "points": points, "points_frame": MARKED,
-        "frames": {"indices": SELECTED}, "scale": EDGE, "focal_px": 600.0, "fit": fit,
+        "image": env.upload(video, name="handheld.avi"), "points": points, "points_frame": marked,
+        "frames": {"indices": frames}, "scale": EDGE, "focal_px": 600.0, "fit": fit,
         "formats": ["csv"]})
 
 
@@ -127,3 +133,66 @@ def test_a_marked_frame_past_the_video_is_refused_at_submit(client) -> None:
         in error["detail"]
     ok = client.post("/v1/jobs", json={"items": [{**item, "points_frame": total - 1}]}, headers=ACME)
     assert ok.status_code == 202, ok.text
+
+
+def test_a_failed_tracking_frees_its_frames_from_the_jobs_cap(env: Env) -> None:
+    # Item 0's frames are all after the cut: nothing can be tracked, the item fails. Its 4
+    # frames and item 1's 7 would be 11, over the job's cap of 10, had item 0 kept its claim;
+    # items run one at a time (items_in_flight 1), item 0 first.
+    lost, kept = [16, 17, 18, 19], [0, 2, 4, 6, 8, 10, 12]
+    assert len(lost) + len(kept) > MAX_FRAMES >= len(kept)
+    job = env.wait(env.submit([_spec(env, "frames", lost), _spec(env, "frames", kept)]), timeout=300)
+    first, second = job.items
+    assert first.state == State.failed
+    assert first.error.startswith("no frame of 'handheld.avi' could be tracked from frame 8: "), first.error
+    assert second.state == State.succeeded, second.error
+    assert [f.index for f in second.frames if f.state == State.succeeded] == kept
+
+
+@pytest.mark.parametrize(("frames", "marked", "read"), [([0, 4], 18, (0, 18)), ([15, 19], 1, (1, 19))])
+def test_a_tracking_over_the_span_cap_is_refused_by_the_worker(env: Env, frames: list[int], marked: int,
+                                                               read: tuple[int, int]) -> None:
+    job = env.wait(env.submit([_spec(env, "frames", frames, marked)]), timeout=120)  # no API check
+    [item] = job.items
+    lo, hi = read
+    assert item.state == State.failed
+    assert item.error == (f"points_frame {marked}: tracking the points to the selected frames reads frames "
+                          f"{lo}-{hi}, {hi - lo + 1} frames, over the cap of {MAX_SPAN} frames one tracking "
+                          "may read: mark the points on a frame nearer the selected ones, or select frames "
+                          f"nearer frame {marked} (start_s/end_s or indices)")
+    assert not env.objects.exists(f"jobs/{job.id}/items/0/tracked_points.json")  # nothing was tracked
+
+
+@functools.cache
+def _long_clip() -> bytes:
+    """301 grey frames: one more than the default span cap (PRISM_TRACKED_MAX_SPAN 300)."""
+    grey = np.full((360, 640, 3), 128, np.uint8)
+    folder = Path(tempfile.mkdtemp(prefix="tracked-long-"))
+    write_video([grey] * 301, folder / "long.avi", codec="MJPG", fps=25.0)
+    return (folder / "long.avi").read_bytes()
+
+
+@pytest.mark.parametrize(("frames", "marked", "refused"), [
+    ({"indices": [0]}, 300, True), ({"indices": [0]}, 299, False),
+    ({"every": 50}, 0, True),  # frames 0-300: the last selected one is 300
+    ({"every": 50, "end_s": 8.0}, 0, False),  # frames 0-150
+    ({"start_s": 4.0}, 0, True),  # frames 100-300 and the marked one: 0-300
+    ({"sharpest": 2}, 0, False),  # unknown before decoding: the worker checks
+])
+def test_a_tracking_over_the_span_cap_is_refused_at_submit(client, frames: dict, marked: int,
+                                                           refused: bool) -> None:
+    r = client.post("/v1/uploads", files={"file": ("long.avi", _long_clip())}, headers=ACME)
+    assert r.status_code == 201, r.text
+    _, truth = _clip()
+    points = [[round(float(x), 2), round(float(y), 2)] for x, y in truth[0]]
+    item = {"image": r.json()["reference"], "points": points, "frames": frames, "points_frame": marked}
+    r = client.post("/v1/jobs", json={"items": [item]}, headers=ACME)
+    if not refused:
+        assert r.status_code == 202, r.text
+        return
+    assert r.status_code == 422, r.text
+    assert r.headers["content-type"].startswith("application/problem+json")
+    [error] = r.json()["errors"]
+    assert error["pointer"] == "/items/0/points_frame"
+    assert "301 frames, over the cap of 300 frames one tracking may read: mark the points on a frame " \
+        "nearer the selected ones, or select frames nearer frame" in error["detail"], error
