@@ -66,7 +66,8 @@ def test_csv_and_ply_by_default_and_the_compact_formats_need_a_scale(page, stack
         assert "Done" in d.submit_and_wait()
     assert "formats" not in json.loads(sent.value.post_data)["items"][0]  # the service's default
     expect(page.locator(".downloads a")).to_have_text(
-        [f"Download {name}" for name in ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (JPEG)")])
+        [f"Download {name}"
+         for name in ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (JPEG)")])
 
 
 def test_a_truncated_jpeg_is_said_to_be_truncated(page, stack, tmp_path):
