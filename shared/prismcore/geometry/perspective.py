@@ -522,12 +522,12 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
         # The vanishing points' focal first; the spread of typical focal lengths only when that
         # start is missing or its fit is worse than the noise explains. Each start costs a full
         # solve (photo-like renders: 10-36 evaluations, 3-12 ms CPU), and on a consistent box the
-        # closed form lands in the global minimum: the pose from the side face is tried only
-        # when the front's fit is worse than the noise explains (the two landed in the same
-        # minimum on every photo-like render), and the spread stops after the first focal length
-        # whose fit the noise explains, and once the starts together have spent _NFEV_BUDGET: on
-        # points that are no box every start slides towards the focal length's bound without
-        # converging, and sixteen took minutes.
+        # closed form lands in the global minimum. Both poses (from the front and from the side)
+        # are always tried: keeping the front's whenever the noise explains it moved a tracked
+        # video frame's refined corners 4 px (tests/engine/video/test_video_tracking.py, seed 2).
+        # The spread stops after the first focal length whose fit the noise explains, and once
+        # the starts together have spent _NFEV_BUDGET: on points that are no box every start
+        # slides towards the focal length's bound without converging, and sixteen took minutes.
         first = [float(np.median(closed))] if closed else []
         tried: set[float] = set()
         for guesses in (first, [*closed, *(m * size for m in _FOCAL_STARTS)]):
@@ -538,8 +538,6 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     continue
                 tried.add(f)
                 for x0 in _box_starts(_camera(f, principal), front, side, side_face):
-                    if best is not None and best.cost <= accept:
-                        break
                     if not np.isfinite(x0).all() or nfev >= _NFEV_BUDGET:
                         continue
                     res = _solve(residual, np.r_[x0, np.log(np.clip(f, lo * 1.001, hi * 0.999))],
@@ -551,9 +549,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                     break
     else:
         residual, jac = _residual_jac_fn(lambda _: K, box_corners, 2, faces)
-        for x0 in _box_starts(K, front, side, side_face):  # the side's pose only if needed
-            if best is not None and best.cost <= accept:
-                break
+        for x0 in _box_starts(K, front, side, side_face):
             if not np.isfinite(x0).all():
                 continue
             res = _solve(residual, x0, jac=jac)
