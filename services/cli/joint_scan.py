@@ -14,7 +14,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-from rich.console import Console
 from rich.markup import escape
 
 from prismcore import InputError
@@ -23,9 +22,9 @@ from prismcore.multiview.joint import JointResult, View, fit_views
 from prismcore.multiview.report import joint_report
 from prismcore.spec import KnownEdge, ScanSpec
 
-__all__ = ["read_points_file", "scan_spec_views", "scan_views"]
+from .console import rich_console as console
 
-console = Console()
+__all__ = ["read_points_file", "scan_spec_views", "scan_views"]
 
 
 def _entry(entry: Any, where: str) -> tuple[list[list[float]], str]:
@@ -109,9 +108,9 @@ def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: P
                                              d.uncertainty, strict=True))
     focal = (f"focal {result.focal_px:.0f} ± {result.focal_std_px:.0f} px (fitted)"
              if result.focal_std_px is not None else f"focal {result.focal_px:.0f} px (given)")
-    console.print(f"[bold]{len(result.views)} of {len(views)} views as one box[/]  {sizes} mm  {focal}",
+    console().print(f"[bold]{len(result.views)} of {len(views)} views as one box[/]  {sizes} mm  {focal}",
                   soft_wrap=True)
     for left in result.left_out:
-        console.print(f"[yellow]left out[/] {escape(left.name)}: {escape(left.reason)}", soft_wrap=True)
+        console().print(f"[yellow]left out[/] {escape(left.name)}: {escape(left.reason)}", soft_wrap=True)
     for warning in (*result.warnings, *d.notes):
-        console.print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
+        console().print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
-from rich.console import Console
+from .console import rich_console as console
 
 if TYPE_CHECKING:
     import numpy as np
@@ -21,8 +21,6 @@ if TYPE_CHECKING:
     from prismcore.station.scan import StationScan
 
 __all__ = ["scan_on_board_photo", "scan_on_station"]
-
-console = Console()
 
 
 def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
@@ -80,14 +78,14 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
     paths["report"].write_text(json.dumps(report, indent=2) + "\n")
     d, s = report["dimensions"], report["uncertainty"]
     position = cast("list[float]", station_report["position_mm"])
-    console.print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "
+    console().print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "
                   f"{d['height']:.2f} ± {s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  "
                   f"(position {position[0]:.1f}, {position[1]:.1f} mm, "
                   f"yaw {station_report['yaw_deg']:.1f} deg; "
                   f"outline {station_report['silhouette_residual_px']:.2f} px)", soft_wrap=True)
     for warning in report["warnings"]:
-        console.print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
+        console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))
     for kind, path in paths.items():
-        console.print(f"{kind:>{wide}}: {path}", soft_wrap=True)
+        console().print(f"{kind:>{wide}}: {path}", soft_wrap=True)
     return report

@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rich.console import Console
 from rich.markup import escape
 
 from prismcore.io.video_decode import iter_frames, probe_video
@@ -33,9 +32,9 @@ from prismcore.video.tracked import (
     tracked_json,
 )
 
-__all__ = ["TRACKED_NAME", "scan_tracked"]
+from .console import rich_console as console
 
-console = Console()
+__all__ = ["TRACKED_NAME", "scan_tracked"]
 
 
 def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames: int,
@@ -53,7 +52,7 @@ def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frame
     info = probe_video(path, max_pixels=spec.max_pixels)
     check_points_frame(spec, info)
     indices = select_frames(path, spec.frames, info, max_frames=max_frames)
-    console.print(f"{path}: {info.width}x{info.height}, {info.frame_count} frames; tracking the points of "
+    console().print(f"{path}: {info.width}x{info.height}, {info.frame_count} frames; tracking the points of "
                   f"frame {spec.points_frame} to {len(indices)} selected frames")
     tick = time.process_time()
     tracked = track_video(spec, path, indices)
@@ -61,17 +60,17 @@ def scan_tracked(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frame
     out.mkdir(parents=True, exist_ok=True)
     (out / TRACKED_NAME).write_text(json.dumps(tracked_json(tracked), indent=1) + "\n")
     tracking = Tracking.of(spec.points_frame, tracked)
-    console.print(f"tracked {len(tracking.good)} of {len(tracked)} frames ({cpu_s:.1f} s CPU); points: "
+    console().print(f"tracked {len(tracking.good)} of {len(tracked)} frames ({cpu_s:.1f} s CPU); points: "
                   f"{out / TRACKED_NAME}")
     for index, reason in tracking.left.items():
-        console.print(f"[yellow]frame {index} left out:[/] {escape(str(reason))}", soft_wrap=True)
+        console().print(f"[yellow]frame {index} left out:[/] {escape(str(reason))}", soft_wrap=True)
     tracking.require_some(repr(str(path)))
     if spec.fit == "joint":
         return _joint(spec, path, out, tracking)
     from .video_scan import scan_video
 
     return scan_video(per_frame_spec(spec, tracking), base, out, tiles=tiles,
-                      max_frames=max(max_frames, len(tracking.good)), extra={"tracking": tracking.block()},
+                      max_frames=max_frames, extra={"tracking": tracking.block()},
                       overlay_format=overlay_format)
 
 
@@ -88,11 +87,11 @@ def _joint(spec: ScanSpec, path: Path, out: Path, tracking: Tracking) -> dict[st
     sizes = " x ".join(f"{v:.2f} (given)" if name == spec.scale.edge else f"{v:.2f} ± {s:.2f}"
                        for name, v, s in zip(("width", "height", "depth"), (d.width, d.height, d.depth),
                                              d.uncertainty, strict=True))
-    console.print(f"[bold]{len(result.views)} of {len(chosen)} tracked frames as one box[/]  {sizes} mm  "
+    console().print(f"[bold]{len(result.views)} of {len(chosen)} tracked frames as one box[/]  {sizes} mm  "
                   f"focal {result.focal_px:.0f} px", soft_wrap=True)
     for gone in result.left_out:
-        console.print(f"[yellow]left out[/] {escape(gone.name)}: {escape(gone.reason)}", soft_wrap=True)
+        console().print(f"[yellow]left out[/] {escape(gone.name)}: {escape(gone.reason)}", soft_wrap=True)
     for warning in (*result.warnings, *d.notes):
-        console.print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
-    console.print(f"joint: {out / JOINT_NAME}")
+        console().print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
+    console().print(f"joint: {out / JOINT_NAME}")
     return report

@@ -16,7 +16,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-from rich.console import Console
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec
@@ -27,11 +26,10 @@ from prismcore.video.point_search import FrameSearch
 from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.video.summary import DIMENSIONS, frame_info, summarize
 
+from .console import rich_console as console
 from .outputs import report_path, write_outputs, write_overlays
 
 __all__ = ["scan_video"]
-
-console = Console()
 
 
 class _FrameSpecs:
@@ -137,13 +135,13 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
                          '(e.g. "frames": {"every": 10} in the spec, or --every 10)')
     info = probe_video(path, max_pixels=spec.max_pixels)
     indices = select_frames(path, spec.frames, info, max_frames=max_frames)
-    console.print(f"{path}: {info.width}x{info.height} {info.codec}, {info.frame_count} frames at "
+    console().print(f"{path}: {info.width}x{info.height} {info.codec}, {info.frame_count} frames at "
                   f"{info.fps:g} fps; measuring {len(indices)}")
     specs = _FrameSpecs(spec, path, indices)
     found = _pooled_focal(spec, specs, path, indices)
     pooled = found[0] if found else None
     if found is not None:
-        console.print(f"focal length pooled over {len(found[1])} frames: {found[0].focal_px:.1f} "
+        console().print(f"focal length pooled over {len(found[1])} frames: {found[0].focal_px:.1f} "
                       f"± {found[0].std_px:.1f} px")
     per_frame: dict[int, dict] = {}
     frames = iter_frames(path, indices)
@@ -155,17 +153,17 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
                 report = _measure(specs, index, frame, info, out, tiles, decode_ms, pooled, overlay_format)
             except InputError as exc:
                 per_frame[index] = {"error": str(exc)}
-                console.print(f"[red]{frame_folder(index)} failed:[/] {exc}")
+                console().print(f"[red]{frame_folder(index)} failed:[/] {exc}")
             else:
                 per_frame[index] = {"dimensions": report["dimensions"]}
                 d = report["dimensions"]
-                console.print(f"{frame_folder(index)}  {d['width']:.2f} x {d['height']:.2f} x "
+                console().print(f"{frame_folder(index)}  {d['width']:.2f} x {d['height']:.2f} x "
                               f"{d['depth']:.2f} {d['unit']}  point loss {report['point_loss']:.1%}")
             tick = time.perf_counter()
     except InputError as exc:  # the stream broke: the frames not reached fail with its reason
         for index in indices:
             per_frame.setdefault(index, {"error": str(exc)})
-        console.print(f"[red]decoding stopped:[/] {exc}")
+        console().print(f"[red]decoding stopped:[/] {exc}")
     summary = summarize(per_frame, fps=info.fps or None)
     summary["video"] = {"path": str(path), **asdict(info)}
     summary["selection"] = spec.frames.model_dump(mode="json", exclude_none=True)
@@ -179,6 +177,6 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
         first = summary["failed"][0]
         raise InputError(f"no frame of {str(path)!r} could be measured; frame {first['frame']}: "
                          f"{first['error']}")
-    console.print(_table(summary))
-    console.print(f"summary: {out / SUMMARY_NAME}")
+    console().print(_table(summary))
+    console().print(f"summary: {out / SUMMARY_NAME}")
     return summary

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import io
 import json
+import mimetypes
 import tempfile
 import time
 from collections import OrderedDict
@@ -49,7 +50,14 @@ from prismcore.geometry.edges import EdgeFit
 from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.io.images import load_image
 from prismcore.outputs.overlay_report import given_dimension, overlay_from_report
-from prismcore.outputs.writers import FILE_NAMES, encode_overlay, overlay_name, write_format, write_ply
+from prismcore.outputs.writers import (
+    DEFAULT_OVERLAY_FORMAT,
+    FILE_NAMES,
+    encode_overlay,
+    overlay_name,
+    write_format,
+    write_ply,
+)
 from prismcore.scan.cloud import decimate
 from prismcore.scan.colour_scan import FacePlan, row_tiles
 from prismcore.scan.focal import prepare_images
@@ -186,14 +194,15 @@ def unpack_tile(data: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 # -- outputs ------------------------------------------------------------------------------------
 _SPOOL_BYTES = 64 * 2**20
-_CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "preview": "application/octet-stream",
-                  "report": "application/json", "overlay": "image/jpeg", "overlay_side": "image/jpeg",
-                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary"}
-# The stored overlay is a picture to look at, not a measurement: a JPEG (the CLI's default
-# format) of at most this many pixels along its longer side (a 1280x1024 photo's full-size PNG
+# The stored overlay is a picture to look at, not a measurement: in the CLI's default format
+# (a JPEG) of at most this many pixels along its longer side (a 1280x1024 photo's full-size PNG
 # is 1.4 MB, more than a compact LAZ cloud).
 OVERLAY_MAX_SIDE = 800
-OVERLAY_FORMAT = "jpeg"
+OVERLAY_FORMAT = DEFAULT_OVERLAY_FORMAT
+_OVERLAY_TYPE = mimetypes.guess_type(overlay_name("overlay", OVERLAY_FORMAT))[0] or "application/octet-stream"
+_CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "preview": "application/octet-stream",
+                  "report": "application/json", "overlay": _OVERLAY_TYPE, "overlay_side": _OVERLAY_TYPE,
+                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary"}
 
 
 def _put(ctx: WorkerContext, key: str, kind: str, write: Callable[[BinaryIO], object]) -> float:
