@@ -18,7 +18,19 @@ import { DIMENSIONS as DIMS, flag, warningList } from "./warnings";
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
 const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
   ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"],
-  ["overlay", "Fit overlay (JPEG)"]];
+  ["overlay", "Fit overlay"]];
+// The overlay's picture format, named by its file's suffix: a JPEG (overlay.jpg) since the
+// worker stores one, a PNG (overlay.png) for a job stored before.
+const PICTURES: Record<string, string> = { jpg: "JPEG", jpeg: "JPEG", png: "PNG", webp: "WebP" };
+
+/** A download's label: the overlay's names the format its link's file is in. */
+function linkText(kind: string, text: string, url: string): string {
+  if (kind !== "overlay") return text;
+  const name = new URL(url, location.href).pathname;
+  const suffix = name.slice(name.lastIndexOf(".") + 1).toLowerCase();
+  const format = PICTURES[suffix] ?? (suffix && !suffix.includes("/") ? suffix.toUpperCase() : "");
+  return format ? `${text} (${format})` : text;
+}
 const SOURCES: Record<string, string> = {
   given: "given", camera: "calibrated camera", exif: "from the photo's EXIF", pooled: "pooled over the photos",
   fitted: "fitted to the box", none: "not used (square-on model)",
@@ -289,7 +301,7 @@ function summary(item: Item): Summary {
     if (!item.downloads[kind]) continue;
     const a = document.createElement("a");
     a.href = item.downloads[kind];
-    a.textContent = `Download ${text}`;
+    a.textContent = `Download ${linkText(kind, text, item.downloads[kind])}`;
     a.rel = "noopener";
     links.append(a);
   }
