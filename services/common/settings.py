@@ -76,11 +76,11 @@ class Settings(BaseSettings):
     max_pixels: int = 50_000_000
     max_frames_per_job: int = 1000  # video frames measured, over all the job's videos
     # Points marked on one frame (points_frame): the most frames one tracking reads, from the
-    # first selected frame (or the marked one) to the last. The frames before the marked one
+    # first selected frame (or the marked one) to the last; a job over it is refused at submit
+    # (or by the worker once `sharpest` has chosen the frames). The frames before the marked one
     # are held in memory (grey, full size) until it is reached: the default holds at most 620 MB
-    # of 1920x1080 frames; lower it for larger frames (8.3 MB each at 3840x2160).
-    # (prismcore.video.tracked.TRACKED_MAX_SPAN, the engine's own cap; not imported: it pulls the
-    # fitting libraries into every process that reads its settings).
+    # of 1920x1080 frames; lower it for larger frames (8.3 MB each at 3840x2160). prism scan's
+    # cap is the same 300 (prismcore.video.tracked.TRACKED_MAX_SPAN).
     tracked_max_span: int = Field(default=300, ge=1)
     tiles_per_face: int = 4
     items_in_flight_per_job: int = 4  # a big batch cannot starve the jobs queued after it

@@ -4,7 +4,8 @@ tracked_points.json beside the results, each frame measured with its own points 
 as ONE box, fit "joint"), and a frame the tracking leaves out named with its reason. The truth
 is the renderer's: each frame's exact corners and the box's size. A tracking that fails frees its
 frames from the job's cap (the job's next video is still measured); one that would read more
-frames than PRISM_TRACKED_MAX_SPAN is refused by the worker for a job that skipped the API. At
+frames than PRISM_TRACKED_MAX_SPAN is refused by the worker for a job that skipped the API; a
+re-run finds tracked_points.json stored and measures with it rather than tracking again. At
 submit, a marked frame past the video's end, or too far from the selected frames, is refused with
 a pointer to points_frame."""
 
@@ -19,9 +20,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import State
+from prism_common.settings import Settings
 
 from prismcore.spec import ScanSpec
+from prismcore.video.tracked import TRACKED_MAX_SPAN
 from prismsynth import Box
 from prismsynth.video import moving_clip, write_video
 
@@ -196,3 +200,36 @@ def test_a_tracking_over_the_span_cap_is_refused_at_submit(client, frames: dict,
     assert error["pointer"] == "/items/0/points_frame"
     assert "301 frames, over the cap of 300 frames one tracking may read: mark the points on a frame " \
         "nearer the selected ones, or select frames nearer frame" in error["detail"], error
+
+
+def test_a_rerun_reuses_the_stored_tracking(env: Env) -> None:
+    # A re-run of the split's first task (a redelivery, a restart) finds tracked_points.json and
+    # does not track again: here one written before the job runs, with frame 4 left out for a
+    # reason the tracker never gives and the others at the renderer's corners. The frames are
+    # measured with those points, frame 4 fails with that reason: the stored tracking was used.
+    _, truth = _clip()
+    stored = {str(i): {"points": truth[i].round(3).tolist(), "quality": {"confidence": 1.0}}
+              for i in SELECTED[:-1] if i != 4}
+    stored["4"] = {"reason": "stored by an earlier run"}
+    stored["17"] = {"reason": "a cut"}
+    job_id = env.create([_spec(env, "frames")])
+    key = f"jobs/{job_id}/items/0/tracked_points.json"
+    env.objects.put_json(key, stored)
+    env.celery.send_task(TASK_RUN_JOB, (job_id,))
+    item = env.wait(job_id, timeout=300).items[0]
+    assert item.state == State.succeeded, item.error
+    assert json.loads(env.objects.get_bytes(key)) == stored  # not tracked again, not rewritten
+    frames = {f.index: f for f in item.frames}
+    assert frames[4].state == State.failed
+    assert frames[4].error == "frame 4 left out by the tracking: stored by an earlier run"
+    assert item.result.summary["tracking"]["tracked"] == [i for i in SELECTED[:-1] if i != 4]
+    for index in (0, MARKED, 12, 15):
+        assert frames[index].state == State.succeeded, frames[index].error
+        points = frames[index].result.reference_points
+        got = np.array([points[f"p{k}"] for k in range(1, 8)])
+        np.testing.assert_allclose(got, truth[index].round(3), atol=1e-3)
+
+
+def test_the_services_span_cap_defaults_to_the_engines() -> None:
+    # settings.py states the number rather than import the engine's fitting libraries
+    assert Settings.model_fields["tracked_max_span"].default == TRACKED_MAX_SPAN
