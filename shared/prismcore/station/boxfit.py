@@ -31,6 +31,7 @@ _AGREE = 0.02  # relative cost: the same minimum
 _AGREE_SIZE = 0.03  # of the box's largest side: the same box
 _WEAK_STEP = 20.0  # RGB levels
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
+_MAX_OUTLIERS = 0.10  # of the outline beyond 3 sigma: more, and the fit's sigma is its whole RMS
 
 
 def box_corners(params: np.ndarray) -> np.ndarray:
@@ -530,6 +531,12 @@ def fit_box(
     J = np.asarray(best.jac, dtype=np.float64)  # dense: method="trf" without a sparsity pattern
     keep = np.ones(len(best.fun), bool)
     keep[: len(pts)] = np.abs(r1) <= 3 * sigma  # the outline's outliers carry no weight at the end
+    if 1.0 - float(np.mean(keep[: len(pts)])) > _MAX_OUTLIERS:
+        # A robust fit's covariance holds when its outliers are few. Past that, the box is not
+        # what the outline says (a face merged with the support, found in part): the sigma is the
+        # whole outline's RMS distance from the box, every point weighed.
+        keep[:] = True
+        sigma = max(sigma, float(np.sqrt(np.mean(np.square(r1)))))
     J = J[keep]
     inflation = max(1.0, _CORRELATION / step)
     try:

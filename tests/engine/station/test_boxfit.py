@@ -4,6 +4,7 @@ camera sees (`visible_faces`, also what the seven points and the side count use)
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from prismcore.station.boxfit import (
     _EDGES,
@@ -13,6 +14,7 @@ from prismcore.station.boxfit import (
     _Problem,
     _residuals,
     box_corners,
+    fit_box,
     project,
     visible_faces,
 )
@@ -44,7 +46,7 @@ def test_visible_faces_gives_the_seen_faces_areas_in_the_image() -> None:
     assert all(area == 0 for _, area in visible_faces(corners, centre).values())
 
 
-def _problem(rng: np.random.Generator) -> tuple[np.ndarray, _Problem]:
+def _problem(rng: np.random.Generator, noise_px: float = 1.5) -> tuple[np.ndarray, _Problem]:
     """A box seen from above and in front, its outline a perturbed copy of its own silhouette, with
     smooth distance maps (so the bilinear lookups have a gradient to compare)."""
     K = np.array([[1400.0, 0, 640], [0, 1400.0, 512], [0, 0, 1]])
@@ -56,7 +58,7 @@ def _problem(rng: np.random.Generator) -> tuple[np.ndarray, _Problem]:
     hull = pts[_hull(pts)]
     s = np.linspace(0, 1, 25, endpoint=False)[:, None]
     outline = np.concatenate([a + s * (b - a) for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
-    outline = outline + rng.normal(0, 1.5, outline.shape)
+    outline = outline + rng.normal(0, noise_px, outline.shape)
     yy, xx = np.mgrid[0:1024, 0:1280].astype(np.float32)
     smooth = (np.sin(xx / 37.0) * np.cos(yy / 23.0) * 3).astype(np.float32)  # any smooth map will do
     p = _Problem(outline, smooth, np.zeros(2), K, R, t, -R.T @ t, smooth, np.zeros(2),
@@ -92,3 +94,23 @@ def test_the_fits_jacobian_matches_central_differences_over_random_boxes() -> No
             assert len(rows) and agree[rows].mean() > 0.85, (name, rows[~agree[rows]])
         checked += int(agree.sum())
     assert checked > 40 * 100
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_fit_that_leaves_much_of_the_outline_out_widens_its_sigma(seed: int) -> None:
+    """The middle of two sides' outline pulled 10 px inside the box (a face merged with the
+    support, found in part), a quarter of the outline: the robust fit leaves those points out as
+    outliers, and its sigma must then say the box is not what the outline says, not the noise of
+    the rest (that sigma once missed a height read 4.3 mm for 20 mm). The oracle: the same box's
+    fit on the whole outline."""
+    rng = np.random.default_rng(seed)
+    _, p = _problem(rng, noise_px=0.3)
+    clean = p.outline
+    dented = clean.copy()
+    centre = clean.mean(axis=0)
+    middle = np.r_[3:22, 53:72]  # 25 points a side: the middle of the first side and the third
+    inward = centre - dented[middle]
+    dented[middle] += 10 * inward / np.linalg.norm(inward, axis=1, keepdims=True)
+    whole = fit_box(clean, p.K, p.R, p.t)
+    dent = fit_box(dented, p.K, p.R, p.t)
+    assert min(np.array(dent.sigma_mm()) / np.array(whole.sigma_mm())) > 3
