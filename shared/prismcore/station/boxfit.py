@@ -528,13 +528,16 @@ def fit_box(
     r1 = best.fun[: len(pts)]
     robust = 1.4826 * float(np.median(np.abs(r1 - np.median(r1))))
     sigma = max(_MIN_SIGMA_PX, robust)
+    missing = float(np.mean(r1 < -3 * sigma))  # by the robust sigma: the outline the box leaves out
     J = np.asarray(best.jac, dtype=np.float64)  # dense: method="trf" without a sparsity pattern
     keep = np.ones(len(best.fun), bool)
     keep[: len(pts)] = np.abs(r1) <= 3 * sigma  # the outline's outliers carry no weight at the end
     if 1.0 - float(np.mean(keep[: len(pts)])) > _MAX_OUTLIERS:
         # A robust fit's covariance holds when its outliers are few. Past that, the box is not
         # what the outline says (a face merged with the support, found in part): the sigma is the
-        # whole outline's RMS distance from the box, every point weighed.
+        # whole outline's RMS distance from the box, every point weighed (the Jacobian without the
+        # robust loss, which least_squares' own has scaled down).
+        J = _jacobian(best.x, dense)
         keep[:] = True
         sigma = max(sigma, float(np.sqrt(np.mean(np.square(r1)))))
     J = J[keep]
@@ -548,7 +551,6 @@ def fit_box(
     # The outline's RMS distance from the box, its worst tenth left out (a shadow's notch, a
     # label's corner): what says whether the part is a box at all.
     trimmed = np.sort(np.abs(r1))[: max(1, int(0.9 * len(r1)))]
-    missing = float(np.mean(r1 < -3 * sigma))
     weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t) - maps_o,
                                                          difference)
     return BoxFit(

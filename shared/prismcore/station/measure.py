@@ -24,6 +24,7 @@ __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "refer
 MAX_RESIDUAL_PX = 3.0  # the outline farther than this (RMS) from any box resting flat: refused
 WARN_RESIDUAL_PX = 1.5
 _WARN_RELATIVE_SIGMA = 0.02  # a dimension's 1 sigma over this share of it is warned: 5 % is 2.5 sigma
+_SMALL_SPAN_PX = 60.0  # a side shorter than this in the photo: its size there is the cause
 _SYSTEMATIC_PX = 0.6  # the outline's placement, px, common to a whole side
 _WARN_MISSING = 0.08
 _WARN_WEAK = 0.15
@@ -320,14 +321,14 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         elif sig[k] > _WARN_RELATIVE_SIGMA * dims[k]:
             small.append(k)
     if small:
-        # A part small in the photo: a 20 mm side at 640x512 read 6 % long, within its sigma, and
-        # went unsaid.
+        # A 20 mm side at 640x512 read 6 % long, within its sigma, and went unsaid. The cause is
+        # said where it is the part's size in the photo; else the outline's own warnings say it.
         listed = ", ".join(f"{k} {dims[k]:.1f} +- {sig[k]:.2f}" for k in small)
-        warnings.append(
-            f"{listed} mm: uncertain by over {_WARN_RELATIVE_SIGMA:.0%} (the part spans "
-            f"{min(dims[k] for k in small) / mm_per_px:.0f} px at its smallest): a closer camera or a "
-            "larger photo measures it better"
-        )
+        span = min(dims[k] for k in small) / mm_per_px
+        cause = (f": the part spans {span:.0f} px at its smallest; a closer camera or a larger photo "
+                 "measures it better" if span < _SMALL_SPAN_PX else
+                 ": the outline found does not pin the box down")
+        warnings.append(f"{listed} mm: uncertain by over {_WARN_RELATIVE_SIGMA:.0%}{cause}")
     corners = fit.corners()
     image_pts = _distorted(corners, cam, reg)
     points, side = reference_points(corners, project(corners, K, R, t), -R.T @ t)

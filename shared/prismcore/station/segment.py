@@ -365,7 +365,7 @@ def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None) -> 
     padded = [np.ascontiguousarray(q) for q in planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
     padded2 = norm2(padded)
     runs = _runs(core, h, w)
-    out = np.full((h, w), _INSIDE, np.float32) if len(runs) > 1 else None
+    out = None if runs == [(0, h, 0, w)] else np.full((h, w), _INSIDE, np.float32)
     for r0, r1, c0, c1 in runs:
         pr = [np.ascontiguousarray(q[r0:r1, c0:c1]) for q in p]
         best: np.ndarray | None = None
@@ -428,11 +428,14 @@ _SPLIT_GAP = 0.3  # of the part's size (the square root of its area)
 _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
-def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray) -> Silhouette:
+def segment_part(
+    photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray, *, skip_inside: bool = True
+) -> Silhouette:
     """The one part in `photo_u` against the plate (warped by `homography` onto the photo).
 
     Found first at a quarter of the size (how many parts, where), then outlined at full size in
-    the part's own window.
+    the part's own window. skip_inside : the full-size residual is not computed deep inside the
+    coarse blob (False: over the whole window; the tests compare the outlines).
 
     Raises
     ------
@@ -496,7 +499,7 @@ def segment_part(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarra
     rows = np.minimum(np.arange(Y0, Y1) * small[1] // h, small[1] - 1)
     blob = np.isin(labels, pieces).astype(np.uint8)
     core = cv2.erode(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * _CORE + 1,) * 2))
-    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0)
+    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None)
     near: np.ndarray = blob[np.ix_(rows, cols)]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]

@@ -114,3 +114,5 @@ def test_a_fit_that_leaves_much_of_the_outline_out_widens_its_sigma(seed: int) -
     whole = fit_box(clean, p.K, p.R, p.t)
     dent = fit_box(dented, p.K, p.R, p.t)
     assert min(np.array(dent.sigma_mm()) / np.array(whole.sigma_mm())) > 3
+    # and the stretch left out is still said (by the robust sigma, not the widened one)
+    assert dent.missing_fraction > 0.08 > whole.missing_fraction

@@ -3,6 +3,8 @@ value the whole window's residual gives it (the oracle: `_residual` over the who
 
 from __future__ import annotations
 
+import re
+
 import cv2
 import numpy as np
 import pytest
@@ -35,3 +37,53 @@ def test_without_a_core_every_pixel_is_computed() -> None:
     bg = rng.uniform(0, 255, (70, 90, 3)).astype(np.float32)
     P = rng.uniform(0, 255, (70, 90, 3)).astype(np.float32)
     np.testing.assert_array_equal(_residual(P, bg, np.zeros((70, 90), bool)), _residual(P, bg))
+
+
+def test_a_core_at_the_windows_edge_still_gives_the_whole_window() -> None:
+    rng = np.random.default_rng(4)
+    bg = rng.uniform(0, 255, (30, 200, 3)).astype(np.float32)  # one strip
+    P = rng.uniform(0, 255, (30, 200, 3)).astype(np.float32)
+    core = np.zeros((30, 200), bool)
+    core[:, :120] = True  # the run inside reaches column 0: one block is left, from 120 on
+    around = _residual(P, bg, core)
+    assert around.shape == (30, 200)
+    np.testing.assert_array_equal(around[:, 120:], _residual(P, bg)[:, 120:])
+    assert (around[:, :120] == _INSIDE).all()
+
+
+@pytest.mark.parametrize("seed", [3, 100, 204, 500, 501, 504, 704, 1303, 5024, 5032, 6003])
+def test_the_outline_is_the_same_with_the_inside_skipped(seed: int, monkeypatch) -> None:
+    """The oracle: segment_part with the residual over the whole window. Station scenes (large and
+    small parts, a part near the table's colour) and hand-held ones (dark parts on the board's
+    black squares, where the coarse blob is least like the part)."""
+    import prismcore.station.measure as measure
+    from prismcore.errors import InputError
+    from prismcore.station import measure_on_station
+    from prismcore.station.handheld import measure_on_board
+    from prismcore.station.segment import segment_part
+    from prismsynth.station import station_scene, station_setup
+
+    from .conftest import station_for
+
+    calls: list[tuple] = []
+    monkeypatch.setattr(measure, "segment_part", lambda *a, **k: calls.append(a) or segment_part(*a, **k))
+    try:
+        if seed >= 5000:
+            sc = station_scene(seed, station_setup(seed), nudge=False, inside_board=True, max_size_mm=80)
+            measure_on_board(sc.photo, sc.setup.board)
+        else:
+            sc = station_scene(seed, station_setup(seed // 100))
+            measure_on_station(sc.photo, station_for(sc))
+    except InputError:
+        pass  # refused after the segmentation, or by it: the outlines are compared all the same
+    assert calls
+    for args in calls:
+        try:
+            whole = segment_part(*args, skip_inside=False)
+        except InputError as exc:
+            with pytest.raises(InputError, match=re.escape(str(exc)[:40])):
+                segment_part(*args)
+            continue
+        skipped = segment_part(*args)
+        np.testing.assert_array_equal(skipped.contour, whole.contour)
+        assert skipped.warnings == whole.warnings and skipped.contrast == whole.contrast
