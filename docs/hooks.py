@@ -267,7 +267,8 @@ PROBLEM_WHEN = {
     "not-found": "No such job, upload, item, frame or route (another tenant's answers the same).",
     "method-not-allowed": "The route has no such method.",
     "conflict": "An `Idempotency-Key` reused with another body; cancelling a finished job.",
-    "body-too-large": "Over `PRISM_REQUEST_MAX_BYTES`, or an upload over `PRISM_UPLOAD_MAX_BYTES`.",
+    "body-too-large": "Over `PRISM_REQUEST_MAX_BYTES`, an upload over `PRISM_UPLOAD_MAX_BYTES`, or a "
+                      "station's calibration photos over `PRISM_STATION_MAX_BYTES`.",
     "unsupported-media-type": "An upload that is neither a photo nor a video (`detected_type` says "
                               "what it is).",
     "validation": "Invalid input: `errors` locates each bad value.",

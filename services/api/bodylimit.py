@@ -28,9 +28,14 @@ def _too_large(limit: int, setting: str = "PRISM_REQUEST_MAX_BYTES") -> str:
     return f"the request body is larger than {limit} bytes ({setting})"
 
 
+def _multipart(scope: Scope) -> bool:
+    sent = dict(scope["headers"]).get(b"content-type", b"").split(b";", 1)[0].strip().lower()
+    return sent == b"multipart/form-data"
+
+
 class BodyLimit:
     """ASGI middleware: 413 for bodies over `Settings.request_max_bytes`, outside uploads;
-    a station's over `Settings.station_max_bytes`."""
+    a station's calibration photos (multipart) over `Settings.station_max_bytes`."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
@@ -46,7 +51,9 @@ class BodyLimit:
         # The settings the routes see, overrides included (as in main.lifespan).
         settings = scope["app"].dependency_overrides.get(get_settings, get_settings)()
         limit, setting = settings.request_max_bytes, "PRISM_REQUEST_MAX_BYTES"
-        if path.rstrip("/") == _STATIONS and scope.get("method") == "POST":
+        if path.rstrip("/") == _STATIONS and scope.get("method") == "POST" and _multipart(scope):
+            # Photos to calibrate a station from; a station.json (one plate) stays under the
+            # request's cap: the JSON body is held whole and parsed.
             limit, setting = settings.station_max_bytes, "PRISM_STATION_MAX_BYTES"
         length = dict(scope["headers"]).get(b"content-length", b"")
         if length.isdigit() and int(length) > limit:

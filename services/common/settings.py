@@ -67,10 +67,11 @@ class Settings(BaseSettings):
     # Any other request body (a job's JSON is read whole before the key is checked); a 5000-item
     # job is about 3 MB.
     request_max_bytes: int = 16 * 2**20
-    # POST /v1/stations: a station calibrated from its photos (multipart: board, plane, a dozen or
-    # more calibration photos, plate) or a station.json with its plate: PNGs of 1280x1024 are
-    # 1-3 MB each, so a dozen pass PRISM_REQUEST_MAX_BYTES. Read after the key check, as uploads.
-    station_max_bytes: int = 256 * 2**20
+    # POST /v1/stations with the photos to calibrate a station from (multipart: board, plane, a
+    # dozen or more calibration photos, plate): PNGs of 1280x1024 are 1-3 MB each, so a dozen pass
+    # PRISM_REQUEST_MAX_BYTES. Read after the key check, as uploads; a station.json is held to
+    # PRISM_REQUEST_MAX_BYTES.
+    station_max_bytes: int = 64 * 2**20
     presign_ttl_s: int = 3600
     max_items_per_job: int = 5000
     max_pixels: int = 50_000_000

@@ -396,3 +396,21 @@ def test_a_batch_of_eighty_photos_is_all_accounted_for(stack, tmp_path):
             if all(abs(float(item["result"]["dimensions"][k]) - v) <= max(0.03 * v, 2)
                    for k, v in s.box.dimensions.items())]
     assert len(good) >= 0.85 * len(done), [(i["result"]["dimensions"], s.box.dimensions) for i, s in done]
+
+
+def test_a_station_json_is_held_to_the_requests_cap(settings):
+    """The station cap is for calibration photos (multipart); a station.json is parsed whole in
+    memory, so it stays under PRISM_REQUEST_MAX_BYTES, refused unread past it."""
+    app = create_app()
+    app_settings = settings.model_copy(update={"request_max_bytes": 50_000, "station_max_bytes": 10**6})
+    app.dependency_overrides[get_settings] = lambda: app_settings
+
+    async def post() -> httpx.Response:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app),
+                                     base_url="http://testserver") as http:
+            return await http.post("/v1/stations", content=b"{" + b" " * 100_000 + b"}",
+                                   headers={**ACME, "Content-Type": "application/json"})
+
+    r = anyio.run(post)
+    assert r.status_code == 413, r.text
+    assert r.json()["detail"] == "the request body is larger than 50000 bytes (PRISM_REQUEST_MAX_BYTES)"
