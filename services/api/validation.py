@@ -22,7 +22,6 @@ from prism_common.store import JobStore
 from prism_common.upload_records import upload_probe
 
 from prismcore.errors import InputError
-from prismcore.io.video_decode import VideoInfo
 from prismcore.spec import (
     JOINT_MAX_PIXELS,
     FrameSelection,
@@ -31,8 +30,7 @@ from prismcore.spec import (
     search_area_problem,
     view_spec,
 )
-from prismcore.video.frames import select_frames
-from prismcore.video.tracked import points_frame_problem, span_problem
+from prismcore.video.span import points_frame_problem, span_problem
 
 from .schemas import JobCreate
 
@@ -129,6 +127,10 @@ def _selected(selection: FrameSelection, probe: dict[str, Any]) -> list[int] | N
     (not for `sharpest`, nor a selection the worker will refuse)."""
     if selection.sharpest is not None:
         return None
+    # Only for an item marked on one frame: the API loads no engine otherwise.
+    from prismcore.io.video_decode import VideoInfo
+    from prismcore.video.frames import select_frames
+
     fps = probe.get("fps")
     rate = float(fps) if isinstance(fps, int | float) else 0.0
     info = VideoInfo(frame_count=probe["frame_count"], fps=rate,

@@ -81,7 +81,7 @@ class Settings(BaseSettings):
     # (or by the worker once `sharpest` has chosen the frames). The frames before the marked one
     # are held in memory (grey, full size) until it is reached: the default holds at most 620 MB
     # of 1920x1080 frames; lower it for larger frames (8.3 MB each at 3840x2160). prism scan's
-    # cap is the same 300 (prismcore.video.tracked.TRACKED_MAX_SPAN).
+    # cap is the same 300 (prismcore.video.span.TRACKED_MAX_SPAN).
     tracked_max_span: int = Field(default=300, ge=1)
     tiles_per_face: int = 4
     items_in_flight_per_job: int = 4  # a big batch cannot starve the jobs queued after it

@@ -172,7 +172,7 @@ def test_a_station_and_a_folder_of_photos_measured_in_one_job(page, station_json
 
     # A part's fit on the photo, opened from its row: the overlay of that item, shown large.
     index = list(PARTS).index("part-2.jpg")
-    with page.expect_response(re.compile(rf"/items/{index}/overlay\.png$")) as got:
+    with page.expect_response(re.compile(rf"/items/{index}/overlay\.jpg$")) as got:
         page.get_by_role("button", name=f"Open scan {index + 1} in the result").click()
     assert got.value.status == 200
     overlay = page.locator("#overlay")
