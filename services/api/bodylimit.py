@@ -29,8 +29,8 @@ def _too_large(limit: int, setting: str = "PRISM_REQUEST_MAX_BYTES") -> str:
 
 
 def _multipart(scope: Scope) -> bool:
-    sent = dict(scope["headers"]).get(b"content-type", b"").split(b";", 1)[0].strip().lower()
-    return sent == b"multipart/form-data"
+    sent: bytes = dict(scope["headers"]).get(b"content-type", b"")
+    return sent.split(b";", 1)[0].strip().lower() == b"multipart/form-data"
 
 
 class BodyLimit:
