@@ -21,6 +21,8 @@ object and result.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -29,6 +31,7 @@ from prism_common.records import ItemResult, ItemView
 
 from prismcore import InputError
 from prismcore.io.images import load_image
+from prismcore.io.video_decode import VideoInfo
 from prismcore.multiview.joint import View, fit_views
 from prismcore.multiview.report import joint_report
 from prismcore.quality.verdicts import quality_from_report
@@ -128,13 +131,8 @@ def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], 
     """The video's frames of frame_points as views, their indices, and the video's probe."""
     spec = view.item.spec
     assert spec.frames is not None and spec.frame_points is not None
-    with tempfile.TemporaryDirectory(prefix="prism-joint-") as tmp:
-        path = Path(tmp) / "video"
-        with path.open("wb") as dest:
-            label = save_input(ctx, view, "front", dest)
+    with _saved_video(ctx, view) as (path, label, info, frames):
         try:
-            info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
-            frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
             _within_budget(0, info.width * info.height * len(frames), f"{len(frames)} frames of "
                            f"{info.width}x{info.height} px")
             views = [View(rgb, spec.frame_points[index], spec.side_face, f"frame {index}")
@@ -144,10 +142,12 @@ def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], 
     return views, frames, asdict(info)
 
 
-def _tracked(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], dict[str, Any], Tracking]:
-    """The points of `points_frame` tracked to the selected frames (tracked_points.json stored),
-    and the tracked frames whose views differ most as views: their indices, the video's probe
-    and the tracking."""
+@contextmanager
+def _saved_video(ctx: WorkerContext, view: ItemView, checked: bool = False
+                 ) -> Iterator[tuple[Path, str, VideoInfo, list[int]]]:
+    """The item's video in a temporary file while the block runs: its path, the client's name for
+    it, its probe and the frames its selection picks (`checked`: its points_frame checked
+    against the probe first), any refusal in the client's words."""
     spec = view.item.spec
     assert spec.frames is not None
     with tempfile.TemporaryDirectory(prefix="prism-joint-") as tmp:
@@ -156,10 +156,20 @@ def _tracked(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int],
             label = save_input(ctx, view, "front", dest)
         try:
             info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
-            check_points_frame(spec, info)
+            if checked:
+                check_points_frame(spec, info)
             frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
         except InputError as exc:  # quote the client's name for the video, not our temp file
             raise InputError(client_message(exc, path, label)) from None
+        yield path, label, info, frames
+
+
+def _tracked(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], dict[str, Any], Tracking]:
+    """The points of `points_frame` tracked to the selected frames (tracked_points.json stored),
+    and the tracked frames whose views differ most as views: their indices, the video's probe
+    and the tracking."""
+    spec = view.item.spec
+    with _saved_video(ctx, view, checked=True) as (path, label, info, frames):
         tracking = track_item(ctx, view, path, label, frames)
         chosen = joint_frames(tracking, info)
         try:
