@@ -79,10 +79,15 @@ def _run(ctx: Ctx, figures, name: str, inject: Callable[[], None], heal: Callabl
     load = Load(ctx.api, f"{name}-{os.urandom(3).hex()}", ctx.items, ctx.cluster.hook_url,
                 interval=2.5).start()
     try:
-        deadline = time.monotonic() + 60
+        # A submit may take as long as the client's patience for a busy or restarting API (Api.call
+        # retries for 120 s), so wait that long for the first one, not a margin of our own.
+        deadline = time.monotonic() + 180
         while (in_flight := sum(ctx.api.job(job_id)["state"] not in ("succeeded", "failed")
                                 for job_id, _ in list(load.acked.values()))) < 1:
-            assert time.monotonic() < deadline, "no job in flight after 60 s"
+            if load.error is not None:  # a refused submit: say why, not "nothing in flight"
+                raise load.error
+            assert time.monotonic() < deadline, (
+                f"no job in flight after 180 s ({len(load.acked)} acknowledged)\n" + ctx.cluster.logs())
             time.sleep(0.2)
         restarts = ctx.cluster.restarts
         inject()
