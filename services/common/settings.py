@@ -72,6 +72,9 @@ class Settings(BaseSettings):
     # PRISM_REQUEST_MAX_BYTES. Read after the key check, as uploads; a station.json is held to
     # PRISM_REQUEST_MAX_BYTES.
     station_max_bytes: int = 64 * 2**20
+    # Stations calibrated from photos at once by one API process (each decodes its dozen photos,
+    # ~60 MB, and takes a second or two of CPU); one more is refused with 503 and Retry-After.
+    station_calibrations_at_once: int = Field(default=2, ge=1)
     presign_ttl_s: int = 3600
     max_items_per_job: int = 5000
     max_pixels: int = 50_000_000

@@ -414,3 +414,48 @@ def test_a_station_json_is_held_to_the_requests_cap(settings):
     r = anyio.run(post)
     assert r.status_code == 413, r.text
     assert r.json()["detail"] == "the request body is larger than 50000 bytes (PRISM_REQUEST_MAX_BYTES)"
+
+
+def test_calibrations_at_once_are_capped_and_one_more_is_told_to_come_back(settings, objects, setup):
+    """Each calibration decodes its photos and takes a second or two of CPU in the API's threads:
+    past PRISM_STATION_CALIBRATIONS_AT_ONCE a request is refused at once (503, at-capacity,
+    Retry-After) rather than held with its photos; one that gets in is stored as ever."""
+    from prismsynth.station import calibration_views
+
+    app = create_app()
+    app_settings = settings.model_copy(update={"station_calibrations_at_once": 1})
+    app.dependency_overrides[get_settings] = lambda: app_settings
+    plate = station_scene(100, setup).plate
+    form = [("board", ("board.json", json.dumps(setup.board.describe()).encode())),
+            ("plane", ("plane.jpg", _jpeg(plate))),
+            *(("calibration", (f"pose{k}.jpg", _jpeg(v))) for k, v in
+              enumerate(calibration_views(setup, 8, seed=5)))]
+    answers: list[httpx.Response] = []
+
+    async def post(http: httpx.AsyncClient) -> None:
+        answers.append(await http.post("/v1/stations", files=form, headers=ACME))
+
+    async def together() -> None:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://testserver",
+                                     timeout=120) as http, anyio.create_task_group() as tg:
+            for _ in range(3):  # the forms are read in milliseconds, a calibration takes a second
+                tg.start_soon(post, http)
+
+    anyio.run(together)
+    codes = Counter(r.status_code for r in answers)
+    assert codes[201] >= 1 and codes[503] >= 1 and codes[201] + codes[503] == 3, [r.text for r in answers]
+    for r in answers:
+        if r.status_code == 503:
+            body = r.json()
+            assert r.headers["Retry-After"] == "5" and body["type"].endswith("at-capacity"), body
+            assert "PRISM_STATION_CALIBRATIONS_AT_ONCE" in body["detail"], body
+    # the one let in gave its token back: the next is calibrated
+    answers.clear()
+
+    async def once() -> None:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://testserver",
+                                     timeout=120) as http:
+            await post(http)
+
+    anyio.run(once)
+    assert answers[0].status_code == 201, answers[0].text

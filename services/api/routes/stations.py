@@ -83,12 +83,24 @@ def _parse(raw: bytes) -> Station:
                                      body=document) from None
 
 
+_limiters: dict[int, anyio.CapacityLimiter] = {}
+
+
+def _calibrations(at_once: int) -> anyio.CapacityLimiter:
+    """This process's limit on stations calibrated at once (taken without waiting only, so one
+    limiter serves any event loop)."""
+    if at_once not in _limiters:
+        _limiters[at_once] = anyio.CapacityLimiter(at_once)
+    return _limiters[at_once]
+
+
 def _invalid(field: str, detail: str) -> Problem:
     return Problem("validation", f"{field}: {detail}", errors=[{"pointer": f"/{field}", "detail": detail}])
 
 
-async def _calibrated(request: Request, max_pixels: int) -> Station:
-    """The station the multipart photos calibrate (InputError's reason as a 422 at its field)."""
+async def _calibrated(request: Request, max_pixels: int, limiter: anyio.CapacityLimiter) -> Station:
+    """The station the multipart photos calibrate (InputError's reason as a 422 at its field), one
+    of `limiter`'s calibrations at a time (503 at capacity)."""
     form = await request.form(max_files=_MAX_PHOTOS + 4, max_fields=8)
     try:
         files: dict[str, list[tuple[str, bytes]]] = {}
@@ -110,7 +122,18 @@ async def _calibrated(request: Request, max_pixels: int) -> Station:
             raise _invalid(field, f"given {len(files[field])} times: give one")
     if "camera" not in files and not files.get("calibration"):
         raise _invalid("calibration", "give photos of the board in several poses, or a camera (camera.json)")
-    return await anyio.to_thread.run_sync(_calibrate, files, max_pixels)
+    try:
+        limiter.acquire_nowait()
+    except anyio.WouldBlock:
+        # Refused rather than queued: each waiting request would hold its photos (up to
+        # PRISM_STATION_MAX_BYTES) while the API's threads are taken by calibrations.
+        raise Problem("at-capacity", f"{int(limiter.total_tokens)} stations are being calibrated by this "
+                      "API process (PRISM_STATION_CALIBRATIONS_AT_ONCE); no station was created: send "
+                      "it again shortly", headers={"Retry-After": "5"}) from None
+    try:
+        return await anyio.to_thread.run_sync(_calibrate, files, max_pixels)
+    finally:
+        limiter.release()
 
 
 def _calibrate(files: dict[str, list[tuple[str, bytes]]], max_pixels: int) -> Station:
@@ -163,7 +186,8 @@ async def create_station(request: Request, response: Response, tenant: TenantDep
     here from its photos (multipart: board, plane, calibration..., camera, plate)."""
     sent = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
     if sent == "multipart/form-data":
-        station = await _calibrated(request, settings.max_pixels)
+        limiter = _calibrations(settings.station_calibrations_at_once)
+        station = await _calibrated(request, settings.max_pixels, limiter)
     elif sent == "application/json":
         station = await anyio.to_thread.run_sync(_parse, await request.body())
     else:
