@@ -8,7 +8,6 @@ import cv2
 import numpy as np
 import pytest
 
-from prismcore.station import background
 from prismcore.station.background import shadow_difference, with_table
 from prismcore.station.board import board_image
 from prismcore.station.handheld import _hue, expected_board, shadow_floor
@@ -92,7 +91,6 @@ def test_the_table_is_modelled_in_its_zone_only() -> None:
     assert known[100:140, 100:160].all() and known[70, 150] and not known[20, 20] and not known[200, 300]
     np.testing.assert_array_equal(plate[~known], photo[~known])
     np.testing.assert_array_equal(plate[110:130, 110:150], board_plate[110:130, 110:150])
-    assert background.TABLE_HEIGHT > 0
 
 
 def test_the_board_is_modelled_lit_beside_a_shadow_s_edge() -> None:
