@@ -1,6 +1,6 @@
 """Check the hand marks of the real box video against the true box, independently of the engine.
 
-Run: .venv/bin/python benchmarks/real_video_marks.py [marks.json]
+Run: .venv/bin/python benchmarks/real_video_marks.py [marks.json] [--together 164,105]
 For each marked frame, fits the 258 x 75 x 189 mm box (pose and focal length free, principal point
 at the image centre) to the six distinct points by least squares (OpenCV's projection, SciPy's
 solver) and prints each point's residual (px), then the same with height and depth free
@@ -8,6 +8,10 @@ solver) and prints each point's residual (px), then the same with height and dep
 that fit the true box within about 1 px RMS are consistent; a point with a large residual is
 wrongly marked, or the frame's truth assignment is. Use it to find marks to look at again, never
 to move a mark: a re-mark is decided from the picture alone.
+
+--together: ONE box (width known; height, depth and the focal length shared) with a pose per
+frame, fitted to the marks of the frames listed, and each frame's RMS px: whether the marks of
+those frames can be views of one rigid box by one pinhole camera at all (a tracker's points are).
 """
 
 from __future__ import annotations
@@ -53,7 +57,42 @@ def fit(image_pts: np.ndarray, side: str, truth: dict[str, float], dims_free: bo
     return best
 
 
+def together(frames: list[dict], centre=(319.5, 239.5)) -> tuple[float, float, float, np.ndarray]:
+    """One box over `frames` (same side face): focal px, height and depth mm, and each frame's
+    residuals (len(frames), 6) px, from each frame's own true-box pose as the start."""
+    side = frames[0]["side"]
+    width = truth_mm(frames[0])["width"]
+    pts = [np.array([f["points"][n] for n in NAMES], dtype=np.float64) for f in frames]
+    poses = [fit(p, side, truth_mm(f), False).x[:6] for p, f in zip(pts, frames, strict=True)]
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        K = np.array([[x[0], 0, centre[0]], [0, x[0], centre[1]], [0, 0, 1.0]])
+        obj = box_points(side, width, x[1], x[2])
+        out = []
+        for i, p in enumerate(pts):
+            proj, _ = cv2.projectPoints(obj, x[3 + 6 * i:6 + 6 * i], x[6 + 6 * i:9 + 6 * i], K, None)
+            out.append((proj.reshape(-1, 2) - p).ravel())
+        return np.concatenate(out)
+
+    truth = truth_mm(frames[0])
+    sol = least_squares(residual, np.r_[650.0, truth["height"], truth["depth"], np.concatenate(poses)],
+                        x_scale="jac")
+    return float(sol.x[0]), float(sol.x[1]), float(sol.x[2]), np.linalg.norm(sol.fun.reshape(-1, 2), axis=1
+                                                                             ).reshape(len(frames), -1)
+
+
 def main(argv: list[str]) -> int:
+    if "--together" in argv:
+        at = argv.index("--together")
+        wanted = [int(i) for i in argv[at + 1].split(",")]
+        argv = argv[:at] + argv[at + 2:]
+        by_index = {f["index"]: f for f in load_marks(Path(argv[0]) if argv else MARKS)["frames"]}
+        f, h, d, res = together([by_index[i] for i in wanted])
+        print(f"one box over frames {wanted}: f {f:.0f} px, {h:.1f} x {d:.1f} mm")
+        for i, r in zip(wanted, res, strict=True):
+            print(f"{i:4d} RMS {float(np.sqrt(np.mean(r**2))):4.1f} px, "
+                  + " ".join(f"{n} {v:4.1f}" for n, v in zip(NAMES, r, strict=True)))
+        return 0
     marks = load_marks(Path(argv[0]) if argv else MARKS)
     errors: list[tuple[float, float]] = []
     for frame in marks["frames"]:
