@@ -55,19 +55,23 @@ class Api:
         self.http = httpx.Client(base_url=base_url, timeout=15, headers={"X-API-Key": API_KEY})
 
     def call(self, method: str, path: str, *, patience: float = 120, **kwargs) -> httpx.Response:
-        """Retries connection errors and 503s for `patience` s (a submit carries its
-        Idempotency-Key, so a retry cannot make a second job)."""
+        """Retries connection errors, 503s and 429s for `patience` s, after the Retry-After the
+        API gives, as a client should (a submit carries its Idempotency-Key, so a retry cannot
+        make a second job)."""
         deadline = time.monotonic() + patience
         while True:
+            wait = 0.3
             try:
                 r = self.http.request(method, path, **kwargs)
-                if r.status_code != 503:
+                if r.status_code not in (429, 503):
                     return r
+                after = r.headers.get("Retry-After", "")
+                wait = max(wait, float(after) if after.isdigit() else 1.0)  # our API gives seconds
             except httpx.TransportError:
                 pass
-            if time.monotonic() > deadline:
+            if time.monotonic() + wait > deadline:
                 raise AssertionError(f"{method} {path}: no answer in {patience} s")
-            time.sleep(0.3)
+            time.sleep(wait)
 
     def upload(self, data: bytes) -> str:
         r = self.call("POST", "/v1/uploads", files={"file": ("box.png", data)})
