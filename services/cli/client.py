@@ -143,7 +143,10 @@ class ApiClient:
 
     @staticmethod
     def _rewind(kwargs: dict[str, Any]) -> None:
-        for _, value in (kwargs.get("files") or {}).items():
+        files = kwargs.get("files") or {}
+        # httpx takes files as a mapping or as (field, file) pairs (a field given more than once,
+        # as a station's calibration photos are).
+        for _, value in files.items() if isinstance(files, dict) else files:
             handle = value[1] if isinstance(value, tuple) else value
             if hasattr(handle, "seek"):
                 handle.seek(0)

@@ -150,3 +150,28 @@ def test_body_is_sent_as_json():
         return httpx.Response(202, json=job_doc())
 
     client_for(handler).submit({"items": [{"image": "upload:x"}]})
+
+
+def test_a_station_calibration_at_capacity_is_sent_again_whole(tmp_path):
+    """The photos go as (field, file) pairs (calibration given many times): a 503 with
+    Retry-After is waited out and the same form sent again (the client once crashed rewinding a
+    list of files)."""
+    for name in ("board.json", "plane.jpg", "pose0.jpg", "pose1.jpg"):
+        (tmp_path / name).write_bytes(name.encode() * 50)
+    bodies: list[bytes] = []
+    summary = {"id": "s1", "created_at": NOW.isoformat(), "image_width": 640, "image_height": 480,
+               "board": {}, "camera": {}, "calibration": {"source": "photos"}, "plane_rms_px": 0.2,
+               "plane_corners": 24, "camera_height_mm": 800.0, "has_plate": False, "size": 10}
+
+    def handler(request: httpx.Request) -> httpx.Response:
+        bodies.append(request.read())
+        if len(bodies) == 1:
+            return httpx.Response(503, headers={"Retry-After": "5"}, json={"detail": "2 stations are being "
+                                                                                     "calibrated"})
+        return httpx.Response(201, json=summary)
+
+    sleeps: list[float] = []
+    made = client_for(handler, sleeps).calibrate_station(
+        tmp_path / "board.json", tmp_path / "plane.jpg", [tmp_path / "pose0.jpg", tmp_path / "pose1.jpg"])
+    assert made.id == "s1" and sleeps == [5.0] and len(bodies) == 2
+    assert all(body.count(b'name="calibration"') == 2 and b"pose1.jpg" * 50 in body for body in bodies)
