@@ -16,6 +16,7 @@ those frames can be views of one rigid box by one pinhole camera at all (a track
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -61,6 +62,8 @@ def together(frames: list[dict], centre=(319.5, 239.5)) -> tuple[float, float, f
     """One box over `frames` (same side face): focal px, height and depth mm, and each frame's
     residuals (len(frames), 6) px, from each frame's own true-box pose as the start."""
     side = frames[0]["side"]
+    if any(f["side"] != side or f["truth"] != frames[0]["truth"] for f in frames):
+        raise ValueError("one box over frames that show different faces: give frames of one side and truth")
     width = truth_mm(frames[0])["width"]
     pts = [np.array([f["points"][n] for n in NAMES], dtype=np.float64) for f in frames]
     poses = [fit(p, side, truth_mm(f), False).x[:6] for p, f in zip(pts, frames, strict=True)]
@@ -82,18 +85,25 @@ def together(frames: list[dict], centre=(319.5, 239.5)) -> tuple[float, float, f
 
 
 def main(argv: list[str]) -> int:
-    if "--together" in argv:
-        at = argv.index("--together")
-        wanted = [int(i) for i in argv[at + 1].split(",")]
-        argv = argv[:at] + argv[at + 2:]
-        by_index = {f["index"]: f for f in load_marks(Path(argv[0]) if argv else MARKS)["frames"]}
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("marks", nargs="?", type=Path, default=MARKS, help="the marks file")
+    parser.add_argument("--together", help="frame indices, comma-separated: ONE box over their marks")
+    args = parser.parse_args(argv)
+    if args.together:
+        by_index = {f["index"]: f for f in load_marks(args.marks)["frames"]}
+        try:
+            wanted = [int(i) for i in args.together.split(",")]
+        except ValueError:
+            parser.error(f"--together {args.together!r}: frame indices, e.g. 164,105")
+        if unknown := [i for i in wanted if i not in by_index]:
+            parser.error(f"--together: no marks for frames {unknown} (marked: {sorted(by_index)})")
         f, h, d, res = together([by_index[i] for i in wanted])
         print(f"one box over frames {wanted}: f {f:.0f} px, {h:.1f} x {d:.1f} mm")
         for i, r in zip(wanted, res, strict=True):
             print(f"{i:4d} RMS {float(np.sqrt(np.mean(r**2))):4.1f} px, "
                   + " ".join(f"{n} {v:4.1f}" for n, v in zip(NAMES, r, strict=True)))
         return 0
-    marks = load_marks(Path(argv[0]) if argv else MARKS)
+    marks = load_marks(args.marks)
     errors: list[tuple[float, float]] = []
     for frame in marks["frames"]:
         pts = np.array([frame["points"][n] for n in NAMES], dtype=np.float64)

@@ -89,9 +89,7 @@ _limiters: dict[int, anyio.CapacityLimiter] = {}
 def _calibrations(at_once: int) -> anyio.CapacityLimiter:
     """This process's limit on stations calibrated at once (taken without waiting only, so one
     limiter serves any event loop)."""
-    if at_once not in _limiters:
-        _limiters[at_once] = anyio.CapacityLimiter(at_once)
-    return _limiters[at_once]
+    return _limiters.setdefault(at_once, anyio.CapacityLimiter(at_once))
 
 
 def _invalid(field: str, detail: str) -> Problem:
