@@ -143,11 +143,10 @@ def _frames(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int], 
 
 
 @contextmanager
-def _saved_video(ctx: WorkerContext, view: ItemView, checked: bool = False
-                 ) -> Iterator[tuple[Path, str, VideoInfo, list[int]]]:
+def _saved_video(ctx: WorkerContext, view: ItemView) -> Iterator[tuple[Path, str, VideoInfo, list[int]]]:
     """The item's video in a temporary file while the block runs: its path, the client's name for
-    it, its probe and the frames its selection picks (`checked`: its points_frame checked
-    against the probe first), any refusal in the client's words."""
+    it, its probe and the frames its selection picks (its points_frame, if any, checked against
+    the probe first), any refusal in the client's words."""
     spec = view.item.spec
     assert spec.frames is not None
     with tempfile.TemporaryDirectory(prefix="prism-joint-") as tmp:
@@ -156,8 +155,7 @@ def _saved_video(ctx: WorkerContext, view: ItemView, checked: bool = False
             label = save_input(ctx, view, "front", dest)
         try:
             info = probe_video(path, max_pixels=max_pixels(ctx, spec.max_pixels))
-            if checked:
-                check_points_frame(spec, info)
+            check_points_frame(spec, info)
             frames = select_frames(path, spec.frames, info, max_frames=ctx.settings.max_frames_per_job)
         except InputError as exc:  # quote the client's name for the video, not our temp file
             raise InputError(client_message(exc, path, label)) from None
@@ -169,7 +167,7 @@ def _tracked(ctx: WorkerContext, view: ItemView) -> tuple[list[View], list[int],
     and the tracked frames whose views differ most as views: their indices, the video's probe
     and the tracking."""
     spec = view.item.spec
-    with _saved_video(ctx, view, checked=True) as (path, label, info, frames):
+    with _saved_video(ctx, view) as (path, label, info, frames):
         tracking = track_item(ctx, view, path, label, frames)
         chosen = joint_frames(tracking, info)
         try:

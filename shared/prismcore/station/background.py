@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from prismcore.station.boxfit import project
-from prismcore.station.segment import SHADOW_RANGE, difference2, norm2, planes
+from prismcore.station.segment import SHADOW_RANGE, difference2, norm2, planes, shadow_ratio
 
 __all__ = ["TABLE_HEIGHT", "board_cover", "shadow_difference", "smooth_level", "table_zone", "with_table"]
 
@@ -109,13 +109,13 @@ def with_table(
     cv2.fillConvexPoly(zone, np.round(zone_px).astype(np.int32).reshape(-1, 1, 2), 1)
     known = zone.astype(bool) | (cover > 0.5)
     plate = photo_u.copy()
-    rows, cols = np.nonzero(known.any(axis=1))[0], np.nonzero(known.any(axis=0))[0]
-    if len(rows) == 0:
+    bx, by, bw, bh = cv2.boundingRect(known.astype(np.uint8))
+    if bw == 0:
         return plate, known, []
     # Only the known area's box is modelled at full size (elsewhere the plate is the photo), on
     # whole coarse pixels so that the texture's amplitude is measured as over the whole photo.
-    y0, x0 = (int(v[0]) // _COARSE * _COARSE for v in (rows, cols))
-    y1, x1 = (min(n, -(-(int(v[-1]) + 1) // _COARSE) * _COARSE) for v, n in ((rows, h), (cols, w)))
+    y0, x0 = by // _COARSE * _COARSE, bx // _COARSE * _COARSE
+    y1, x1 = (min(n, -(-end // _COARSE) * _COARSE) for end, n in ((by + bh, h), (bx + bw, w)))
     win = (slice(y0, y1), slice(x0, x1))
     level_full = cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)[win].astype(np.float32)
     Pw = photo_u[win].astype(np.float32)
@@ -149,11 +149,7 @@ def _texture_allowed(P: np.ndarray, level: np.ndarray, k: int) -> np.ndarray:
 def _shadow_scale(P: np.ndarray, bg: np.ndarray) -> np.ndarray:
     """(H, W, 1): the scale of `bg` nearest `P` at each pixel, within SHADOW_RANGE (as
     segment.difference2 finds it)."""
-    p, b = planes(P), planes(bg)
-    dot = p[0] * b[0]
-    for pc, bc in zip(p[1:], b[1:], strict=True):
-        dot += pc * bc
-    return cast("np.ndarray", np.clip(dot / (norm2(b) + 1.0), *SHADOW_RANGE)[..., None])
+    return cast("np.ndarray", np.clip(shadow_ratio(planes(P), planes(bg)), *SHADOW_RANGE)[..., None])
 
 
 def shadow_difference(P: np.ndarray, bg: np.ndarray,

@@ -71,7 +71,7 @@ class _Nearest:
     """Where each outline point lies against a convex polygon: its nearest edge `k` (N,), the
     parameter `t` (N,) of its nearest point along that edge (0 at the edge's start, 1 at its end),
     the point from the edge's start `pa` (N, 2), the edge `e` (N, 2) and its squared length (N,),
-    the polygon's orientation (+1 counter-clockwise in x right, y down... as its signed area),
+    the polygon's orientation (+1 or -1: the sign of its shoelace area, x right and y down),
     and the signed distance (N,), negative inside."""
 
     k: np.ndarray

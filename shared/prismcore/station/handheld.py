@@ -18,7 +18,7 @@ from prismcore.station.background import board_cover, shadow_difference, smooth_
 from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
-from prismcore.station.segment import SHADOW_RANGE, Registration, norm2, planes, undistorter
+from prismcore.station.segment import SHADOW_RANGE, Registration, norm2, planes, shadow_ratio, undistorter
 
 __all__ = ["board_camera", "expected_board", "measure_on_board", "shadow_floor"]
 
@@ -148,10 +148,10 @@ def expected_board(
     sigma = max(2.0, float(_LEVEL_SQUARES * square_px))
     # The board's box in the photo only: elsewhere the plate is the photo itself.
     plate_u = photo_u.copy()
-    rows, cols = np.nonzero(region.any(axis=1))[0], np.nonzero(region.any(axis=0))[0]
-    if len(rows) == 0:
+    x, y, bw, bh = cv2.boundingRect(region.astype(np.uint8))
+    if bw == 0:
         return plate_u, region
-    win = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    win = (slice(y, y + bh), slice(x, x + bw))
     P = photo_u[win].astype(np.float32)
     reg, pat = region[win], pattern[win]
     inner = cv2.erode(reg.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
@@ -184,8 +184,7 @@ def expected_board(
     for _ in range(_LIT_PASSES):
         white, black = (_hue(smooth_level(P, wgt * differs * lit, sigma), P, wgt, notes) for wgt in weights)
         plate = black + (white - black) * pat[..., None]
-        pb = planes(plate)
-        lit = (sum(a * b for a, b in zip(planes(P), pb, strict=True)) / (norm2(pb) + 1.0)) >= _LIT
+        lit = shadow_ratio(planes(P), planes(plate)) >= _LIT
     plate_u[win] = np.where(reg[..., None], np.clip(plate, 0, 255), P).astype(np.uint8)
     return plate_u, region
 
@@ -206,8 +205,7 @@ def shadow_floor(photo_u: np.ndarray, plate_u: np.ndarray, pattern: np.ndarray, 
     """
     h, w = pattern.shape
     P, B = photo_u.astype(np.float32), plate_u.astype(np.float32)
-    p, b = planes(P), planes(B)
-    ratio = (p[0] * b[0] + p[1] * b[1] + p[2] * b[2]) / (norm2(b) + 1.0)
+    ratio = shadow_ratio(planes(P), planes(B))
     dark = cv2.erode((pattern < 0.1).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(np.float32)
     dark *= ratio < _BLACK_LIT
     sigma = max(1.5, 0.15 * square_px)

@@ -27,6 +27,7 @@ __all__ = [
     "planes",
     "register",
     "segment_part",
+    "shadow_ratio",
     "undistorter",
 ]
 
@@ -306,16 +307,23 @@ def norm2(planes: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def shadow_ratio(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray | None = None) -> np.ndarray:
+    """The scale of support planes `b` nearest photo planes `p` per pixel, unclipped: their dot
+    product over `b2` (the support's squared norm, `norm2(b)` if not given) + 1, (H, W)."""
+    dot = p[0] * b[0]
+    for pc, bc in zip(p[1:], b[1:], strict=True):
+        dot += pc * bc
+    return cast("np.ndarray", dot / ((norm2(b) if b2 is None else b2) + 1.0))
+
+
 def difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray,
                 shadow: tuple[np.ndarray | float, np.ndarray | float] = SHADOW_RANGE) -> np.ndarray:
     """The squared distance of photo planes `p` from support planes `b` (`b2` their squared norm)
     scaled by the best shadow factor within `shadow` (the least and the most: numbers, or (H, W)
     arrays, per pixel), per pixel, float32: a channel-plane loop (numpy reduces a last axis of 3
     slowly)."""
-    dot = p[0] * b[0]
-    for pc, bc in zip(p[1:], b[1:], strict=True):
-        dot += pc * bc
-    s = np.clip(dot / (b2 + 1.0), *shadow, out=dot).astype(np.float32, copy=False)
+    ratio = shadow_ratio(p, b, b2)
+    s = np.clip(ratio, *shadow, out=ratio).astype(np.float32, copy=False)
     out: np.ndarray | None = None
     for pc, bc in zip(p, b, strict=True):
         # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
@@ -531,9 +539,7 @@ def segment_part(
     inside_roi = filled.astype(bool)
     # the RGB distance summed plane by plane over the window, then picked: numpy's norm over a last
     # axis of 3 of the part's pixels took 20-30 ms on a large part
-    e = P - bg
-    e *= e
-    contrast = float(np.median(np.sqrt((e[..., 0] + e[..., 1] + e[..., 2])[inside_roi])))
+    contrast = float(np.median(np.sqrt(norm2(planes(P - bg))[inside_roi])))
     if contrast < _LOW_CONTRAST:
         warnings.append(
             f"the part's colour is close to the support's (contrast {contrast:.0f} RGB levels, "
