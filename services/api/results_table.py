@@ -11,6 +11,11 @@ standard deviation each; the cloud's point count, the point loss, where the refe
 came from (clicked or auto), the search's confidence (auto) and the points p1..p7 (x, y px;
 those of the spec when the scan did not record its own); the part's verdict and each
 dimension's verdict and deviation (mm) against the nominal size (empty without one).
+
+In the CSV, a text cell a spreadsheet would take for a formula (starting with =, +, -, @, a tab
+or a carriage return: a client_reference of ``=1+2``, say) is written with a single quote before
+it (OWASP's advice on CSV injection); numbers, negative ones included, are written as numbers.
+The JSON keeps every value exactly as given.
 """
 
 from __future__ import annotations
@@ -102,6 +107,17 @@ def _row(job: JobRecord, item: ItemRecord, frame: int | None, state: State, erro
     return row
 
 
+_FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def _csv_cell(value: Any) -> Any:
+    """`value` as a spreadsheet reads it as text: a string that would start a formula gets a
+    leading single quote (numbers pass as they are)."""
+    if isinstance(value, str) and value.startswith(_FORMULA_STARTS):
+        return "'" + value
+    return value
+
+
 def csv_chunks(jobs: Iterable[JobRecord]) -> Iterator[str]:
     """The table as CSV text, a header line then one chunk per page of items."""
     buffer = io.StringIO()
@@ -116,7 +132,7 @@ def csv_chunks(jobs: Iterable[JobRecord]) -> Iterator[str]:
     writer.writeheader()
     yield flush()
     for job in jobs:
-        writer.writerows(item_rows(job))
+        writer.writerows({k: _csv_cell(v) for k, v in row.items()} for row in item_rows(job))
         yield flush()
 
 

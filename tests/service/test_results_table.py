@@ -131,3 +131,24 @@ def test_verdicts_are_counted_once_per_item_with_its_completion(store):
             store.item_done(job.id, i, verdict)
     assert store.get(job.id).verdicts == {"pass": 2, "fail": 1, "uncertain": 0}
     assert store.get_page(job.id, 0, 0)[0].verdicts == {"pass": 2, "fail": 1, "uncertain": 0}
+
+
+@pytest.mark.parametrize("reference", ["=1+2", "+1+2", "-1+2", "@SUM(A1:A2)", "\t=1+2", "\r=1+2",
+                                       "=HYPERLINK(\"http://x.example\",\"y\")"])
+def test_a_text_cell_a_spreadsheet_would_run_is_written_as_text(store, reference):
+    """OWASP's CSV injection: a cell starting with =, +, -, @, a tab or a CR gets a leading single
+    quote in the CSV (a spreadsheet shows it as text); the JSON keeps the value as given, and
+    numbers (a negative deviation too) stay numbers."""
+    job, _ = store.create(JobRecord(id=uuid.uuid4().hex, tenant="acme", created_at=datetime.now(UTC),
+                                    client_reference=reference,
+                                    items=[ItemRecord(index=0, spec=PHOTO), ItemRecord(index=1, spec=PHOTO)]))
+    store.put_item(job.id, ItemRecord(index=0, spec=PHOTO, state=State.succeeded,
+                                      result=_result(100.5, "fail")))
+    store.put_item(job.id, ItemRecord(index=1, spec=PHOTO, state=State.failed, error=reference))
+    text, doc, _ = _table(store, job.id)
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert [r["client_reference"] for r in rows] == ["'" + reference] * 2
+    assert rows[1]["error"] == "'" + reference
+    assert rows[0]["height_deviation_mm"] == "-0.25"  # a number, not text: left as it is
+    assert [r["client_reference"] for r in doc["rows"]] == [reference] * 2
+    assert doc["rows"][1]["error"] == reference and doc["rows"][0]["height_deviation_mm"] == -0.25
