@@ -18,7 +18,7 @@ from python_multipart.exceptions import MultipartParseError
 from python_multipart.multipart import MultipartParser, parse_options_header
 from starlette.requests import ClientDisconnect
 
-__all__ = ["HEAD_KEEP", "MULTIPART_OVERHEAD", "MultipartFile"]
+__all__ = ["HEAD_KEEP", "MULTIPART_OVERHEAD", "MultipartFile", "printable_name"]
 
 MULTIPART_OVERHEAD = 64 * 1024  # boundaries, part headers and small extra fields beside the file
 HEAD_KEEP = 1 << 20  # the file's first bytes, kept for the probe: a photo's header lies in them
@@ -28,11 +28,18 @@ class Watcher(Protocol):
     def feed(self, data: bytes) -> None: ...
 
 
+def printable_name(name: str, limit: int = 200) -> str:
+    """A name a client gave (an upload's file name, a station's name) as the service keeps it:
+    only the characters `str.isprintable` takes (no NUL, CR, LF or other control character, no
+    invisible format character such as a right-to-left override or isolate), stripped, at most
+    `limit` characters; "" when nothing is left."""
+    return "".join(c for c in name if c.isprintable()).strip()[:limit]
+
+
 def _safe_name(raw: bytes | None) -> str:
     # Browsers send a bare name, other clients sometimes a path; keep the last segment, printable.
     name = (raw or b"").decode("utf-8", "replace").replace("\\", "/").rsplit("/", 1)[-1]
-    name = "".join(c for c in name if c.isprintable()).strip()[:200]
-    return name or "upload"
+    return printable_name(name) or "upload"
 
 
 class MultipartFile:

@@ -398,6 +398,40 @@ def test_a_batch_of_eighty_photos_is_all_accounted_for(stack, tmp_path):
     assert len(good) >= 0.85 * len(done), [(i["result"]["dimensions"], s.box.dimensions) for i, s in done]
 
 
+ANY_SCRIPT = "Linie 3 \u2013 \u0645\u062d\u0637\u0629 \u6e2c\u5b9a"  # letters of any script are kept
+
+
+@pytest.mark.parametrize(("given", "kept"), [
+    ("line\x001", "line1"),  # NUL
+    ("line 1\r\nX-Injected: yes", "line 1X-Injected: yes"),  # CR/LF
+    ("bay \u202egnp.exe", "bay gnp.exe"),  # right-to-left override
+    ("\u2066bay\u2069 \u200e2\u200f\u202a\u202b\u202c\u202d\u2067\u2068", "bay 2"),  # isolates, marks
+    ("\t\x1b[31m red \x7f", "[31m red"),  # other control characters, and the ends stripped
+    ("\u202e\r\n", None),  # nothing printable: no name
+    (ANY_SCRIPT, ANY_SCRIPT),
+])
+def test_a_station_name_is_kept_as_upload_names_are(settings, objects, station_doc, given, kept):
+    """Control characters (NUL, CR, LF...) and invisible bidi controls (U+202A-U+202E,
+    U+2066-U+2069, U+200E/F) are dropped from a station's name, as from an upload's file name
+    (`upload_stream.printable_name`); letters of any script are kept. In process, on the real
+    Redis and SeaweedFS."""
+    app = create_app()
+    app.dependency_overrides[get_settings] = lambda: settings
+
+    async def post() -> tuple[httpx.Response, httpx.Response, httpx.Response]:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app),
+                                     base_url="http://testserver") as http:
+            made = await http.post("/v1/stations", json=station_doc, params={"name": given}, headers=ACME)
+            assert made.status_code == 201, made.text
+            station_id = made.json()["id"]
+            return (made, await http.get(f"/v1/stations/{station_id}", headers=ACME),
+                    await http.get("/v1/stations", headers=ACME))
+
+    made, got, listed = anyio.run(post)
+    assert made.json()["name"] == got.json()["name"] == kept
+    assert [s["name"] for s in listed.json()["stations"] if s["id"] == made.json()["id"]] == [kept]
+
+
 def test_a_station_json_is_held_to_the_requests_cap(settings):
     """The station cap is for calibration photos (multipart); a station.json is parsed whole in
     memory, so it stays under PRISM_REQUEST_MAX_BYTES, refused unread past it."""

@@ -37,6 +37,7 @@ from pydantic import ValidationError
 
 from ..deps import ObjectsDep, SettingsDep, TenantDep
 from ..problems import Problem
+from ..upload_stream import printable_name
 
 if TYPE_CHECKING:
     from prismcore.station import Station
@@ -179,9 +180,14 @@ def _calibrate(files: dict[str, list[tuple[str, bytes]]], max_pixels: int) -> St
                         422: {"description": "Not a station.json: `errors` points at the field"}})
 async def create_station(request: Request, response: Response, tenant: TenantDep, objects: ObjectsDep,
                          settings: SettingsDep,
-                         name: Annotated[str | None, Query(max_length=200)] = None) -> StationPublic:
+                         name: Annotated[str | None, Query(max_length=200, description=(
+                             "Your own name for it, kept as upload names are: control characters "
+                             "(NUL, CR, LF...) and invisible format characters (right-to-left "
+                             "overrides and isolates...) dropped, spaces at its ends stripped"))] = None,
+                         ) -> StationPublic:
     """Store a station: a station.json (`prism station calibrate`'s output), or one calibrated
     here from its photos (multipart: board, plane, calibration..., camera, plate)."""
+    name = (printable_name(name) or None) if name else None  # all of it unprintable: no name
     sent = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
     if sent == "multipart/form-data":
         limiter = _calibrations(settings.station_calibrations_at_once)
