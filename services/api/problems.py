@@ -22,6 +22,7 @@ from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import JSONResponse
+from starlette.routing import Match, Mount
 
 from prismcore.spec import error_message
 
@@ -208,12 +209,36 @@ def _summary(errors: list[dict[str, Any]]) -> str:
 
 # -- handlers -------------------------------------------------------------------------------------
 
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+def _allowed(request: Request) -> list[str]:
+    """Every method a route of the app answers at the request's path.
+
+    Starlette's router answers 405 from the first route whose path matched, naming that route's
+    methods only: a path served by two routes (GET and POST /v1/jobs, GET and DELETE
+    /v1/stations/{id}) named one. The routes are asked again, one method at a time (mounts, the
+    static files, answer any method and say their own).
+    """
+    routes = [route for route in request.app.router.routes if not isinstance(route, Mount)]
+    path, root = request.scope.get("path", ""), request.scope.get("root_path", "")
+
+    def answers(method: str) -> bool:
+        scope = {"type": "http", "path": path, "root_path": root, "method": method, "headers": []}
+        return any(route.matches(dict(scope))[0] is Match.FULL for route in routes)
+
+    return [method for method in _METHODS if answers(method)]
+
+
 async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     detail = exc.detail if isinstance(exc.detail, str) else json.dumps(exc.detail)
     if isinstance(exc, Problem):
         return problem_response(exc.status_code, detail, instance=_instance(request), kind=exc.kind.slug,
                                 errors=exc.errors, headers=exc.headers, **exc.extensions)
-    return problem_response(exc.status_code, detail, instance=_instance(request), headers=exc.headers)
+    headers = exc.headers
+    if exc.status_code == 405 and headers and "Allow" in headers:  # the router's 405
+        headers = {**headers, "Allow": ", ".join(_allowed(request)) or headers["Allow"]}
+    return problem_response(exc.status_code, detail, instance=_instance(request), headers=headers)
 
 
 async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -47,6 +47,27 @@ def test_errors_are_problems(client, method, path, kwargs, status, kind):
     assert body["instance"] == path
 
 
+def test_a_405_names_every_method_the_path_answers(client):
+    """Allow lists every method of the path, as the OpenAPI document has them, not only the first
+    route's (Starlette's router answered PUT /v1/jobs with "Allow: POST", GET /v1/jobs being
+    another route); GET routes of plain Starlette also answer HEAD."""
+    paths = create_app().openapi()["paths"]
+    values = {"job_id": "a" * 32, "station_id": "b" * 32, "upload_id": "c" * 32, "index": 0, "frame": 0}
+    assert {"/v1/jobs", "/v1/stations", "/v1/stations/{station_id}"} <= set(paths)
+    for template, operations in paths.items():
+        documented = {m.upper() for m in operations}
+        refused = next(m for m in ("PUT", "PATCH", "DELETE", "POST") if m not in documented)
+        path = template.format(**values)
+        r = client.request(refused, path, headers=ACME)
+        problem(r, 405, "method-not-allowed")
+        allowed = [m.strip() for m in r.headers["Allow"].split(",")]
+        assert set(allowed) - {"HEAD"} == documented and len(allowed) == len(set(allowed)), (path, allowed)
+        assert "HEAD" not in allowed or "GET" in allowed, (path, allowed)
+    for path, both in (("/v1/jobs", {"GET", "POST"}), ("/v1/stations", {"GET", "POST"}),
+                       (f"/v1/stations/{'b' * 32}", {"GET", "DELETE"})):
+        assert set(client.put(path, headers=ACME).headers["Allow"].split(", ")) == both
+
+
 def test_headers_are_kept(make_client):
     r = make_client().get("/v1/jobs")
     assert problem(r, 401, "unauthorized") and r.headers["WWW-Authenticate"] == "ApiKey"
