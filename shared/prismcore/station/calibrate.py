@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
 from prismcore.station.board import BoardSpec, BoardView, find_board_corners
+from prismcore.station.verify import Verification
 
 __all__ = [
     "MAX_RMS_PX",
@@ -71,6 +72,9 @@ class Station(BaseModel):
         description=("How the intrinsics were found: source (photos or camera), rms_px, views, corners."),
     )
     plate_png: str | None = Field(default=None, description="The empty support, base64 PNG (RGB).")
+    verification: Verification | None = Field(
+        default=None, description="The last verification with a reference part (prism station verify)."
+    )
 
     def plate(self) -> np.ndarray | None:
         return None if self.plate_png is None else decode_plate(self.plate_png)
