@@ -35,6 +35,7 @@ from .scan_command import scan
 from .schema_command import schema
 from .serve_command import serve
 from .station_command import board, station_app
+from .station_verify import verify
 
 __all__ = ["app", "main"]
 
@@ -59,6 +60,7 @@ cli.command()(board)
 station_app.command("upload")(station_upload)
 station_app.command("list")(station_list)
 station_app.command("delete")(station_delete)
+station_app.command("verify")(verify)
 cli.add_typer(station_app, name="station")
 
 

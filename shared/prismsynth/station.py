@@ -337,6 +337,7 @@ def station_scene(
     max_size_mm: float = 400.0,
     quality: int = 85,
     inside_board: bool = False,
+    box: StationBox | None = None,
 ) -> StationScene:
     """One station photo and its plate, with the truth (see the module's docstring).
 
@@ -344,6 +345,7 @@ def station_scene(
     nudge : camera turned 1-3 px since the plate (default: every other seed).
     near_table_colour : the part's colour within 10 RGB levels of the table's mean (default: 10 %).
     inside_board : the part's footprint on the board, 15 mm from its edges (hand-held photos).
+    box : the one part, placed as given (a reference part's placements); it must be in view.
     """
     rng = np.random.default_rng([seed, 31])
     setup = setup if setup is not None else station_setup(seed)
@@ -351,6 +353,10 @@ def station_scene(
     near = bool(rng.uniform() < 0.1) if near_table_colour is None else near_table_colour
     table_mean = setup.table.reshape(-1, 3).mean(axis=0)
     boxes: list[StationBox] = []
+    if box is not None:
+        if not _in_view(setup, box, 40):
+            raise ValueError(f"the box at ({box.x_mm:g}, {box.y_mm:g}) mm is not in view")
+        boxes, parts = [box], 0
     for _ in range(parts):
         for _attempt in range(200):
             box = _random_box(rng, setup, table_mean if near else None, max_size_mm)

@@ -218,7 +218,7 @@ def verify_dimension(
     if outside:
         failures.append(
             f"placement{'s' if len(outside) > 1 else ''} {', '.join(map(str, outside))} "
-            f"off by more than {SIGMA_MULTIPLE:g} x its stated sigma"
+            f"off by more than {SIGMA_MULTIPLE:g} x {'their' if len(outside) > 1 else 'its'} stated sigma"
         )
     return DimensionVerification(
         reference_mm=float(reference),

@@ -1,0 +1,171 @@
+"""`prism station verify`: a station checked against a reference part of known size, placed
+several times across the support. The statistics and the verdict are the engine's
+(`prismcore.station.verify`); this measures the photos, prints the figures and stores them."""
+
+from __future__ import annotations
+
+import re
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from prismcore import InputError
+
+from .station_command import console, load_station
+
+if TYPE_CHECKING:
+    from prismcore.station.verify import Verification
+
+__all__ = ["parse_reference", "verify"]
+
+_NUMBER = r"\s*(\d+(?:\.\d*)?|\.\d+)\s*"
+
+
+def parse_reference(text: str) -> tuple[float, float, float]:
+    """--reference W,D,H (mm) as three numbers; anything else exits 2 quoting it."""
+    match = re.fullmatch(",".join([_NUMBER] * 3), text)
+    if not match:
+        raise InputError(
+            f"--reference {text!r}: expected W,D,H in mm (width >= depth, then height), e.g. 70,45,30"
+        )
+    w, d, h = (float(v) for v in match.groups())
+    return w, d, h
+
+
+def verify(
+    station_file: Annotated[
+        Path,
+        typer.Argument(
+            metavar="STATION",
+            help="station.json (prism station calibrate); the verification is stored in it.",
+        ),
+    ],
+    photos: Annotated[
+        list[Path],
+        typer.Argument(
+            help="Photos of the reference part, placed at least 5 times at "
+            "different positions and yaws across the support."
+        ),
+    ],
+    reference: Annotated[
+        str,
+        typer.Option(
+            help="The reference part's true size W,D,H in mm, as the station "
+            "reports it: width >= depth (the footprint's sides), then height."
+        ),
+    ],
+    tolerance: Annotated[
+        float | None,
+        typer.Option(
+            help="T of the tolerance +-T, mm: %GRR is judged against "
+            "its full width 2T, and a bias under 10 % of 2T is "
+            "accepted."
+        ),
+    ] = None,
+) -> None:
+    """Verify a station with a reference part of known size (a gauge block, a box measured with
+    calipers), photographed in several placements across the support. Prints and stores in
+    station.json, per dimension: the bias (mean error) with its 95 % confidence interval (Student's
+    t), the repeatability (the errors' sample sigma over the placements), whether each placement's
+    error lies within 3 times its own stated sigma, and %GRR = 6 x repeatability / tolerance x 100
+    (AIAG MSA; the tolerance's full width 2T; repeatability alone: one station, one operator).
+    Verified when each dimension's bias is not significant (its 95 % interval holds 0) or at most
+    10 % of 2T, its %GRR is at most 30 %, and every placement lies within its 3 sigma. Exit 0
+    verified, 1 not verified, 2 bad input (fewer than 5 placements, or placements not spread over
+    the support, refused with the reason)."""
+    from prismcore.io.images import load_image
+    from prismcore.station.measure import measure_on_station
+    from prismcore.station.verify import DIMENSIONS, check_count, verify_placements
+
+    size = parse_reference(reference)
+    check_count(len(photos))
+    station = load_station(station_file)
+    measured, sigmas, positions, yaws = [], [], [], []
+    for photo in photos:
+        try:
+            m = measure_on_station(load_image(photo), station)
+        except InputError as exc:
+            raise InputError(f"{photo}: {exc}") from None
+        measured.append([m.dimensions[k] for k in DIMENSIONS])
+        sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
+        positions.append(m.position_mm)
+        yaws.append(m.yaw_deg)
+    done = verify_placements(
+        measured,
+        sigmas,
+        size,
+        tolerance,
+        positions_mm=positions,
+        yaws_deg=yaws,
+        board_size_mm=station.board.size_mm,
+        photos=[str(p) for p in photos],
+        date=datetime.now(UTC).replace(microsecond=0),
+    )
+    _print(done)
+    station_file.write_text(
+        station.model_copy(update={"verification": done}).model_dump_json(indent=2) + "\n"
+    )
+    console().print(f"stored in {station_file} (verification, {done.date:%Y-%m-%d %H:%M} UTC)", markup=False)
+    if not done.verified:
+        raise typer.Exit(1)
+
+
+def _print(done: Verification) -> None:
+    out = console()
+    names = list(done.dimensions)
+    wide = max(len(p) for p in done.photos)
+    out.print(
+        f"{'':2}{'photo':<{wide}}  {'position mm':>14}  {'yaw':>5}  "
+        + "  ".join(f"{n + ' error':>14}" for n in names)
+        + "  (error ± 3 sigma, mm; ! outside it)",
+        markup=False,
+    )
+    for i, photo in enumerate(done.photos):
+        x, y = done.positions_mm[i]
+        cells = []
+        for d in done.dimensions.values():
+            flag = " " if d.within_3_sigma[i] else "!"
+            cells.append(f"{d.errors_mm[i]:+6.2f} ± {3 * d.sigmas_mm[i]:4.2f}{flag}")
+        out.print(
+            f"{i + 1:<2}{photo:<{wide}}  ({x:6.1f}, {y:5.1f})  {done.yaws_deg[i]:5.1f}  "
+            + "  ".join(f"{c:>14}" for c in cells),
+            markup=False,
+        )
+    out.print(
+        f"{'':9}{'reference':>9}  {'bias':>6}  {'95 % CI':>16}  {'repeatability':>13}  "
+        f"{'within 3 sigma':>14}  {'%GRR':>6}",
+        markup=False,
+    )
+    for name, d in done.dimensions.items():
+        low, high = d.bias_ci95_mm
+        grr = "-" if d.grr_percent is None else f"{d.grr_percent:.1f} %"
+        inside = f"{sum(d.within_3_sigma)} of {len(d.within_3_sigma)}"
+        verdict = "ok" if d.verified else "FAILS"
+        out.print(
+            f"{name:<9}{d.reference_mm:9.2f}  {d.bias_mm:+6.3f}  [{low:+6.3f}, {high:+6.3f}]  "
+            f"{d.repeatability_mm:13.3f}  {inside:>14}  {grr:>6}  {verdict}",
+            markup=False,
+        )
+    tol = done.tolerance_mm
+    if tol is None:
+        out.print("%GRR: no --tolerance, not judged", markup=False)
+    else:
+        out.print(
+            f"%GRR = 6 x repeatability / tolerance x 100, tolerance 2T = {2 * tol:g} mm (±{tol:g} mm): "
+            "AIAG MSA's formula, repeatability alone (one station, one operator)",
+            markup=False,
+        )
+    ref = " x ".join(f"{v:g}" for v in done.reference_mm.values())
+    head = (
+        f"{'verified' if done.verified else 'not verified'} on {done.date:%Y-%m-%d} with a {ref} mm "
+        f"reference (width x depth x height), {len(done.photos)} placements"
+    )
+    out.print(head, markup=False)
+    if done.verified:
+        out.print(f"rule: {done.rule}", markup=False)
+    else:
+        for failure in done.decided_by:
+            out.print(f"  {failure}", markup=False)
+        out.print(f"rule: {done.rule}", markup=False)
