@@ -6,12 +6,15 @@ files only). Both are the engine's own readers, so what the upload is said to be
 worker will find. The engine (numpy, OpenCV) is imported on the first upload, not when the API
 starts. A file that is neither a photo the engine reads nor a video is :class:`Unsupported`,
 named by what it looks like. A JPEG, PNG or WebP photo cut short (its header whole, the rest
-missing: a copy interrupted) is found as it streams past (:class:`ImageEnd`) and refused too.
+missing: a copy interrupted) is found as it streams past (:class:`ImageEnd`) and refused too, and
+so is a PNG whose image data stops short of its pixels though its chunks end properly.
 """
 
 from __future__ import annotations
 
+import math
 import os
+import zlib
 from typing import Any
 
 from prismcore.io.containers import HEAD_BYTES, video_container
@@ -42,17 +45,48 @@ class Unsupported(Exception):  # noqa: N818 - a finding, not a failure of the co
         self.detected = detected
 
 
+_PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}  # by colour type: grey, RGB, palette, grey+alpha, RGBA
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+_INFLATE_STEP = 1 << 20  # the PNG's pixels are inflated this many bytes at a time, and dropped
+
+
+def _png_pixel_bytes(ihdr: bytes) -> int | None:
+    """The bytes a PNG's image data inflates to (each row's filter byte included), from its IHDR;
+    None for a header this check does not know."""
+    if len(ihdr) < 13:
+        return None
+    width, height = int.from_bytes(ihdr[0:4], "big"), int.from_bytes(ihdr[4:8], "big")
+    depth, colour, interlace = ihdr[8], ihdr[9], ihdr[12]
+    if colour not in _PNG_CHANNELS or interlace not in (0, 1):
+        return None
+    bits = depth * _PNG_CHANNELS[colour]
+
+    def rows(w: int, h: int) -> int:
+        return h * (1 + math.ceil(w * bits / 8)) if w and h else 0
+
+    if interlace == 0:
+        return rows(width, height)
+    return sum(rows(math.ceil(max(width - x0, 0) / dx), math.ceil(max(height - y0, 0) / dy))
+               for x0, y0, dx, dy in _ADAM7)
+
+
 class ImageEnd:
     """Fed a photo's bytes as they pass, says whether the photo's end was in them.
 
     A JPEG ends at the end-of-image marker that follows its scans (the segments are walked by
     their lengths, the entropy-coded data scanned for its next marker: an EXIF thumbnail's own
     marker, or data appended after the image, as motion photos have, are not mistaken for it);
-    a PNG at its IEND chunk (the chunks walked by their lengths); a WebP where its RIFF header's
-    size says. Other formats (BMP, TIFF) are not checked here: the worker reports them damaged.
+    a PNG at its IEND chunk (the chunks walked by their lengths), its image data (the IDAT
+    chunks) inflated on the way, a megabyte at a time and dropped, to the end of its zlib stream
+    and as many bytes as its header's pixels take (a PNG whose data was cut short and its
+    chunks closed after it is cut short too). Data that does not inflate is left for the worker
+    to report as damaged, and a PNG over `max_pixels` for the worker to refuse as too large: it
+    is not inflated, nor is data past the pixels' bytes, so a decompression bomb costs nothing
+    here. A WebP ends where its RIFF header's size says. Other formats (BMP, TIFF) are not
+    checked here: the worker reports them damaged.
     """
 
-    def __init__(self, head: bytes) -> None:
+    def __init__(self, head: bytes, max_pixels: int | None = None) -> None:
         self.format = ("JPEG" if head.startswith(b"\xff\xd8\xff") else
                        "PNG" if head.startswith(b"\x89PNG\r\n\x1a\n") else
                        "WEBP" if head[:4] == b"RIFF" and head[8:12] == b"WEBP" else None)
@@ -62,6 +96,15 @@ class ImageEnd:
         self._skip = 2 if self.format == "JPEG" else 8 if self.format == "PNG" else 0  # SOI, signature
         self._entropy = False
         self._riff = int.from_bytes(head[4:8], "little") + 8 if self.format == "WEBP" else 0
+        # A PNG's image data: its bytes still to come in the current IDAT chunk, the stream
+        # inflating it (None when not checked: it does not inflate, the image is over
+        # `max_pixels`, or its pixels' bytes were all seen), the bytes it gave and those expected.
+        self._max_pixels = max_pixels
+        self._idat = 0
+        self._inflater: Any = zlib.decompressobj() if self.format == "PNG" else None
+        self._pixels = 0
+        self._expected: int | None = None
+        self._short_data = False
 
     def feed(self, data: bytes) -> None:
         self.size += len(data)
@@ -70,6 +113,14 @@ class ImageEnd:
         if self.format == "WEBP":
             self.ended = self.size >= self._riff
             return
+        if self._idat:  # the rest of an IDAT chunk, then its CRC
+            n = min(self._idat, len(data))
+            self._inflate(data[:n])
+            self._idat -= n
+            data = data[n:]
+            if self._idat:
+                return
+            self._skip = 4
         if self._skip:
             n = min(self._skip, len(data))
             self._skip -= n
@@ -122,18 +173,51 @@ class ImageEnd:
             length, kind = int.from_bytes(buf[i : i + 4], "big"), buf[i + 4 : i + 8]
             if kind == b"IEND":
                 self.ended = True
+                self._short_data = self._inflater is not None
                 return len(buf)
             end = i + 12 + length
+            if kind == b"IHDR":
+                if end > len(buf):
+                    return i  # a few bytes: wait for the whole chunk
+                ihdr = buf[i + 8 : i + 8 + length]
+                self._expected = _png_pixel_bytes(ihdr)
+                pixels = int.from_bytes(ihdr[0:4], "big") * int.from_bytes(ihdr[4:8], "big")
+                if self._expected is None or (self._max_pixels is not None and pixels > self._max_pixels):
+                    self._inflater = None
+            elif kind == b"IDAT":
+                data = buf[i + 8 : min(i + 8 + length, len(buf))]
+                self._inflate(data)
+                if len(data) < length:  # the rest of its data comes in the next feeds
+                    self._idat = length - len(data)
+                    return len(buf)
             if end > len(buf):
                 self._skip = end - len(buf)
                 return len(buf)
             i = end
         return i
 
+    def _inflate(self, data: bytes) -> None:
+        """Inflate `data`, part of the PNG's image data, counting the bytes it gives, until they
+        are as many as its pixels take."""
+        if self._expected is None:  # image data before its header: for the worker to report
+            self._inflater = None
+        try:
+            while data and self._inflater is not None and not self._inflater.eof:
+                self._pixels += len(self._inflater.decompress(data, _INFLATE_STEP))
+                data = self._inflater.unconsumed_tail
+                if self._expected is not None and self._pixels >= self._expected:
+                    self._inflater = None  # every pixel is there
+        except zlib.error:
+            self._inflater = None  # damaged, not cut short: for the worker to report
+
     def problem(self, name: str) -> str | None:
         """Why the photo is cut short, once every byte was fed; None when it is whole."""
-        if self.ended:
+        if self.ended and not self._short_data:
             return None
+        if self._short_data:
+            return (f"{name!r} is a truncated {self.format} ({self.size:,} bytes, its image data cut short: "
+                    f"{self._pixels:,} of the {self._expected or 0:,} bytes of pixels its header announces): "
+                    "the file was not written whole; upload the complete photo")
         end = {"JPEG": "its end-of-image marker", "PNG": "its IEND chunk",
                "WEBP": f"the {self._riff:,} bytes its header announces"}[self.format or ""]
         return (f"{name!r} is a truncated {self.format} ({self.size:,} bytes, cut short before {end}): "

@@ -7,6 +7,8 @@ photo or out of order is refused at submit with a pointer to it."""
 from __future__ import annotations
 
 import io
+import struct
+import zlib
 from pathlib import Path
 
 import cv2
@@ -184,3 +186,66 @@ def test_a_photo_cut_short_is_refused_as_truncated_and_not_kept(client, objects,
     assert body["type"] == "https://prismcloud.dev/problems/damaged-file" and body["truncated"] is True
     assert body["detail"].startswith(f"'cut.jpg' is a truncated {fmt} (40,000 bytes, cut short before"), body
     assert set(objects.list_keys("uploads/")) == before  # deleted again
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png(image: np.ndarray, *, interlaced: bool = False, cut: float = 1.0) -> bytes:
+    """An RGB PNG written here (Adam7 when `interlaced`), its image data cut to `cut` of its
+    zlib stream and its chunks closed properly after it (IDAT, IEND)."""
+    h, w = image.shape[:2]
+    passes = ([(0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2),
+               (0, 1, 1, 2)] if interlaced else [(0, 0, 1, 1)])
+    raw = b"".join(b"\x00" + row.tobytes() for x0, y0, dx, dy in passes
+                   for row in image[y0::dy, x0::dx] if row.size)
+    data = zlib.compress(raw)
+    return (b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, int(interlaced)))
+            + _chunk(b"IDAT", data[: int(len(data) * cut)]) + _chunk(b"IEND", b""))
+
+
+def _pil_png(mode: str, **options) -> bytes:
+    out = io.BytesIO()
+    Image.effect_noise((301, 203), 60).convert(mode).save(out, "PNG", **options)
+    return out.getvalue()
+
+
+NOISE = np.random.default_rng(7).integers(0, 256, (203, 301, 3), dtype=np.uint8)
+
+
+@pytest.mark.parametrize("data", [
+    _png(NOISE), _png(NOISE, interlaced=True), _png(NOISE[:5, :3], interlaced=True),
+    _pil_png("L"), _pil_png("P"), _pil_png("1"), _pil_png("RGBA"), _pil_png("LA"),
+    cv2.imencode(".png", NOISE.astype(np.uint16) * 257)[1].tobytes(),
+    cv2.imencode(".png", cv2.imread(str(SAMPLE)))[1].tobytes(),
+], ids=["rgb", "adam7", "adam7-5x3", "grey", "palette", "1-bit", "rgba", "grey-alpha", "16-bit", "sample"])
+def test_a_whole_png_of_any_kind_is_taken(client, data):
+    # Its image data inflates to as many bytes as its header's pixels take, however they are laid out.
+    assert cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is not None
+    r = post(client, data, "whole.png")
+    assert r.status_code == 201 and r.json()["probe"]["format"] == "PNG", r.text
+
+
+@pytest.mark.parametrize(("cut", "interlaced"), [(0.5, False), (0.98, False), (0.0, False), (0.6, True)],
+                         ids=["half", "most", "none", "adam7"])
+def test_a_png_whose_image_data_is_cut_short_is_refused_and_not_kept(client, objects, cut, interlaced):
+    """Its chunks whole and closed (an IEND after a short IDAT): the pixels it holds are fewer
+    than its header announces, so the job would fail later; refused as a truncated JPEG is."""
+    data = _png(NOISE, interlaced=interlaced, cut=cut)
+    assert cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) is None  # OpenCV cannot read it
+    before = set(objects.list_keys("uploads/"))
+    r = post(client, data, "cut.png")
+    assert r.status_code == 422, r.text
+    body = r.json()
+    assert body["type"] == "https://prismcloud.dev/problems/damaged-file" and body["truncated"] is True
+    assert body["detail"].startswith(f"'cut.png' is a truncated PNG ({len(data):,} bytes, its image data "
+                                     "cut short: "), body
+    assert set(objects.list_keys("uploads/")) == before  # deleted again
+
+
+def test_a_png_over_the_pixel_limit_is_not_inflated_at_upload(make_client):
+    # A decompression bomb costs the API nothing: past PRISM_MAX_PIXELS its data is not read (the
+    # worker refuses the photo as too large), so its pixels are not counted either.
+    r = post(make_client(max_pixels=10_000), _png(NOISE, cut=0.5), "big.png")
+    assert r.status_code == 201 and r.json()["probe"]["width"] == 301, r.text

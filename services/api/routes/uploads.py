@@ -9,6 +9,7 @@ upload, so a job naming it is checked at submit.
 from __future__ import annotations
 
 import tempfile
+from functools import partial
 from typing import IO, Any, BinaryIO, cast
 from uuid import uuid4
 
@@ -42,8 +43,9 @@ class Truncated(Exception):  # noqa: N818 - a finding, not a failure of the code
     """A photo whose header is whole but whose data stops short of its end."""
 
 
-def _watch_photos(first: bytes) -> ImageEnd | None:
-    return None if is_video_head(first) else ImageEnd(first)
+def _watch_photos(first: bytes, max_pixels: int) -> ImageEnd | None:
+    # A PNG over the pixel limit is not inflated here: the worker refuses it as too large.
+    return None if is_video_head(first) else ImageEnd(first, max_pixels=max_pixels)
 
 
 def _probe(upload: MultipartFile) -> dict[str, Any]:
@@ -80,7 +82,8 @@ async def create_upload(request: Request, response: Response, tenant: TenantDep,
     if length.isdigit() and int(length) > limit + MULTIPART_OVERHEAD:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE,  # refused unread
                             f"the upload is larger than {limit} bytes", headers={"Connection": "close"})
-    upload = MultipartFile(request, "file", limit, spool_when=_spool_videos, watch_when=_watch_photos)
+    upload = MultipartFile(request, "file", limit, spool_when=_spool_videos,
+                           watch_when=partial(_watch_photos, max_pixels=settings.max_pixels))
     upload_id = uuid4().hex
     key = upload_key(tenant, upload_id)
     try:
