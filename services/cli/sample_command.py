@@ -148,18 +148,13 @@ def _station_sample(folder: Path) -> None:
     truth.append(("handheld.jpg", held.box))
     with (folder / "true_sizes.csv").open("w", newline="") as sink:
         writer = csv.writer(sink)
+        # as the station reports them: width >= depth, the longer side's yaw
         writer.writerow(["photo", "width_mm", "depth_mm", "height_mm", "x_mm", "y_mm", "yaw_deg"])
         for name, box in truth:
             d = box.dimensions
-            writer.writerow(
-                [
-                    name,
-                    *(round(d[k], 2) for k in ("width", "depth", "height")),
-                    round(box.x_mm, 1),
-                    round(box.y_mm, 1),
-                    round(box.yaw_deg % 180, 1),
-                ]
-            )
+            yaw = (box.yaw_deg + (90 if box.length_mm < box.width_mm else 0)) % 180
+            sizes = (round(d[k], 2) for k in ("width", "depth", "height"))
+            writer.writerow([name, *sizes, round(box.x_mm, 1), round(box.y_mm, 1), round(yaw, 1)])
     from rich.console import Console
 
     rw, rd, rh = REFERENCE_MM

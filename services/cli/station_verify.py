@@ -38,7 +38,7 @@ def verify(
     station_file: Annotated[
         Path,
         typer.Argument(
-            metavar="STATION",
+            metavar="station",
             help="station.json (prism station calibrate); the verification is stored in it.",
         ),
     ],
