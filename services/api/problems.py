@@ -152,7 +152,8 @@ def body_path(loc: Sequence[str | int], body: Any = _MISSING) -> list[str | int]
     "edge"), a model's name in a plain union, a validator's name. With the parsed body at
     hand, a step is kept only where the document has it (or it is the last step: a missing
     field is pointed at where it belongs); a named point given as a list ([[x, y], ...]) is
-    pointed at by its index. Without the body, the location is taken as it is.
+    pointed at by its index; a bad key of an object (pydantic's last step "[key]") is pointed
+    at as its member. Without the body, the location is taken as it is.
     """
     if body is _MISSING:
         return list(loc)
@@ -160,6 +161,8 @@ def body_path(loc: Sequence[str | int], body: Any = _MISSING) -> list[str | int]
     value = body
     for i, step in enumerate(loc):
         last = i == len(loc) - 1
+        if last and step == "[key]" and out:
+            break  # the key before it is at fault: its member is the place
         if isinstance(value, dict):
             if not last and value.get("kind") == step:
                 continue  # the tag of a tagged union (the scale's), even where a key has its name

@@ -11,9 +11,10 @@ whose public names this module names too.
 from __future__ import annotations
 
 import re
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
+    BeforeValidator,
     ConfigDict,
     Field,
     NonNegativeInt,
@@ -95,6 +96,30 @@ def _auto_schema(schema: dict[str, Any]) -> None:
         options.insert(0, {"const": "auto"})
 
 
+FRAME_KEY = r"^[0-9]+$"
+"""A key of `frame_points` in JSON (object keys are strings): a frame index, digits only."""
+
+
+def _frame_key(value: object) -> object:
+    # JSON gives every key as a string: only digits are an index (pydantic alone would also take
+    # " 3", "+3" or "1_0", which the published schema refuses).
+    if isinstance(value, str) and not re.fullmatch(FRAME_KEY, value, flags=re.ASCII):
+        raise ValueError(f"key {value[:32]!r} is not a frame index: give the index in digits only "
+                         "(0 the first frame)")
+    return value
+
+
+FrameIndex = Annotated[NonNegativeInt, BeforeValidator(_frame_key)]
+
+
+def _frame_points_schema(schema: dict[str, Any]) -> None:
+    # The keys are frame indices: the schema says so (propertyNames), so that a generated body
+    # (or a client) sends only keys the API takes.
+    for option in schema.get("anyOf", []):
+        if option.get("type") == "object":
+            option["propertyNames"] = {"pattern": FRAME_KEY}
+
+
 _NO_FIRST_VIEW = "(the first view's photo)"
 
 
@@ -155,9 +180,10 @@ class ScanSpec(_Strict):
     frames: FrameSelection | None = Field(
         default=None, description="Set when `image` is a video: the frames to measure."
     )
-    frame_points: dict[NonNegativeInt, ReferencePoints] | None = Field(
+    frame_points: dict[FrameIndex, ReferencePoints] | None = Field(
         default=None, min_length=1, description="Video with a moving camera: reference points "
-        "per frame index; exactly these frames are measured."
+        "per frame index (the keys: frame indices, digits only, 0 = the first frame); exactly "
+        "these frames are measured.", json_schema_extra=_frame_points_schema,
     )
     points_frame: NonNegativeInt | None = Field(
         default=None, description="Video with a moving camera: the frame index `points` were "

@@ -12,6 +12,7 @@ import zlib
 from pathlib import Path
 
 import cv2
+import jsonschema
 import numpy as np
 import pytest
 from PIL import Image
@@ -249,3 +250,34 @@ def test_a_png_over_the_pixel_limit_is_not_inflated_at_upload(make_client):
     # worker refuses the photo as too large), so its pixels are not counted either.
     r = post(make_client(max_pixels=10_000), _png(NOISE, cut=0.5), "big.png")
     assert r.status_code == 201 and r.json()["probe"]["width"] == 301, r.text
+
+
+def _published_body_schema(client) -> jsonschema.Draft202012Validator:
+    """The validator of POST /v1/jobs' body, as the OpenAPI document the API serves publishes it."""
+    document = client.get("/openapi.json").json()
+    body = document["paths"]["/v1/jobs"]["post"]["requestBody"]["content"]["application/json"]["schema"]
+    return jsonschema.Draft202012Validator({**body, "components": document["components"]})
+
+
+FRAME_KEYS_TAKEN = [["0", "4"], ["007", "11"], ["3"], ["0", "00", "000"], [str(k) for k in range(12)]]
+FRAME_KEYS_REFUSED = ["+3", " 3", "3 ", "3.0", "1_0", "-1", "x", "", "\u0663"]
+
+
+def test_frame_points_keys_the_published_schema_allows_are_taken(client, tmp_path):
+    """The schema names frame_points' keys as the API reads them (digits only, propertyNames):
+    every body it allows is taken (202), every key it refuses is refused at that key (422)."""
+    schema = _published_body_schema(client)
+    frame_points = schema.schema["components"]["schemas"]["ScanSpec"]["properties"]["frame_points"]
+    assert {"pattern": "^[0-9]+$"} in [o.get("propertyNames") for o in frame_points["anyOf"]], frame_points
+    video = post(client, avi(tmp_path, 12, (256, 128)), "twelve.avi").json()["reference"]
+    for keys in FRAME_KEYS_TAKEN:
+        body = {"items": [{"image": video, "frame_points": dict.fromkeys(keys, POINTS)}]}
+        assert schema.is_valid(body), keys
+        r = client.post("/v1/jobs", json=body, headers=ACME)
+        assert r.status_code == 202, (keys, r.text)
+    for key in FRAME_KEYS_REFUSED:
+        body = {"items": [{"image": video, "frame_points": {"1": POINTS, key: POINTS}}]}
+        assert not schema.is_valid(body), key
+        r = client.post("/v1/jobs", json=body, headers=ACME)
+        assert r.status_code == 422, (key, r.text)
+        assert f"/items/0/frame_points/{key}" in [e["pointer"] for e in r.json()["errors"]], (key, r.json())

@@ -65,8 +65,12 @@ def test_frame_spec_is_the_photo_spec_of_one_frame():
          'frame_points measures exactly frames [1]: drop frames or give frames.indices equal to them, '
          'got frames={"every":2}'),
         ({"frame_points": {"1": P}}, "give points (the same for every frame) or frame_points"),
-        ({"points": None, "frame_points": {"x": P}}, "frame_points.x.[key]: Input should be a valid integer"),
-        ({"points": None, "frame_points": {"-1": P}}, "frame_points.-1.[key]: Input should be greater"),
+        ({"points": None, "frame_points": {"x": P}}, "frame_points.x.[key]: Value error, key 'x' is not a "
+         "frame index: give the index in digits only (0 the first frame)"),
+        ({"points": None, "frame_points": {"-1": P}}, "frame_points.-1.[key]: Value error, key '-1' is not"),
+        # JSON's keys are strings: digits only, as the published schema says (not " 3", "+3", "1_0")
+        *(({"points": None, "frame_points": {k: P}}, f"frame_points.{k}.[key]: Value error, key {k!r}")
+          for k in (" 3", "+3", "1_0", "3.0")),
         ({"points": None}, "points: the reference points are missing"),
     ],
     ids=lambda v: v if isinstance(v, str) and len(v) < 40 else None,
