@@ -50,6 +50,30 @@ def test_a_small_point_loss_is_no_warning(tmp_path):
     assert not [w for w in report["warnings"] if "point loss" in w], report["warnings"]
 
 
+@pytest.mark.parametrize(("scale", "words"), [
+    ((), "no scale given: the dimensions are in pixels, not mm; give a scale to measure in mm: "),
+    (("--focal-px", "1400"), "no scale: a focal length without the shooting distance gives none, so the "
+                             "dimensions are in pixels, not mm; add the distance (--distance-mm"),
+], ids=["no-scale", "focal-without-distance"])
+def test_a_scan_in_pixels_says_so_on_screen_and_in_the_report(tmp_path, scale, words):
+    # Exit 0 with figures in px: the warning says they are not mm, and how to give a scale.
+    run = prism("scan", str(SAMPLE), "--points", FIVE, *scale, "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["dimensions"]["unit"] == "px"
+    [warned] = [w for w in report["warnings"] if "in pixels, not mm" in w]
+    assert warned.startswith(words) and "--width-mm" in warned and "--mm-per-px" in warned, warned
+    assert f"warning: {warned}" in " ".join(run.stdout.split()), run.stdout
+
+
+def test_a_scan_with_a_scale_has_no_pixels_warning(tmp_path):
+    run = prism("scan", str(SAMPLE), "--points", FIVE, "--width-mm", "120", "--out", str(tmp_path))
+    assert run.returncode == 0, run.stderr
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["dimensions"]["unit"] == "mm"
+    assert not [w for w in report["warnings"] if "pixels" in w], report["warnings"]
+
+
 def _commands(command: click.Command, path: tuple[str, ...] = ()):
     yield path, command
     for name, sub in getattr(command, "commands", {}).items():

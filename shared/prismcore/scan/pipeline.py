@@ -47,6 +47,21 @@ SAME_SCALE_ASSUMED = ("two photos, no P7 and a scale for only one of them: the o
                       "rest on that; mark P7, or give each photo its scale, to measure them")
 
 
+_GIVE_A_SCALE = ("give a scale to measure in mm: a known edge's length (prism scan --width-mm, --height-mm "
+                 "or --depth-mm; a spec's scale kind \"edge\"), millimetres per pixel (--mm-per-px; "
+                 "\"mm_per_px\") or the shooting distance (--distance-mm; \"pinhole\")")
+
+
+def in_pixels_warning(spec: ScanSpec) -> str:
+    """The warning of a scan measured without a scale: its figures are pixels, not mm, and how
+    to give a scale (a focal length alone is none: it needs the shooting distance)."""
+    if spec.focal_px is not None or spec.camera is not None:
+        return ("no scale: a focal length without the shooting distance gives none, so the dimensions "
+                "are in pixels, not mm; add the distance (--distance-mm; the spec's scale kind "
+                "\"pinhole\"), or " + _GIVE_A_SCALE)
+    return "no scale given: the dimensions are in pixels, not mm; " + _GIVE_A_SCALE
+
+
 @dataclass
 class ScanPlan:
     """Everything fixed before the tiles run: the faces to scan and the prism's dimensions."""
@@ -188,6 +203,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         # (instead of the note that the height carried it across, which would read as measured).
         dims = replace(dims, notes=tuple(n for n in dims.notes if "shared height" not in n))
         warnings.append(SAME_SCALE_ASSUMED)
+    if dims.unit == "px":
+        warnings.append(in_pixels_warning(spec))
     for name in ("width", "height", "depth"):
         value = getattr(dims, name)
         if not (math.isfinite(value) and value > 0):  # e.g. a pose fitted behind the camera
