@@ -13,6 +13,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1
 WORKDIR /app
 # The locked, hash-checked releases the tests ran (scripts/lock makes locks/service.txt), then the
 # project without dependencies: every one is in the lock.
+# The lock holds the extra cad too (OpenCascade's OCP, for the step format).
 COPY locks/service.txt ./locks/
 RUN pip install --require-hashes -r locks/service.txt
 COPY pyproject.toml README.md ./

@@ -82,7 +82,8 @@ def _requirements() -> list[Requirement]:
     """pyproject's requirements that apply on this interpreter (their markers hold)."""
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     extras = project["optional-dependencies"]
-    every = [Requirement(r) for r in project["dependencies"] + extras["test"] + extras["open3d"]]
+    every = [Requirement(r) for r in
+             project["dependencies"] + extras["test"] + extras["cad"] + extras["open3d"]]
     return [r for r in every if r.marker is None or r.marker.evaluate()]
 
 
