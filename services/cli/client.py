@@ -44,7 +44,7 @@ from .errors import ApiError, WaitTimeoutError
 __all__ = ["FINAL_STATES", "ApiClient", "ApiError", "JobList", "StationPublic", "WaitTimeoutError",
            "format_eta", "remaining_s"]
 
-FINAL_STATES = frozenset({"succeeded", "failed", "cancelled"})
+FINAL_STATES = frozenset({"succeeded", "completed_with_failures", "failed", "cancelled"})
 _RETRY_STATUSES = frozenset({429, 503})
 
 

@@ -83,7 +83,8 @@ def _print_job(job: JobPublic) -> None:
     warning its result carries (what report.json says about the measurement's trust)."""
     line = f"job {job.id}: [bold]{job.state.value}[/] {job.progress}%"
     if job.item_count > 1:
-        line += f" ({job.items_done} of {job.item_count} items)"
+        line += f" ({job.items_done} of {job.item_count} items"
+        line += f", {job.items_failed} failed)" if job.items_failed else ")"
     console().print(line, soft_wrap=True)
     if job.error:
         console().print(f"  error: {job.error}", soft_wrap=True, markup=False)
@@ -147,7 +148,7 @@ def submit(
     then_wait: Annotated[bool, typer.Option("--wait", help="Wait for the job to finish.")] = False,
 ) -> None:
     """Submit a job (local files are uploaded first) and print its id; with --wait, exit 0 if it
-    succeeded, 1 otherwise."""
+    succeeded (every item), 1 otherwise (completed_with_failures, failed, cancelled)."""
     client = _client(api, key)
     from pydantic import ValidationError
 
@@ -251,7 +252,8 @@ def _wait(client: ApiClient, job_id: str, timeout: float) -> JobPublic:
 
 def wait(job_id: str, api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
          timeout: Annotated[float, typer.Option(help="Give up after this many seconds.")] = 3600) -> None:
-    """Wait for a job with a progress bar; exit 0 if it succeeded, 1 otherwise."""
+    """Wait for a job with a progress bar; exit 0 if it succeeded (every item), 1 otherwise
+    (completed_with_failures: some item failed; failed; cancelled)."""
     _wait(_client(api, key), job_id, timeout)
 
 
@@ -279,7 +281,7 @@ def jobs(api: ApiUrl = "http://127.0.0.1:8000", key: ApiKey = "",
          limit: Annotated[int, typer.Option(help="At most this many, newest first.", min=1)] = 20,
          as_json: Annotated[bool, typer.Option("--json", help="One JSON object per line.")] = False) -> None:
     """List your jobs, newest first: id, state, progress, items, when, your reference."""
-    allowed = ("queued", "running", "succeeded", "failed", "cancelled")
+    allowed = ("queued", "running", "succeeded", "completed_with_failures", "failed", "cancelled")
     if state is not None and state not in allowed:
         raise InputError(f"--state {state!r}: expected one of {', '.join(allowed)}")
     client = _client(api, key)

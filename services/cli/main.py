@@ -1,7 +1,8 @@
 """Entry point of the `prism` command: wires the sub-commands and the error policy.
 
-Exit codes: 0 the command succeeded; 1 it ran but what it waited for did not succeed (a job
-that failed or was cancelled, a wait that timed out, `prism serve` losing a server, a station
+Exit codes: 0 the command succeeded (a job waited for: every item of it); 1 it ran but what
+it waited for did not succeed (a job that failed, was cancelled or completed_with_failures:
+some item failed while others succeeded; a wait that timed out, `prism serve` losing a server, a station
 `prism station verify` found not verified, Ctrl-C);
 2 bad input or usage, or an API that refused the request (4xx); 3 the API could not be reached
 or could not answer (5xx, or still busy after the retries): the request may be right, try again

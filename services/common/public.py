@@ -15,7 +15,7 @@ from pydantic import BaseModel, Field
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
-from .records import ItemResult, JobRecord, State
+from .records import ItemResult, ItemState, JobRecord, State
 
 __all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic",
            "JointLeftOutPublic", "JointPublic", "JointViewPublic", "ResultPublic", "ResultsTable",
@@ -130,7 +130,7 @@ class ResultPublic(BaseModel):
 
 class FramePublic(BaseModel):
     index: int = Field(description="The frame's index in the video (0 = the first frame).")
-    state: State
+    state: ItemState
     error: str | None
     result: ResultPublic | None
     downloads: dict[str, str] = Field(default_factory=dict)
@@ -138,7 +138,7 @@ class FramePublic(BaseModel):
 
 class ItemPublic(BaseModel):
     index: int
-    state: State
+    state: ItemState
     error: str | None
     result: ResultPublic | None
     downloads: dict[str, str] = Field(
@@ -150,12 +150,22 @@ class ItemPublic(BaseModel):
     frames: list[FramePublic] = Field(default_factory=list, description="A video's frames.")
 
 
+_JOB_STATE = ("queued, running, then one final state: succeeded (every item succeeded), "
+              "completed_with_failures (some items succeeded, at least one failed: items_failed "
+              "says how many, each item its error; not a success), failed (no item succeeded, or "
+              "the job itself could not go on), cancelled. Only succeeded means every item has "
+              "its results.")
+
+
 class JobPublic(BaseModel):
     id: str
-    state: State
+    state: State = Field(description=_JOB_STATE)
     progress: int = Field(ge=0, le=100)
     items_done: int = Field(default=0, ge=0, description="Items finished (succeeded or failed) "
                             "so far, of item_count.")
+    items_failed: int = Field(default=0, ge=0, description="Of items_done, the items that failed "
+                              "(each item's error says why). A job that ended with items_failed > 0 "
+                              "is never succeeded.")
     created_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
@@ -176,7 +186,7 @@ class ResultsTable(BaseModel):
 
     job_id: str
     client_reference: str | None
-    state: State
+    state: State = Field(description="The job's state, as the job's.")
     verdicts: dict[str, int] = Field(description="As the job's: items per verdict.")
     columns: list[str] = Field(description="The rows' keys, in the CSV's column order.")
     rows: list[dict[str, Any]] = Field(description="One per item, then one per frame of a video "
@@ -208,11 +218,12 @@ def to_public(job: JobRecord, url_for: Callable[[str, str], str],
     for item in job.items:
         downloads = {kind: url_for(key, download_name(job.id, item.index, kind))
                      for kind, key in item.outputs.items()}
-        frames = [FramePublic(index=f.index, state=f.state, error=f.error, result=_result(f.result),
+        frames = [FramePublic(index=f.index, state=ItemState(f.state.value), error=f.error,
+                              result=_result(f.result),
                               downloads={kind: url_for(key, download_name(job.id, item.index, kind, f.index))
                                          for kind, key in f.outputs.items()})
                   for f in item.frames]
-        items.append(ItemPublic(index=item.index, state=item.state, error=item.error,
+        items.append(ItemPublic(index=item.index, state=ItemState(item.state.value), error=item.error,
                                 result=_result(item.result), downloads=downloads, frames=frames))
     return JobPublic(**job.model_dump(exclude={"items", "tenant"}), items=items,
                      item_count=len(job.items) if item_count is None else item_count)

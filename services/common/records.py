@@ -10,10 +10,31 @@ from pydantic import BaseModel, Field
 
 from prismcore.spec import ScanSpec
 
-__all__ = ["FINAL_STATES", "FrameRecord", "ItemRecord", "ItemResult", "ItemView", "JobRecord", "State"]
+__all__ = ["ENDED_STATES", "FINAL_STATES", "FrameRecord", "ItemRecord", "ItemResult", "ItemState",
+           "ItemView", "JobRecord", "State"]
 
 
+# The one state machine of a job is the store's transition script (prism_common.store), driven
+# by prism_worker.lifecycle (which picks the ended state).
 class State(StrEnum):
+    """A job's state (and, but for `completed_with_failures`, an item's or a frame's).
+
+    A job that ran to its end is `succeeded` when every item succeeded, `failed` when none did,
+    and `completed_with_failures` when some did and some failed: `succeeded` never hides a
+    failed item.
+    """
+
+    queued = "queued"
+    running = "running"
+    succeeded = "succeeded"
+    completed_with_failures = "completed_with_failures"
+    failed = "failed"
+    cancelled = "cancelled"
+
+
+class ItemState(StrEnum):
+    """An item's or a video frame's state, as published: a job's but `completed_with_failures`."""
+
     queued = "queued"
     running = "running"
     succeeded = "succeeded"
@@ -21,7 +42,9 @@ class State(StrEnum):
     cancelled = "cancelled"
 
 
-FINAL_STATES = frozenset({State.succeeded, State.failed, State.cancelled})
+# A job that ran to its end (its items decided), as opposed to one cancelled.
+ENDED_STATES = frozenset({State.succeeded, State.completed_with_failures, State.failed})
+FINAL_STATES = ENDED_STATES | {State.cancelled}
 
 
 class ItemResult(BaseModel):
@@ -91,6 +114,7 @@ class JobRecord(BaseModel):
     state: State = State.queued
     progress: int = 0
     items_done: int = 0  # items finished (succeeded or failed), each counted once
+    items_failed: int = 0  # of those, the items that failed, each counted once
     # finished items per verdict against their nominal size (pass, fail, uncertain), each once
     verdicts: dict[str, int] = Field(default_factory=lambda: {"pass": 0, "fail": 0, "uncertain": 0})
     created_at: datetime

@@ -47,15 +47,21 @@ _WEBHOOKS_DUE = f"{_P}webhooks:due"  # job id -> since when (s) its webhook is d
 # A job hash's fields other than its items and frames.
 _VERDICT_FIELDS = ["verdict:pass", "verdict:fail", "verdict:uncertain"]
 _JOB_FIELDS = ["doc", "n_items", "state", "started_at", "finished_at", "error", "units_total",
-               "units_done", "items_planned", "units_at_cancel", "items_done", *_VERDICT_FIELDS]
+               "units_done", "items_planned", "units_at_cancel", "items_done", "items_failed",
+               *_VERDICT_FIELDS]
 UNITS_PER_ITEM_ESTIMATE = 10  # plan + finish + tiles, until the plan knows the tile count
 WATCHDOG_LOCK_KEY = f"{_P}watchdog:lock"
-_RANK = {"queued": 0, "running": 1, "succeeded": 2, "failed": 2, "cancelled": 2}
+_RANK = {"queued": 0, "running": 1, "succeeded": 2, "completed_with_failures": 2, "failed": 2,
+         "cancelled": 2}
 
+# The one state machine of a job: queued -> running -> one final state (succeeded,
+# completed_with_failures, failed: ended by its items; cancelled), never backwards nor from one
+# final state to another. Which ended state is lifecycle._end_job's decision.
 _TRANSITION = """
 local cur = redis.call('HGET', KEYS[1], 'state')
 if not cur then return 0 end
-local rank = {queued=0, running=1, succeeded=2, failed=2, cancelled=2}
+local rank = {queued=0, running=1, succeeded=2, completed_with_failures=2, failed=2, cancelled=2}
+if not rank[ARGV[1]] then return redis.error_reply('unknown state ' .. ARGV[1]) end
 if rank[ARGV[1]] <= rank[cur] then return 0 end
 redis.call('HSET', KEYS[1], 'state', ARGV[1])
 if ARGV[1] == 'running' then redis.call('HSET', KEYS[1], 'started_at', ARGV[2]) end
@@ -68,7 +74,7 @@ if ARGV[1] == 'cancelled' then
   redis.call('HSET', KEYS[1], 'units_at_cancel', done .. '/' .. total .. '/' .. planned)
 end
 if ARGV[3] ~= '' then redis.call('HSET', KEYS[1], 'error', ARGV[3]) end
-if (ARGV[1] == 'succeeded' or ARGV[1] == 'failed') and redis.call('HGET', KEYS[1], 'webhook') == '1' then
+if rank[ARGV[1]] == 2 and ARGV[1] ~= 'cancelled' and redis.call('HGET', KEYS[1], 'webhook') == '1' then
   -- Its webhook is due, written with the ending itself: a delivery task lost with Redis's last
   -- second (AOF everysec) is sent again by the watchdog, not forgotten.
   local t = redis.call('TIME')
@@ -96,11 +102,13 @@ return 0
 
 
 # The set says which items finished (a redelivered task finds its item there); the job hash's
-# count is what a poll reads without touching the set; so is the count of its verdict (ARGV[2]).
+# count is what a poll reads without touching the set; so are the count of its verdict (ARGV[2])
+# and of the failed items (ARGV[3] '1': this item failed).
 _ITEM_DONE = """
 if redis.call('SADD', KEYS[2], ARGV[1]) == 1 then
   redis.call('HINCRBY', KEYS[1], 'items_done', 1)
   if ARGV[2] ~= '' then redis.call('HINCRBY', KEYS[1], 'verdict:' .. ARGV[2], 1) end
+  if ARGV[3] == '1' then redis.call('HINCRBY', KEYS[1], 'items_failed', 1) end
 end
 return redis.call('SCARD', KEYS[2])
 """
@@ -249,8 +257,8 @@ class JobStore(UploadRecords):
         return State(value) if value else None
 
     def ended_before(self, when: float, limit: int = 200) -> builtins.list[str]:
-        """Ids of up to `limit` ended jobs (succeeded, failed, cancelled) submitted before
-        `when` (s since the epoch), oldest first."""
+        """Ids of up to `limit` final jobs (succeeded, completed_with_failures, failed,
+        cancelled) submitted before `when` (s since the epoch), oldest first."""
         top = f"({when * 1e6!r}"
         ids: builtins.list[str] = []
         for state in FINAL_STATES:
@@ -323,11 +331,12 @@ class JobStore(UploadRecords):
         return bool(self._tile_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:tiles:{item}"],
                                     args=[tile, total, planned]))
 
-    def item_done(self, job_id: str, item: int, verdict: str | None = None) -> int:
+    def item_done(self, job_id: str, item: int, verdict: str | None = None, *, failed: bool = False) -> int:
         """Mark an item finished (once), counting its `verdict` (pass, fail, uncertain) if it
-        has one; returns how many items of the job are finished."""
+        has one, and it among the failed items if it `failed`; returns how many items of the
+        job are finished."""
         return int(self._item_done(keys=[f"{_P}job:{job_id}", f"{_P}job:{job_id}:done"],
-                                   args=[item, verdict or ""]))
+                                   args=[item, verdict or "", "1" if failed else "0"]))
 
     # -- video frames -----------------------------------------------------------------------
     def claim_frames(self, job_id: str, item: int, count: int) -> int:
@@ -450,6 +459,7 @@ def _job(fields: dict[str, str], indices: range | None = None) -> JobRecord:
             setattr(job, name, datetime.fromisoformat(fields[name]))
     job.error = fields.get("error") or None
     job.items_done = int(fields.get("items_done", 0))
+    job.items_failed = int(fields.get("items_failed", 0))
     job.verdicts = {name.split(":")[1]: int(fields.get(name, 0)) for name in _VERDICT_FIELDS}
     counts = (int(fields.get("units_done", 0)), int(fields.get("units_total", 1)),
               int(fields.get("items_planned", 0)))

@@ -2,8 +2,9 @@
 end, and the watchdog's restart and fail.
 
 A job's items run in a window: `start_job` starts the first `items_in_flight_per_job`, and each
-item that completes starts the next, until the last one ends the job (succeeded if any item
-did, else failed), which writes job.json and sends the webhook. An item has an outcome
+item that completes starts the next, until the last one ends the job (succeeded if every item
+did, failed if none did, completed_with_failures if some did and some failed), which writes
+job.json and sends the webhook. An item has an outcome
 (`succeed_item`, `fail_item`) and is then completed (`complete_item`); `fail_and_complete` is
 the two together, what every step does when its item cannot go on.
 
@@ -29,19 +30,27 @@ import redis
 from billiard.exceptions import SoftTimeLimitExceeded, TimeLimitExceeded
 from botocore.exceptions import ClientError, ConnectionError, HTTPClientError
 from prism_common.queue import TASK_DELIVER_WEBHOOK, TASK_FINISH_ITEM, TASK_PLAN_ITEM, TASK_RUN_JOB
-from prism_common.records import FINAL_STATES, ItemRecord, ItemResult, ItemView, JobRecord, State
+from prism_common.records import (
+    ENDED_STATES,
+    FINAL_STATES,
+    ItemRecord,
+    ItemResult,
+    ItemView,
+    JobRecord,
+    State,
+)
 from prism_common.store import UNITS_PER_ITEM_ESTIMATE
 
 from .artifacts import job_key
 from .context import WorkerContext
 
-__all__ = ["complete_if_ended", "complete_item", "count_plan", "fail_and_complete", "fail_item",
-           "fail_job", "failure_reason", "job_failed", "mark_running", "open_item", "restart_job",
-           "start_items", "start_job", "succeed_item"]
+__all__ = ["complete_if_ended", "complete_item", "count_plan", "ended_state", "fail_and_complete",
+           "fail_item", "fail_job", "failure_reason", "job_failed", "mark_running", "open_item",
+           "restart_job", "start_items", "start_job", "succeed_item"]
 
 log = logging.getLogger(__name__)
 
-_DECIDED = (State.succeeded, State.failed)
+_DECIDED = (State.succeeded, State.failed)  # an item's outcome
 
 
 # -- jobs ---------------------------------------------------------------------------------------
@@ -77,15 +86,27 @@ def job_failed(ctx: WorkerContext, job_id: str, reason: str) -> None:
             ctx.send_task(TASK_DELIVER_WEBHOOK, (job_id,))
 
 
+def ended_state(job: JobRecord) -> tuple[State, str | None]:
+    """The state a job whose items are all done ends in, and its error: succeeded when every
+    item succeeded, failed when none did, completed_with_failures (naming how many failed) when
+    some did and some did not."""
+    n = len(job.items)
+    ok = sum(item.state == State.succeeded for item in job.items)
+    if ok == 0:
+        return State.failed, "all items failed"
+    if ok == n:
+        return State.succeeded, None
+    return State.completed_with_failures, f"{n - ok} of {n} items failed"
+
+
 def _end_job(ctx: WorkerContext, job: JobRecord, *, maybe_repeat: bool) -> None:
-    """Every item is done: the job succeeds if any item did, else fails; then job.json, webhook."""
-    ok = any(item.state == State.succeeded for item in job.items)
-    moved = ctx.store.transition(job.id, State.succeeded if ok else State.failed,
-                                 error=None if ok else "all items failed")
+    """Every item is done: the job ends as `ended_state` says; then job.json, webhook."""
+    state, error = ended_state(job)
+    moved = ctx.store.transition(job.id, state, error=error)
     if not (moved or maybe_repeat):
         return  # the job had already ended: whoever ended it wrote job.json
     final = ctx.store.get(job.id)
-    if final is None or final.state not in _DECIDED:
+    if final is None or final.state not in ENDED_STATES:
         return  # cancelled at the last moment
     _write_job_document(ctx, final)
     if final.webhook_url:
@@ -113,7 +134,7 @@ def open_item(ctx: WorkerContext, job_id: str, item: int, *, repeat: bool) -> It
 
 def complete_if_ended(ctx: WorkerContext, view: ItemView | None, *, repeat: bool) -> None:
     """See `open_item`: a repeat about an ended job completes its item again."""
-    if view is not None and repeat and view.state in _DECIDED:
+    if view is not None and repeat and view.state in ENDED_STATES:
         complete_item(ctx, view.job_id, view.item.index, maybe_repeat=True)
 
 
@@ -158,7 +179,8 @@ def complete_item(ctx: WorkerContext, job_id: str, item: int, *, maybe_repeat: b
     first = store.tile_done(job_id, item, "complete")
     view = store.get_item(job_id, item)
     quality = view.item.result.quality if view is not None and view.item.result else None
-    done = store.item_done(job_id, item, verdict=(quality or {}).get("verdict"))
+    done = store.item_done(job_id, item, verdict=(quality or {}).get("verdict"),
+                           failed=view is not None and view.item.state == State.failed)
     if view is None or view.state == State.cancelled:
         return
     if view.state == State.running and (first or maybe_repeat):

@@ -23,7 +23,7 @@ from datetime import UTC, datetime
 import httpx
 from prism_common.outbound import check_webhook_url
 from prism_common.public import JobPublic, to_public
-from prism_common.records import JobRecord, State
+from prism_common.records import ENDED_STATES, JobRecord
 from prism_common.webhook_secret import signing_key
 from standardwebhooks import Webhook
 
@@ -70,7 +70,7 @@ def deliver(ctx: WorkerContext, job_id: str) -> None:
         Not delivered this time.
     """
     job = ctx.store.get(job_id)
-    if job is None or not job.webhook_url or job.state not in (State.succeeded, State.failed):
+    if job is None or not job.webhook_url or job.state not in ENDED_STATES:
         return
     settings = ctx.settings
     target = pinned(check_webhook_url(job.webhook_url, settings, resolve=True))

@@ -104,7 +104,8 @@ def one_line_error(err: str) -> bool:
     return err.count("\n") == 1 and err.startswith("prism: error: ") and "Traceback" not in err
 
 
-@pytest.mark.parametrize(("final", "code"), [("succeeded", 0), ("failed", 1), ("cancelled", 1)])
+@pytest.mark.parametrize(("final", "code"), [("succeeded", 0), ("completed_with_failures", 1), ("failed", 1),
+                                             ("cancelled", 1)])
 def test_submit_wait_exits_as_the_job_ended(api, capsys, final: str, code: int):
     api(["queued", "running", final])
     got, out, _ = run(capsys, "submit", "samples/box.jpg", "--points", POINTS, "--width-mm", "120",
@@ -113,7 +114,8 @@ def test_submit_wait_exits_as_the_job_ended(api, capsys, final: str, code: int):
     assert f"job j1: {final}" in out
 
 
-@pytest.mark.parametrize(("final", "code"), [("succeeded", 0), ("failed", 1), ("cancelled", 1)])
+@pytest.mark.parametrize(("final", "code"), [("succeeded", 0), ("completed_with_failures", 1), ("failed", 1),
+                                             ("cancelled", 1)])
 def test_wait_exits_as_the_job_ended(api, capsys, final: str, code: int):
     api(["running", final])
     assert run(capsys, "wait", "j1", *KEY)[0] == code

@@ -22,7 +22,7 @@ from .conftest import API_KEYS, WEBHOOK_SECRET
 from .servers import S3_KEY_ID, S3_SECRET, service_env
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
-FINAL = ("succeeded", "failed", "cancelled")
+FINAL = ("succeeded", "completed_with_failures", "failed", "cancelled")
 BUCKET = "faults"
 
 

@@ -471,7 +471,7 @@ def test_cancel(client, store):
     assert store.state(job_id) == State.cancelled
 
 
-@pytest.mark.parametrize("final", [State.succeeded, State.failed])
+@pytest.mark.parametrize("final", [State.succeeded, State.completed_with_failures, State.failed])
 def test_cancel_after_the_end_conflicts(client, store, final):
     job_id = submit(client, [item(upload(client))]).json()["id"]
     store.transition(job_id, State.running)

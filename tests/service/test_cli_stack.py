@@ -1,7 +1,8 @@
 """The `prism` service commands as a user runs them (the installed command, in a subprocess)
 against the real stack: the API under uvicorn, a Celery worker, redis-server and SeaweedFS.
 
-Exit codes: 0 the command succeeded, 1 the job waited for failed or was cancelled, 2 bad input
+Exit codes: 0 the command succeeded, 1 the job waited for failed, was cancelled or completed
+with failures (some item failed), 2 bad input
 or a request the API refused (one line on stderr). What `--wait` prints: each dimension ± its
 sigma, and every warning of the result on the lines after it. `--spec` sends the job file whole
 (its client_reference and webhook_url reach the API, and the webhook is delivered).
@@ -114,6 +115,41 @@ def test_a_failed_job_exits_1_and_so_does_waiting_for_it(api, tmp_path: Path):
     assert f"job {job_id}: failed" in run.stdout and "error:" in run.stdout, run.stdout
     assert prism(api, "wait", job_id).returncode == 1
     assert prism(api, "status", job_id).returncode == 0  # telling a failed job's state succeeded
+
+
+def test_a_job_with_one_failed_item_is_not_succeeded_and_exits_1(api, receiver: Receiver, tmp_path: Path):
+    # Issue 37: five items, item 3 a PNG whose pixel data is corrupt (stored, its item fails):
+    # the job read `succeeded 100% (5 of 5 items)` and `--wait` exited 0.
+    (tmp_path / "box.jpg").symlink_to(SAMPLE)
+    photo = cv2.imencode(".png", cv2.imread(str(SAMPLE)))[1].tobytes()
+    (tmp_path / "bad.png").write_bytes(photo[:200] + bytes(b ^ 0x5A for b in photo[200:400]) + photo[400:])
+    points = [[int(v) for v in p.split(",")] for p in SEVEN.split()]
+    items = [{"image": "bad.png" if i == 3 else "box.jpg", "points": points,
+              "scale": {"kind": "edge", "edge": "width", "length_mm": 120}} for i in range(5)]
+    spec = tmp_path / "job.json"
+    spec.write_text(json.dumps({"items": items, "client_reference": "partial", "webhook_url": receiver.url}))
+    run = prism(api, "submit", "--spec", str(spec), "--wait")
+    assert run.returncode == 1, run.stdout + run.stderr
+    job_id = run.stdout.split()[0]
+    assert (f"job {job_id}: completed_with_failures 100% (5 of 5 items, 1 failed)" in run.stdout
+            and "error: 1 of 5 items failed" in run.stdout), run.stdout
+    assert prism(api, "wait", job_id).returncode == 1
+    status = json.loads(prism(api, "status", job_id, "--json").stdout)
+    assert (status["state"], status["items_done"], status["items_failed"]) == \
+        ("completed_with_failures", 5, 1)
+    assert [item["state"] for item in status["items"]] == ["succeeded"] * 3 + ["failed", "succeeded"]
+    listed = prism(api, "jobs", "--state", "completed_with_failures", "--json")
+    assert listed.returncode == 0 and job_id in listed.stdout, listed.stdout + listed.stderr
+    deadline = time.monotonic() + 60
+    while not receiver.bodies:
+        assert time.monotonic() < deadline, "the webhook was not delivered"
+        time.sleep(0.2)
+    body = receiver.bodies[0]
+    assert (body["id"], body["state"], body["items_failed"]) == (job_id, "completed_with_failures", 1)
+    # Every item measured is still succeeded, and waiting for it exits 0.
+    spec.write_text(json.dumps({"items": items[:2]}))
+    run = prism(api, "submit", "--spec", str(spec), "--wait")
+    assert run.returncode == 0 and ": succeeded 100% (2 of 2 items)" in run.stdout, run.stdout + run.stderr
 
 
 def test_a_cancelled_job_exits_1_when_waited_for(api):

@@ -50,7 +50,7 @@ class Stack:
         job_id = r.json()["id"]
         for _ in range(int(timeout / 0.25)):
             job = self.http.get(f"/v1/jobs/{job_id}").json()
-            if job["state"] in ("succeeded", "failed", "cancelled"):
+            if job["state"] in ("succeeded", "completed_with_failures", "failed", "cancelled"):
                 return job
             time.sleep(0.25)
         raise AssertionError(f"job {job_id} not final: {job}")

@@ -84,7 +84,7 @@ def test_views_of_one_box_are_measured_as_one_box(env: Env, scenes: list[PhotoLi
         _item([refs[0], env.upload(b"GIF89a not a photo", name="bad.gif"), refs[2]], clicks, scenes[0]),
     ]
     job = env.wait(env.submit(specs), timeout=300)
-    assert job.state == State.succeeded, job
+    assert job.state == State.completed_with_failures, job
     good, wrong, sizes, unreadable = job.items
     box = scenes[0].box
 

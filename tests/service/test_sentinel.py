@@ -178,7 +178,7 @@ def test_primary_killed_with_jobs_in_flight_sentinel_promotes_and_nothing_is_los
     lost = sum(s != "succeeded" for s in states)
     client = stack.redis_client()
     stored = set()
-    for state in ("queued", "running", "succeeded", "failed", "cancelled"):
+    for state in ("queued", "running", "succeeded", "completed_with_failures", "failed", "cancelled"):
         stored |= set(client.zrange(f"prism:state:{state}", 0, -1))
     duplicated = len(stored - set(accepted.values()))
     counted_twice = [j for j in accepted.values()

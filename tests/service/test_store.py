@@ -28,7 +28,9 @@ def test_create_get_round_trip(store):
 @pytest.mark.parametrize(
     ("path", "final"),
     [(["running", "succeeded"], "succeeded"), (["running", "queued"], "running"),
-     (["cancelled", "running", "succeeded"], "cancelled"), (["failed", "succeeded"], "failed")],
+     (["cancelled", "running", "succeeded"], "cancelled"), (["failed", "succeeded"], "failed"),
+     (["running", "completed_with_failures", "succeeded", "failed"], "completed_with_failures"),
+     (["running", "succeeded", "completed_with_failures"], "succeeded")],
 )
 def test_state_never_goes_backwards(store, path, final):
     job, _ = store.create(_job())

@@ -148,7 +148,7 @@ class Stack:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             job = self.http.get(f"/v1/jobs/{job_id}", headers=ACME).json()
-            if job["state"] in ("succeeded", "failed", "cancelled"):
+            if job["state"] in ("succeeded", "completed_with_failures", "failed", "cancelled"):
                 return job
             time.sleep(0.25)
         raise AssertionError(f"job {job_id} not final after {timeout} s\n{self.worker.log[-3000:]}")

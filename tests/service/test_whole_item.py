@@ -54,7 +54,8 @@ def test_batch_items_are_scanned_whole_and_match_the_engine(env, scenes):
              spec_for(env.upload(b"GIF89a not a photo", name="bad.gif"), scenes[0]),
              spec_for(env.upload(photos[1]), scenes[1])]
     job = env.wait(env.submit(specs))
-    assert job.state == State.succeeded and job.progress == 100, job
+    assert job.state == State.completed_with_failures and job.progress == 100, job
+    assert (job.items_failed, job.error) == (1, "1 of 3 items failed")
     assert [item.state for item in job.items] == [State.succeeded, State.failed, State.succeeded]
     assert job.items[1].error == "'bad.gif' is a GIF image; supported formats are BMP, PNG, JPEG, TIFF, WebP"
     total, done = env.units(job.id)

@@ -62,7 +62,7 @@ class Stack:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             job = self.http.get(f"/v1/jobs/{job_id}").json()
-            if job["state"] in ("succeeded", "failed", "cancelled"):
+            if job["state"] in ("succeeded", "completed_with_failures", "failed", "cancelled"):
                 return dict(job)
             time.sleep(0.25)
         raise AssertionError(f"job {job_id} not final: {job}")
@@ -116,7 +116,7 @@ def _length(scene: ClutterScene, which: dict[str, int], a: str, b: str) -> float
 
 def test_found_points_are_measured_and_a_photo_without_a_box_fails_with_the_reason(batch, scenes):
     job, _ = batch
-    assert job["state"] == "succeeded", job
+    assert job["state"] == "completed_with_failures" and job["items_failed"] == 1, job
     assert [i["state"] for i in job["items"]] == ["succeeded", "succeeded", "failed"], job
     for item, seed in zip(job["items"], SEEDS, strict=False):
         result, scene = item["result"], scenes[seed]

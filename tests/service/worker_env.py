@@ -19,7 +19,7 @@ import redis
 from celery import Celery
 from prism_common.metrics import read_task_durations
 from prism_common.queue import TASK_RUN_JOB, WORKER_QUEUES, make_celery
-from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.records import FINAL_STATES, ItemRecord, JobRecord
 from prism_common.settings import Settings
 from prism_common.storage import ObjectStore, object_key
 from prism_common.store import JobStore
@@ -66,7 +66,7 @@ class Env:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             job = self.store.get(job_id)
-            if job is not None and job.state in (State.succeeded, State.failed, State.cancelled):
+            if job is not None and job.state in FINAL_STATES:
                 # The job ends, then job.json is written (lifecycle: state first, manifest
                 # after): give the manifest a moment so that the tests listing a job's keys
                 # do not race it (a full run at idle once listed them in between).

@@ -60,7 +60,7 @@ def batch(stack) -> dict:
         assert job.status_code in (200, 201, 202), job.text
         job_id = job.json()["id"]
         deadline = time.monotonic() + 240
-        while (job := http.get(f"/v1/jobs/{job_id}").json())["state"] not in ("succeeded", "failed"):
+        while (job := http.get(f"/v1/jobs/{job_id}").json())["state"] in ("queued", "running"):
             assert time.monotonic() < deadline, job["state"]
             time.sleep(0.5)
         table = http.get(f"/v1/jobs/{job_id}/results.json").json()

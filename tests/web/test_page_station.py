@@ -148,8 +148,9 @@ def test_a_station_and_a_folder_of_photos_measured_in_one_job(page, station_json
     assert [set(i) for i in body["items"]] == [{"image", "station"}] * len(PARTS), body
     assert {i["station"] for i in body["items"]} == {station_id}
 
-    expect(page.locator("#job-state")).to_contain_text("Done.", timeout=300_000)
-    expect(page.locator("#job-state")).to_contain_text(f"2 of {len(PARTS)} scans failed")
+    expect(page.locator("#job-state")).to_contain_text("Done, with failures:", timeout=300_000)
+    expect(page.locator("#job-state")).to_contain_text(
+        f"2 of {len(PARTS)} scans failed, the others were measured.")
     expect(page.locator("#results-table tbody tr")).to_have_count(len(PARTS))
     rows = {r["input"]: r for r in _rows(page)}
     assert set(rows) == {f"batch/{name}" for name in PARTS}, rows
@@ -295,15 +296,17 @@ def test_a_large_batch_is_polled_without_its_items(page, station_json, folder):
     n = 60
 
     def job(state: str, progress: int, items: bool) -> dict:
-        done = n if state == "succeeded" else n // 2
-        return {"id": job_id, "state": state, "progress": progress, "items_done": done, "item_count": n,
+        done = n if state == "failed" else n // 2
+        return {"id": job_id, "state": state, "progress": progress, "items_done": done,
+                "items_failed": done, "item_count": n,
                 "created_at": "2026-01-01T00:00:00Z", "started_at": "2026-01-01T00:00:01Z",
-                "finished_at": None, "client_reference": "station", "error": None,
+                "finished_at": None, "client_reference": "station",
+                "error": "all items failed" if state == "failed" else None,
                 "items": [{"index": i, "state": "failed", "error": "no part found on the support",
                            "result": None, "downloads": {}, "frames": []} for i in range(n)] if items else []}
 
     asked: list[str] = []
-    polls = iter([job("running", 50, False), job("succeeded", 100, False)])
+    polls = iter([job("running", 50, False), job("failed", 100, False)])
 
     def answer(route) -> None:
         url = route.request.url
@@ -311,21 +314,22 @@ def test_a_large_batch_is_polled_without_its_items(page, station_json, folder):
         if route.request.method == "POST":
             body = job("queued", 0, True)
         elif url.endswith("/results.json"):
-            body = {"job_id": job_id, "client_reference": "station", "state": "succeeded",
+            body = {"job_id": job_id, "client_reference": "station", "state": "failed",
                     "verdicts": {"pass": 0, "fail": 0, "uncertain": 0}, "columns": [],
                     "rows": [{"item": i, "frame": None, "input": f"upload:{i}", "state": "failed",
                               "error": "no part found on the support", "verdict": None} for i in range(n)]}
         elif "item_limit=0" in url:
             body = next(polls)
         else:
-            body = job("succeeded", 100, True)
+            body = job("failed", 100, True)
         route.fulfill(status=202 if route.request.method == "POST" else 200, json=body)
 
     page.route(re.compile(r"/v1/jobs(/f{32}(\?item_limit=0|/results\.json)?)?$"), answer)
     page.locator("#station-files").set_input_files(str(root / "part-1.jpg"))
     expect(page.locator("#station-photos-summary")).to_contain_text("1 photo · all uploaded")
     page.get_by_role("button", name=re.compile(r"^Measure 1 photo on ")).click()
-    expect(page.locator("#job-state")).to_contain_text(f"{n} of {n} scans failed")
+    expect(page.locator("#job-state")).to_contain_text(f"Failed. {n} of {n} scans failed.")
+    expect(page.locator("#job-state")).not_to_contain_text("items")
     expect(page.locator("#table-count")).to_contain_text(f"{n} of {n} rows shown")
     polled = [u for u in asked if f"/v1/jobs/{job_id}" in u and not u.endswith("results.json")]
     assert [u.endswith("?item_limit=0") for u in polled] == [True, True, False], asked

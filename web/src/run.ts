@@ -11,7 +11,7 @@ const POLL_MS = 600;
 const LIGHT_POLL_ITEMS = 50;
 const WORDS: Record<string, string> = {
   queued: "Queued: waiting for a worker.", running: "Running.", succeeded: "Done.",
-  failed: "Failed.", cancelled: "Cancelled.",
+  completed_with_failures: "Done, with failures:", failed: "Failed.", cancelled: "Cancelled.",
 };
 
 export class Runner {
@@ -104,14 +104,20 @@ export class Runner {
     $("job-percent").textContent = parts.join(" · ");
     if (changed) {
       // The status region is read out: only when the state changes, not at every percent.
-      const failed = job.items.filter((i) => i.state === "failed").length;
       const cancelled = job.items.filter((i) => i.state === "cancelled").length;
-      let extra = job.state === "succeeded" && failed ? ` ${failed} of ${job.items.length} scans failed.` : "";
+      let extra = "";
+      let error = job.error;
+      if ((job.state === "completed_with_failures" || job.state === "failed") && job.items_failed) {
+        // Said in scans, as the page shows them; the job's own error counting items is left out.
+        extra = ` ${job.items_failed} of ${job.item_count} scans failed` +
+          (job.state === "failed" ? "." : ", the others were measured.");
+        if (error && /^(all items failed|\d+ of \d+ items failed)$/.test(error)) error = null;
+      }
       if (job.state === "cancelled") {
         extra = ` ${job.items_done} of ${job.item_count} scans had finished; ${cancelled} were not run.`;
       }
       $("job-state").textContent = `Job ${job.id.slice(0, 8)}: ${WORDS[job.state]}${extra}` +
-        (job.error ? ` ${job.error.charAt(0).toUpperCase()}${job.error.slice(1)}.` : "");
+        (error ? ` ${error.charAt(0).toUpperCase()}${error.slice(1)}.` : "");
     }
     $("cancel").hidden = FINAL.includes(job.state);
     if (FINAL.includes(job.state)) return this.onFinished(job);

@@ -1,7 +1,8 @@
 // The API's shapes (prism_api.schemas) and the scan spec's (prismcore.spec.ScanSpec), as used here.
 
-export type State = "queued" | "running" | "succeeded" | "failed" | "cancelled";
-export const FINAL: readonly State[] = ["succeeded", "failed", "cancelled"];
+/** A job's state; an item's or a frame's is one of these but completed_with_failures. */
+export type State = "queued" | "running" | "succeeded" | "completed_with_failures" | "failed" | "cancelled";
+export const FINAL: readonly State[] = ["succeeded", "completed_with_failures", "failed", "cancelled"];
 
 export interface Upload {
   id: string;
@@ -147,6 +148,8 @@ export interface Job {
   progress: number;
   /** Items finished (succeeded or failed) so far, of item_count. */
   items_done: number;
+  /** Of items_done, the items that failed (never 0 in a completed_with_failures job). */
+  items_failed: number;
   created_at: string;
   started_at: string | null;
   finished_at: string | null;

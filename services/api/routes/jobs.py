@@ -19,7 +19,7 @@ from fastapi.exceptions import RequestValidationError
 from kombu.exceptions import OperationalError
 from prism_common import public
 from prism_common.queue import TASK_RUN_JOB
-from prism_common.records import ItemRecord, JobRecord, State
+from prism_common.records import ENDED_STATES, ItemRecord, JobRecord, State
 from prism_common.stations import get_summary
 from prism_common.store import IdempotencyConflictError, JobStore
 
@@ -174,6 +174,6 @@ def cancel_job(job_id: str, tenant: TenantDep, store: StoreDep, presigner: Presi
     own_job(store, job_id, tenant)
     if not store.transition(job_id, State.cancelled):
         state = store.state(job_id)
-        if state in (State.succeeded, State.failed):
+        if state in ENDED_STATES:
             raise HTTPException(status.HTTP_409_CONFLICT, f"job is already {state.value}")
     return to_public(own_job(store, job_id, tenant), presigner)
