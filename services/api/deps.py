@@ -125,9 +125,12 @@ def get_tenant(settings: SettingsDep, request: Request,
     """The tenant whose key came in the X-API-Key header; 401 otherwise.
 
     A refused key takes a token from its address's refused-key budget; with the budget spent,
-    the address gets 429 whatever key it sends, so keys cannot be tried at speed (a right one
-    would otherwise pass among the wrong). A right key only looks at the budget, and a call with
-    no key at all cannot be a guess: neither costs anything.
+    the address's refused keys get 429 instead of 401. A right key never touches the budget and
+    is never locked out by it (issue 37: one bad client behind a NAT or proxy locked out everyone
+    behind it): it answers to the per-key rate limit alone. A call with no key at all cannot be
+    a guess and costs nothing. The budget bounds what refused keys cost the service; it cannot
+    stop a guesser telling a right key (200) from the refused ones (429) without locking valid
+    keys out again, so keys must be long random tokens (`prism serve` makes 192-bit ones).
     """
     given = (api_key or "").encode()
     if not given:
@@ -138,16 +141,15 @@ def get_tenant(settings: SettingsDep, request: Request,
     for name, key in settings.api_keys.items():
         if hmac.compare_digest(given, key.get_secret_value().encode()):
             tenant = name
-    address = client_address(request)
-    # One atomic step either way: a refused key is counted only if the budget has room for it,
-    # so guesses sent at once cannot overdraw it.
-    wait = failures.wait_s(address, count=tenant is None)
+    if tenant is not None:
+        return tenant
+    # One atomic step: a refused key is counted only if the budget has room for it, so guesses
+    # sent at once cannot overdraw it.
+    wait = failures.wait_s(client_address(request))
     if wait > 0:
         raise _too_many(f"too many refused API keys from this address (limit "
                         f"{failures.per_minute} a minute)", failures, wait)
-    if tenant is None:
-        raise _unauthorized()
-    return tenant
+    raise _unauthorized()
 
 
 def _unauthorized() -> HTTPException:

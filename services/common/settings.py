@@ -134,8 +134,9 @@ class Settings(BaseSettings):
     # Per API key, over every /v1 call, shared by all API processes through Redis (0: no limit).
     # Bursts of up to this many calls pass; past it, calls are let through at this rate.
     rate_limit_per_minute: int = 3000
-    # Per client address: past this many refused keys (bursts of as many), every call from the
-    # address answers 429 until its budget refills, so keys cannot be guessed at speed (0: off).
+    # Per client address: past this many refused keys (bursts of as many), every further refused
+    # key from the address answers 429 until its budget refills (0: off); a valid key is never
+    # locked out by it, so one bad client does not lock out everyone behind its NAT or proxy.
     # Behind a proxy, run uvicorn with --proxy-headers and --forwarded-allow-ips for the address.
     auth_failures_per_minute: int = 30
 

@@ -158,15 +158,40 @@ def test_an_address_guessing_keys_is_locked_out_for_a_while(apps, settings):
     guesses = [c.get("/v1/jobs", headers={"X-API-Key": f"guess-{i}"}).status_code
                for i, c in enumerate((one, two, one))]
     assert guesses == [401, 401, 401]
-    for client, headers in ((one, {"X-API-Key": "guess-4"}), (two, ACME)):
-        r = client.get("/v1/jobs", headers=headers)  # the right key too: else a guess that is
-        assert r.status_code == 429, r.text         # right would pass among the refused ones
+    for client, key in ((one, "guess-4"), (two, "guess-5")):
+        r = client.get("/v1/jobs", headers={"X-API-Key": key})
+        assert r.status_code == 429, r.text
         assert "too many refused API keys from this address (limit 3 a minute)" in r.json()["detail"]
         assert 1 <= int(r.headers["Retry-After"]) <= 20  # one refused key every 20 s refills
     # Another address is not affected.
     other = apps(_address(), auth_failures_per_minute=3)
     assert other.get("/v1/jobs", headers=ACME).status_code == 200
     assert other.get("/v1/jobs", headers={"X-API-Key": "guess"}).status_code == 401
+
+
+def test_valid_keys_from_a_locked_out_address_are_never_refused(apps, settings):
+    """Issue 37: after 30 refused keys a minute from one address, the valid keys of everyone
+    behind that address (one NAT, one proxy) got 429 too. With the defaults, 30 a minute."""
+    address = _address()
+    tenant, headers = _tenant()
+    keys = {**settings.api_keys, tenant: SecretStr(headers["X-API-Key"])}
+    default = type(settings).model_fields["auth_failures_per_minute"].default
+    assert default == 30  # the tests' settings raise it; the issue's case is the default
+    one, two = (apps(address, api_keys=keys, auth_failures_per_minute=default) for _ in range(2))
+    codes = [(one, two)[i % 2].get("/v1/jobs", headers={"X-API-Key": f"bad-{i}"}).status_code
+             for i in range(40)]
+    assert codes[:30] == [401] * 30 and set(codes[30:]) == {429}, codes  # locked out
+    for client in (one, two):  # acme's key, another tenant's, on every route kind, many times
+        assert [client.get("/v1/jobs", headers=ACME).status_code for _ in range(20)] == [200] * 20
+        assert client.get("/v1/jobs", headers=headers).status_code == 200
+        assert client.post("/v1/uploads", files={"file": ("a.png", photo())},
+                           headers=ACME).status_code in (200, 201)
+        # Refused keys stay locked out meanwhile, and no key at all is a plain 401.
+        assert client.get("/v1/jobs", headers={"X-API-Key": "bad-again"}).status_code == 429
+        assert client.get("/v1/jobs").status_code == 401
+    # The per-key rate limit still holds for a valid key (its own budget, not the address's).
+    limited = apps(address, rate_limit_per_minute=2, api_keys=keys)
+    assert [limited.get("/v1/jobs", headers=headers).status_code for _ in range(3)][-1] == 429
 
 
 def test_a_locked_out_address_gets_its_budget_back_at_the_set_rate(apps, settings):
@@ -201,4 +226,5 @@ def test_the_budget_is_per_ipv4_address_and_per_ipv6_64(apps, settings, kind, sh
     first, second = _pair(kind)
     a, b = apps(first, auth_failures_per_minute=2), apps(second, auth_failures_per_minute=2)
     assert [a.get("/v1/jobs", headers={"X-API-Key": "g"}).status_code for _ in range(2)] == [401, 401]
-    assert b.get("/v1/jobs", headers=ACME).status_code == (429 if shared else 200)
+    assert b.get("/v1/jobs", headers={"X-API-Key": "g"}).status_code == (429 if shared else 401)
+    assert b.get("/v1/jobs", headers=ACME).status_code == 200  # a valid key is never locked out
