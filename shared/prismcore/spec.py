@@ -30,6 +30,7 @@ from prismcore.spec_fields import (
     JOINT_MAX_PIXELS,
     JOINT_MAX_VIEWS,
     JOINT_NAME,
+    METRIC_FORMATS,
     SUMMARY_NAME,
     TRACKED_NAME,
     AutoPoints,
@@ -47,6 +48,7 @@ from prismcore.spec_fields import (
     _Strict,
     error_message,
     frame_folder,
+    output_files,
     parse_points,
     search_area_problem,
 )
@@ -57,6 +59,7 @@ __all__ = [
     "JOINT_MAX_PIXELS",
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
+    "METRIC_FORMATS",
     "SUMMARY_NAME",
     "TRACKED_NAME",
     "AutoPoints",
@@ -73,6 +76,7 @@ __all__ = [
     "ViewSpec",
     "error_message",
     "frame_folder",
+    "output_files",
     "parse_points",
     "search_area_problem",
     "view_spec",
@@ -230,10 +234,12 @@ class ScanSpec(_Strict):
     cloud: Literal["surface", "volume"] = "surface"
     formats: list[OutputFormat] = Field(
         default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1, description="The outputs: the "
-        "cloud as csv, ply, las or laz (compressed LAS), and glb (the fitted box, a textured glTF "
-        "model); las, laz and glb are in mm and need a scale. Not given: the service's default "
-        "(PRISM_DEFAULT_FORMATS: csv and ply unless the operator set others; las, laz and glb "
-        "only for an item with a scale); prism scan and the engine write csv and ply.")
+        "cloud as csv, ply, las or laz (compressed LAS), glb (the fitted box, a textured glTF "
+        "model), step (the part as a STEP solid, part.step, with part.step.json) and drawing (its "
+        "dimensioned drawing: drawing.svg, drawing.pdf, drawing.dxf); las, laz, glb, step and drawing "
+        "are in mm and need a scale. Not given: the service's default (PRISM_DEFAULT_FORMATS: csv "
+        "and ply unless the operator set others; the ones in mm only for an item with a scale); "
+        "prism scan and the engine write csv and ply.")
     spacing_mm: PositiveMm | None = Field(
         default=None, description="Thin the cloud so neighbouring points are about this far apart, "
         "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")
@@ -349,7 +355,7 @@ class ScanSpec(_Strict):
             raise ValueError(f"{given} needs {missing}: give both (the nominal size and the "
                              "allowed deviation from it)")
         metric = [f"{n}" for n in ("nominal", "spacing_mm") if getattr(self, n) is not None]
-        metric += [f"format {f!r}" for f in self.formats if f in ("las", "laz", "glb")]
+        metric += [f"format {f!r}" for f in self.formats if f in METRIC_FORMATS]
         if metric and self.scale is None and self.station is None:
             raise ValueError(f"{metric[0]} is in mm or metres, but without a scale the dimensions "
                              "are in pixels: give a scale (mm_per_px, a pinhole distance or a known edge)")

@@ -29,6 +29,7 @@ __all__ = [
     "JOINT_MAX_PIXELS",
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
+    "METRIC_FORMATS",
     "SUMMARY_NAME",
     "TRACKED_NAME",
     "AutoPoints",
@@ -45,6 +46,7 @@ __all__ = [
     "SideFace",
     "error_message",
     "frame_folder",
+    "output_files",
     "parse_points",
     "search_area_problem",
 ]
@@ -57,7 +59,8 @@ pixel centre."""
 FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
               "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
               "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json",
-              "tracked_points": "tracked_points.json"}
+              "tracked_points": "tracked_points.json", "step": "part.step", "step_meta": "part.step.json",
+              "drawing_svg": "drawing.svg", "drawing_pdf": "drawing.pdf", "drawing_dxf": "drawing.dxf"}
 """The file name of each output kind, the same in the CLI's folders and the service's keys
 (here, not in writers, so the API can use it without loading numpy)."""
 
@@ -86,11 +89,25 @@ def frame_folder(index: int) -> str:
     return f"frame_{index:06d}"
 
 
-OutputFormat = Literal["csv", "ply", "las", "laz", "glb"]
+OutputFormat = Literal["csv", "ply", "las", "laz", "glb", "step", "drawing"]
 
-FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb")
+FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb", "step", "drawing")
 """The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
-and the fitted box as a textured binary glTF model (glb)."""
+the fitted box as a textured binary glTF model (glb), the part as a STEP solid (step: part.step
+and its sidecar part.step.json) and its dimensioned drawing (drawing: drawing.svg, drawing.pdf
+and drawing.dxf)."""
+
+METRIC_FORMATS: tuple[OutputFormat, ...] = ("las", "laz", "glb", "step", "drawing")
+"""The formats in millimetres (or metres): a scan without a scale, in pixels, cannot have them."""
+
+_FORMAT_FILES: dict[str, tuple[str, ...]] = {"step": ("step", "step_meta"),
+                                             "drawing": ("drawing_svg", "drawing_pdf", "drawing_dxf")}
+
+
+def output_files(formats: list[OutputFormat] | tuple[OutputFormat, ...]) -> list[str]:
+    """The file kinds (`FILE_NAMES`' keys) the formats write, in order: a format writes the file
+    of its own name, except step (the solid and its JSON sidecar) and drawing (SVG, PDF, DXF)."""
+    return [kind for f in formats for kind in _FORMAT_FILES.get(f, (f,))]
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 

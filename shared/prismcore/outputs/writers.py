@@ -22,9 +22,11 @@ never modified.
 from __future__ import annotations
 
 import io
+import json
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
@@ -193,15 +195,19 @@ def write_ply(
 
 def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Cloud, spec: ScanSpec, *,
                  report: Mapping[str, Any] | None = None,
-                 images: Sequence[np.ndarray] | None = None) -> float:
-    """Write `kind` (one of `prismcore.spec.FORMATS`) with the spec's options; returns the ms taken.
+                 images: Sequence[np.ndarray] | None = None, when: datetime | None = None) -> float:
+    """Write `kind` (one of `prismcore.spec.FORMATS`, or of the files a format writes:
+    `prismcore.spec.output_files`) with the spec's options; returns the ms taken.
 
     The one place that maps a spec's output options (CSV header and colours, ASCII PLY) onto
     the writers, for the CLI and the service alike. "csv", "ply", "las" and "laz" write the
     cloud (LAS/LAZ: see `prismcore.outputs.las` for its metres and axes; they need a seekable `dest`);
     "glb" writes the fitted box textured from the photos (`prismcore.outputs.glb`) and needs
     `report` (the scan's report dict) and `images` (the front photo, and the side photo in
-    two-photo mode, as decoded).
+    two-photo mode, as decoded). The part's CAD files need `report` too and are dated `when` (now,
+    UTC, if not given): "step" the STEP solid and "step_meta" its JSON sidecar
+    (`prismcore.outputs.step`), "drawing_svg", "drawing_pdf" and "drawing_dxf" the inspection
+    sheet (`prismcore.outputs.drawing`); a report without a scale (in px) is refused.
     """
     start = time.perf_counter()
     if kind == "csv":
@@ -220,9 +226,36 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
 
         data = box_glb(report, images[0], images[1] if len(images) > 1 else None)
         _emit(dest, iter([data]))
+    elif kind in _CAD_FILES:
+        if report is None:
+            raise InputError(f"the {kind} file needs the scan's report")
+        _emit(dest, iter([_cad_file(kind, report, when or datetime.now(UTC))]))
     else:
         raise InputError(f"unknown output format {kind!r}")
     return (time.perf_counter() - start) * 1000
+
+
+_CAD_FILES = ("step", "step_meta", "drawing_svg", "drawing_pdf", "drawing_dxf")
+
+
+def _cad_file(kind: str, report: Mapping[str, Any], when: datetime) -> bytes:
+    """The bytes of one of the part's CAD files (`_CAD_FILES`)."""
+    from prismcore.outputs.part import part_from_report
+
+    part = part_from_report(report, "the step format" if kind.startswith("step") else "the drawing")
+    if kind == "step":
+        from prismcore.outputs.step import step_bytes
+
+        return step_bytes(part, when)
+    if kind == "step_meta":
+        from prismcore.outputs.step import step_metadata
+
+        return (json.dumps(step_metadata(part), indent=2) + "\n").encode()
+    from prismcore.outputs import drawing_files
+
+    writer = {"drawing_svg": drawing_files.drawing_svg, "drawing_pdf": drawing_files.drawing_pdf,
+              "drawing_dxf": drawing_files.drawing_dxf}[kind]
+    return writer(part, when)
 
 
 def _ply_header(n: int, with_colors: bool, ascii: bool, comment: str | None) -> bytes:
