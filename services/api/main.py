@@ -37,7 +37,8 @@ _RETRY_AFTER = {"Retry-After": {"description": "Seconds to wait before trying ag
                                 "schema": {"type": "integer"}}}
 _V1_RESPONSES: dict[int | str, dict] = {
     400: {"description": "A body that cannot be parsed at all (not JSON, cut multipart)"},
-    401: {"description": "Missing or invalid X-API-Key"},
+    401: {"description": "Missing or invalid X-API-Key. Refused from the headers: a request "
+                          "carrying a body gets `Connection: close` and its body is not read"},
     429: {"description": "Rate limit of this key, or of refused keys from this address, exceeded",
           "headers": _RETRY_AFTER},
     413: {"description": "Body over PRISM_REQUEST_MAX_BYTES (uploads: PRISM_UPLOAD_MAX_BYTES; "

@@ -10,6 +10,7 @@ import base64
 import hashlib
 import json
 import os
+import socket
 import struct
 import time
 import uuid
@@ -269,6 +270,80 @@ def test_upload_over_the_limit_under_uvicorn(settings, objects, tmp_path):
         assert r.status_code == 413, r.text
         assert sent < 500
         assert objects.list_keys("uploads/") == []
+    finally:
+        api.stop()
+
+
+def _refused_before_the_body(port: int, path: str, content_type: str, framing: str, key: str | None
+                             ) -> tuple[int, dict[str, str], int, float]:
+    """Send a request's headers over a real socket, no body: (status, headers) of the answer
+    that comes back before any of the body, the bytes of a 256 MiB body the server then took
+    before it refused more, and the seconds until the server closed the connection."""
+    sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+    try:
+        auth = f"X-API-Key: {key}\r\n" if key is not None else ""
+        sock.sendall(f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: {content_type}\r\n"
+                     f"{framing}\r\n{auth}\r\n".encode())
+        answer = b""
+        while b"\r\n\r\n" not in answer:
+            got = sock.recv(65536)
+            assert got, answer
+            answer += got
+        head, body = answer.split(b"\r\n\r\n", 1)
+        lines = head.decode().split("\r\n")
+        headers = {k.strip().lower(): v.strip() for k, v in (line.split(":", 1) for line in lines[1:])}
+        while len(body) < int(headers["content-length"]):
+            body += sock.recv(65536)
+        started = time.monotonic()
+        sock.settimeout(3)  # under uvicorn's 5 s keep-alive: a connection kept open times out here
+        try:
+            closed = sock.recv(1) == b""
+        except TimeoutError:
+            closed = False
+        closed_s = time.monotonic() - started if closed else float("inf")
+        sent, chunk = 0, b"\x00" * 2**16
+        try:
+            while sent < 256 * 2**20:
+                sock.sendall(chunk)
+                sent += len(chunk)
+        except (BrokenPipeError, ConnectionResetError, TimeoutError):
+            pass
+        return int(lines[0].split()[1]), headers, sent, closed_s
+    finally:
+        sock.close()
+
+
+def test_a_body_sent_without_a_valid_key_is_not_read(settings, objects, tmp_path):
+    """Issue 37: POST /v1/uploads and /v1/stations without a valid key answered 401 but read the
+    body to its end (3 GB tried, ~1 GB/s taken in, the connection left open). Now the 401 comes
+    from the headers, before any of the body is sent, and the connection is closed: the server
+    takes no more than what the sockets' buffers hold of a 256 MiB body."""
+    env = {"PRISM_API_KEYS": json.dumps(API_KEYS), "PRISM_WEBHOOK_SECRET": "s",
+           "PRISM_REDIS_URL": settings.redis_url, "PRISM_S3_ENDPOINT_URL": settings.s3_endpoint_url,
+           "PRISM_S3_BUCKET": settings.s3_bucket,
+           "PRISM_S3_ACCESS_KEY_ID": settings.s3_access_key_id.get_secret_value(),
+           "PRISM_S3_SECRET_ACCESS_KEY": settings.s3_secret_access_key.get_secret_value()}
+    api = start_api(tmp_path / "api", env)
+    multipart = "multipart/form-data; boundary=b0undary"
+    chunked = "Transfer-Encoding: chunked"
+    # Declared sizes under each route's own cap (over it, 413 comes first, unread, as before).
+    try:
+        for path, content_type, framing, key in [
+                ("/v1/uploads", multipart, f"Content-Length: {3 * 2**30}", None),
+                ("/v1/uploads", multipart, chunked, "wrong"),
+                ("/v1/stations", multipart, f"Content-Length: {60 * 2**20}", "wrong"),
+                ("/v1/stations", multipart, chunked, None),
+                ("/v1/stations", "application/json", f"Content-Length: {15 * 2**20}", None)]:
+            case = (path, content_type, framing, key)
+            code, headers, sent, closed_s = _refused_before_the_body(api.port, *case)
+            print(case, code, f"{sent / 2**20:.2f} MiB taken, closed after {closed_s:.3f} s")
+            assert code == 401 and headers.get("connection") == "close", (case, code, headers)
+            assert closed_s < 2, (case, closed_s)  # closed at once, not kept alive
+            assert sent < 2 * 2**20, (case, sent)  # the server stopped reading
+        # A valid key's upload is read as ever.
+        r = httpx.post(f"http://127.0.0.1:{api.port}/v1/uploads", headers=ACME,
+                       files={"file": ("a.png", photo())}, timeout=30)
+        assert r.status_code in (200, 201), r.text
     finally:
         api.stop()
 
