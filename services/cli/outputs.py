@@ -16,22 +16,24 @@ from prismcore.outputs.writers import (
     overlay_name,
     write_format,
 )
+from prismcore.spec import output_files
 
 __all__ = ["report_path", "write_outputs", "write_overlays"]
 
 
 def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path,
                   images: list[np.ndarray] | None = None) -> dict[str, Path]:
-    """Write the formats the spec asks for (the cloud's, and the glb model of the box, which is
-    textured from `images`: the front photo, and the side photo with two, as decoded); returns
-    {kind: path}.
+    """Write the formats the spec asks for (the cloud's, the glb model of the box, which is
+    textured from `images`: the front photo, and the side photo with two, as decoded, and the
+    part's CAD files: step writes part.step and part.step.json, drawing drawing.svg, .pdf and
+    .dxf); returns {kind: path}, a kind per file (`prismcore.spec.output_files`).
 
     The writers' timings go into the report's `timings_ms`; the caller writes the report
     (with `report_path`) once everything it times is done.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
-    for kind in spec.formats:
+    for kind in output_files(spec.formats):
         paths[kind] = out_dir / FILE_NAMES[kind]
         ms = write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=images)
         result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)

@@ -280,8 +280,10 @@ def scan(
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     cloud: Annotated[str, typer.Option(help="surface or volume.")] = "surface",
     formats: Annotated[str, typer.Option(
-        "--format", help="Any of csv,ply,las,laz,glb (las/laz: the cloud in metres, Z up; glb: "
-                         "the box textured from the photo).")] = "csv,ply",
+        "--format", help="Any of csv,ply,las,laz,glb,step,drawing (las/laz: the cloud in metres, Z "
+                         "up; glb: the box textured from the photo; step: the part as a STEP solid, "
+                         "part.step and part.step.json; drawing: its inspection drawing, drawing.svg, "
+                         ".pdf and .dxf; all but csv and ply need a scale).")] = "csv,ply",
     spacing_mm: Annotated[float | None, typer.Option(
         help="Thin the cloud to about this spacing, mm (default: one point per pixel).")] = None,
     nominal: Annotated[str | None, typer.Option(

@@ -47,7 +47,8 @@ def written(tmp_path_factory) -> tuple[dict, dict[str, Path]]:
     paths = {}
     for kind in output_files(spec.formats):
         paths[kind] = out / FILE_NAMES[kind]
-        write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=[SCENE.image], when=WHEN)
+        write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=[SCENE.image],
+                     when=WHEN)
     return result.report, paths
 
 
