@@ -137,8 +137,9 @@ def submit(
     method: Annotated[str, typer.Option()] = "default",
     cloud: Annotated[str, typer.Option()] = "surface",
     formats: Annotated[str | None, typer.Option(
-        "--format", help="Outputs, comma-separated: csv, ply, las, laz, glb (default: the "
-        "service's, PRISM_DEFAULT_FORMATS).")] = None,
+        "--format", help="Outputs, comma-separated: csv, ply, las, laz, glb, step (the part as a "
+        "STEP solid), drawing (its inspection drawing: SVG, PDF, DXF) (default: the service's, "
+        "PRISM_DEFAULT_FORMATS).")] = None,
     nominal: Annotated[str | None, typer.Option(help="Nominal W,H,D in mm: verdicts per dimension.")] = None,
     tolerance_mm: Annotated[str | None, typer.Option(help="T or Tw,Th,Td, mm (with --nominal).")] = None,
     spacing_mm: Annotated[float | None, typer.Option(help="Thin the cloud to this spacing, mm.")] = None,

@@ -144,7 +144,9 @@ class ItemPublic(BaseModel):
     downloads: dict[str, str] = Field(
         default_factory=dict,
         description="Presigned GET URLs of the outputs: csv, ply, report, and preview (the cloud "
-                    "decimated to at most 100,000 points, binary PLY, for display); for a "
+                    "decimated to at most 100,000 points, binary PLY, for display), and those of "
+                    "the formats asked for (las, laz, glb; step: step (part.step) and step_meta "
+                    "(part.step.json); drawing: drawing_svg, drawing_pdf, drawing_dxf); for a "
                     "video, summary (summary.json) here and each frame's files under frames; "
                     "for a joint fit, joint (joint.json: the fit's report) only.")
     frames: list[FramePublic] = Field(default_factory=list, description="A video's frames.")

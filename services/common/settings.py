@@ -101,7 +101,8 @@ class Settings(BaseSettings):
     public_base_url: str | None = None  # for Location headers behind a proxy
     # The outputs of an item whose spec names no formats (a spec's own list wins), e.g.
     # PRISM_DEFAULT_FORMATS='["laz","glb"]' for compressed LAS and the box model; the metric ones
-    # (las, laz, glb) go to items with a scale only, and an item left with none gets csv and ply.
+    # (las, laz, glb, step, drawing) go to items with a scale only, and an item left with none
+    # gets csv and ply.
     default_formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
 
     @field_validator("webhook_secret")

@@ -4,8 +4,9 @@ tile's masks, an item's outputs, and the per-process caches of decoded photos an
 Keys are deterministic, so a task that runs twice rewrites, never adds. ``jobs/{job}/job.json``
 the final job document; under ``jobs/{job}/items/{i}/``: ``front`` and ``side`` (the inputs,
 copied), ``plan.json``, ``tiles/{face}-{r0}-{r1}.npz``, ``cloud.csv``, ``cloud.ply``,
-``preview.ply``, ``overlay.jpg``, ``report.json`` (and ``cloud.las``, ``cloud.laz``, ``box.glb``
-when asked). Items of a batch, scanned whole, have only their outputs. A video item has
+``preview.ply``, ``overlay.jpg``, ``report.json`` (and ``cloud.las``, ``cloud.laz``, ``box.glb``,
+``part.step`` with ``part.step.json``, ``drawing.svg``, ``drawing.pdf``, ``drawing.dxf`` when
+asked). Items of a batch, scanned whole, have only their outputs. A video item has
 ``frames.json`` (the frames selected), ``summary.json`` and per frame ``frame_000123/`` with
 ``frame.png`` (the decoded frame) and the frame's outputs. Jobs from before the overlay was a
 JPEG have ``overlay.png`` instead (the API serves either).
@@ -62,7 +63,7 @@ from prismcore.scan.cloud import decimate
 from prismcore.scan.colour_scan import FacePlan, row_tiles
 from prismcore.scan.focal import prepare_images
 from prismcore.scan.measure import Dimensions
-from prismcore.spec import frame_folder
+from prismcore.spec import frame_folder, output_files
 
 from .context import WorkerContext
 
@@ -202,7 +203,10 @@ OVERLAY_FORMAT = DEFAULT_OVERLAY_FORMAT
 _OVERLAY_TYPE = mimetypes.guess_type(overlay_name("overlay", OVERLAY_FORMAT))[0] or "application/octet-stream"
 _CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "preview": "application/octet-stream",
                   "report": "application/json", "overlay": _OVERLAY_TYPE, "overlay_side": _OVERLAY_TYPE,
-                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary"}
+                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary",
+                  "step": "model/step", "step_meta": "application/json", "drawing_svg": "image/svg+xml",
+                  "drawing_pdf": "application/pdf", "drawing_dxf": "image/vnd.dxf"}
+"""The media type each stored file is served with (IANA's: model/step, image/vnd.dxf)."""
 
 
 def _put(ctx: WorkerContext, key: str, kind: str, write: Callable[[BinaryIO], object]) -> float:
@@ -225,12 +229,13 @@ def write_outputs(ctx: WorkerContext, job_id: str, item: int, spec: ScanSpec, re
     under that frame's folder."""
     cloud, report = result.cloud, result.report
     overlays = {"overlay": "front"} | ({"overlay_side": "side"} if spec.two_photo else {})
-    kinds = (*spec.formats, "preview", *overlays, "report")
+    files = output_files(spec.formats)  # step and drawing write several files each
+    kinds = (*files, "preview", *overlays, "report")
     names = {kind: overlay_name(kind, OVERLAY_FORMAT) if kind in overlays else FILE_NAMES[kind]
              for kind in kinds}
     keys = {kind: item_key(job_id, item, names[kind]) if frame is None
             else frame_key(job_id, item, frame, names[kind]) for kind in kinds}
-    for kind in spec.formats:
+    for kind in files:
         ms = _put(ctx, keys[kind], kind, partial(write_format, kind, cloud=cloud, spec=spec,
                                                  report=report, images=images))
         report["timings_ms"][f"write_{kind}"] = round(ms, 3)

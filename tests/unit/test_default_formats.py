@@ -1,6 +1,6 @@
 """The formats an item gets at submit (`prism_api.routes.jobs._formats`): its own list always;
 else the operator's PRISM_DEFAULT_FORMATS (unset: csv + ply, as the design promises), less the
-metric ones (las, laz, glb: in mm) for an item without a scale; csv + ply when nothing is left.
+metric ones (las, laz, glb, step, drawing: in mm) for an item without a scale; csv + ply when nothing is left.
 
 The oracle is the rule written out over every combination, not the function's own code.
 """
@@ -17,7 +17,7 @@ from prism_api.routes.jobs import _formats
 from prismcore import ScanSpec
 
 POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
-METRIC = {"las", "laz", "glb"}
+METRIC = {"las", "laz", "glb", "step", "drawing"}
 SCALE = {"kind": "mm_per_px", "front": 0.5}
 
 
@@ -35,8 +35,8 @@ def test_the_operator_sets_the_default(monkeypatch: pytest.MonkeyPatch) -> None:
     assert _settings().default_formats == ["laz", "glb"]
 
 
-DEFAULTS = [["laz", "glb"], ["csv", "ply"], ["las"], ["glb", "csv"], ["ply"]]
-OWN = [None, ["csv"], ["ply", "csv"], ["laz"], ["glb", "las", "ply"]]
+DEFAULTS = [["laz", "glb"], ["csv", "ply"], ["las"], ["glb", "csv"], ["ply"], ["step", "drawing", "csv"]]
+OWN = [None, ["csv"], ["ply", "csv"], ["laz"], ["glb", "las", "ply"], ["drawing", "step"]]
 
 
 @pytest.mark.parametrize(("defaults", "own", "scaled"), list(itertools.product(DEFAULTS, OWN, [True, False])))

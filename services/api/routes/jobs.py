@@ -23,7 +23,7 @@ from prism_common.records import ENDED_STATES, ItemRecord, JobRecord, State
 from prism_common.stations import get_summary
 from prism_common.store import IdempotencyConflictError, JobStore
 
-from prismcore.spec import OutputFormat, ScanSpec
+from prismcore.spec import METRIC_FORMATS, OutputFormat, ScanSpec
 
 from ..backpressure import check_queue_depth
 from ..deps import CeleryDep, ObjectsDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
@@ -108,14 +108,14 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
 
 
 def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]:
-    """The item's formats: its own, else the operator's defaults it can have (las, laz and glb
-    need a scale), else csv and ply. A joint fit (views, or a video's frames fitted as one box)
-    writes no cloud and keeps the spec's own (the spec allows no other)."""
+    """The item's formats: its own, else the operator's defaults it can have (las, laz, glb, step
+    and drawing need a scale: METRIC_FORMATS), else csv and ply. A joint fit (views, or a video's
+    frames fitted as one box) writes no cloud and keeps the spec's own (the spec allows no other)."""
     joint = getattr(spec, "views", None) is not None or getattr(spec, "fit", None) == "joint"
     if "formats" in spec.model_fields_set or joint:
         return spec.formats
     scaled = spec.scale is not None or spec.station is not None  # a station's plane gives the mm
-    usable = [f for f in defaults if scaled or f not in ("las", "laz", "glb")]
+    usable = [f for f in defaults if scaled or f not in METRIC_FORMATS]
     return usable or ["csv", "ply"]
 
 
