@@ -56,7 +56,9 @@ def test_csv_and_ply_by_default_and_the_compact_formats_need_a_scale(page, stack
         "The service's default (CSV and PLY unless it was set up otherwise)",
         "Cloud as CSV and PLY (about 23 MB a photo)",
         "Cloud as LAZ, and the box as a glTF model (about 1.3 MB a photo; needs a scale)",
-        "All of them: CSV, PLY, LAZ and glTF (needs a scale)"])
+        "All of them: CSV, PLY, LAZ and glTF (needs a scale)",
+        "The part for CAD: a STEP solid and its inspection drawing (SVG, PDF, DXF; needs a scale)",
+        "LAZ, glTF, the STEP solid and the drawing (needs a scale)"])
     outputs.select_option(value="laz,glb")  # without a scale: said at once, nothing sent
     page.get_by_role("button", name="Submit job").click()
     expect(page.locator("#form-error")).to_contain_text("need a scale")
@@ -68,6 +70,29 @@ def test_csv_and_ply_by_default_and_the_compact_formats_need_a_scale(page, stack
     expect(page.locator(".downloads a")).to_have_text(
         [f"Download {name}"
          for name in ("Cloud (CSV)", "Cloud (PLY)", "Report (JSON)", "Fit overlay (JPEG)")])
+
+
+def test_the_part_for_cad_needs_a_scale_and_downloads_the_solid_and_the_drawing(page, stack):
+    d = PageDriver(page)
+    _sample(d, seven=True)
+    outputs = page.get_by_label("Outputs")
+    outputs.select_option(value="step,drawing")  # without a scale: said at once, nothing sent
+    page.get_by_role("button", name="Submit job").click()
+    expect(page.locator("#form-error")).to_contain_text("the STEP solid and the drawing are in millimetres")
+    _pinhole(page)
+    with page.expect_request(lambda r: r.url.endswith("/v1/jobs") and r.method == "POST") as sent:
+        assert "Done" in d.submit_and_wait()
+    assert json.loads(sent.value.post_data)["items"][0]["formats"] == ["step", "drawing"]
+    expect(page.locator(".downloads a")).to_have_text(
+        [f"Download {name}" for name in ("CAD solid (STEP)", "CAD solid's dimensions (JSON)", "Drawing (PDF)",
+                                         "Drawing (SVG)", "Drawing (DXF)", "Report (JSON)",
+                                         "Fit overlay (JPEG)")])
+    links = page.locator(".downloads a")
+    step = httpx.get(links.nth(0).get_attribute("href"))
+    assert step.status_code == 200 and step.content.startswith(b"ISO-10303-21;")
+    assert step.headers["content-type"] == "model/step"
+    pdf = httpx.get(links.nth(2).get_attribute("href"))
+    assert pdf.content.startswith(b"%PDF") and pdf.headers["content-type"] == "application/pdf"
 
 
 def test_a_truncated_jpeg_is_said_to_be_truncated(page, stack, tmp_path):

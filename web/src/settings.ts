@@ -10,7 +10,7 @@ export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale"
   | "nominal" | "tolerance_mm" | "formats">;
 
 /** Formats in millimetres: they need a scale (prismcore.spec). */
-const METRIC = ["las", "laz", "glb"];
+const METRIC = ["las", "laz", "glb", "step", "drawing"];
 
 export class SettingsForm {
   /** `joint`: several photos of one part are marked, to be measured as one box (a known edge). */
@@ -102,8 +102,8 @@ export class SettingsForm {
     if (formats.length) {
       if (!scale && formats.some((f) => METRIC.includes(f))) {
         $("formats").focus();
-        throw new Error("LAZ and the glTF box model are in millimetres and need a scale: choose one under Scale, " +
-          "or the cloud as CSV and PLY under Outputs.");
+        throw new Error("LAZ, the glTF box model, the STEP solid and the drawing are in millimetres and need a " +
+          "scale: choose one under Scale, or the cloud as CSV and PLY under Outputs.");
       }
       settings.formats = formats;
     }

@@ -6,9 +6,9 @@ import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
 // A frame has the formats its item asked for (the service's default: CSV and PLY unless the operator chose others,
-// LAZ and glb only with a scale) and its report.
+// LAZ, glb, STEP and the drawing only with a scale) and its report.
 const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"],
-  ["glb", "Box model"], ["report", "Report"]];
+  ["glb", "Box model"], ["step", "STEP"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_dxf", "DXF"], ["report", "Report"]];
 
 const el = <K extends keyof HTMLElementTagNameMap>(tag: K, text = "", attrs: Record<string, string> = {}) => {
   const node = document.createElement(tag);
