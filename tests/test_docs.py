@@ -144,6 +144,8 @@ MARKERS = {
     "station verify": "prism station verify",
     "station upload": "prism station upload",
     "station submit": "prism submit --station",
+    "photo to cad": "--format step,drawing",
+    "cad without a scale": "--out out/no-scale",
 }
 
 
@@ -226,6 +228,34 @@ def test_local_scan_block(user_dir: Path):
     # Every field of report.json is in the reference's table.
     documented = _table_fields(OUTPUTS, "report.json")
     assert set(report) <= documented, set(report) - documented
+
+
+def test_photo_to_cad_blocks_write_the_solid_and_the_drawing_and_refuse_pixels(user_dir: Path):
+    page = ROOT / "docs" / "how-to" / "photo-to-cad.md"
+    run = _bash(_block(MARKERS["photo to cad"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stderr
+    shown = next(b for p, b in blocks("text") if p == page and b.startswith("639,716 points"))
+    assert run.stdout.strip().splitlines() == shown.strip().splitlines(), run.stdout
+    out = user_dir / "out" / "cad"
+    report = json.loads((out / "report.json").read_text())
+    size = [report["dimensions"][d] for d in ("width", "height", "depth")]
+    # the page's python block reads the solid back with the kernel: the box measured
+    script = user_dir / "read_step.py"
+    script.write_text(python_block('reader.ReadFile("out/cad/part.step")'))
+    read = subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(script)], cwd=user_dir,
+                          capture_output=True, text=True, timeout=120)
+    assert read.returncode == 0, read.stderr
+    assert read.stdout.strip() == (" x ".join(f"{v:.4f}" for v in size)
+                                   + f" mm, {math.prod(size) / 1000:.1f} cm3"), read.stdout
+    # every field of part.step.json is in the reference's table
+    meta = json.loads((out / "part.step.json").read_text())
+    documented = _table_fields(OUTPUTS, "part.step.json")
+    assert set(meta) <= documented, set(meta) - documented
+    assert (ROOT / "docs" / "assets" / "drawing.png").stat().st_size > 10_000  # the page's picture
+    refused = _bash(_block(MARKERS["cad without a scale"]), cwd=user_dir, env=dict(os.environ), timeout=120)
+    assert refused.returncode == 0 and refused.stderr.count("\n") == 1, refused.stderr
+    assert refused.stderr.strip() in [b.strip() for p, b in blocks("text") if p == page], refused.stderr
+    assert not (user_dir / "out" / "no-scale" / "part.step").exists()
 
 
 def test_exit_codes_block_exits_2_in_one_line(user_dir: Path):
