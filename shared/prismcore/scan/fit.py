@@ -23,9 +23,10 @@ from prismcore.scan.measure import (
     measure_box,
     measure_perspective,
     obliqueness,
+    perspective_cost,
     square_on_cost,
 )
-from prismcore.spec import ScanSpec
+from prismcore.spec import KnownEdge, ScanSpec
 
 __all__ = ["FIT_FAIL_FRACTION", "FIT_FAIL_PX", "FIT_WARN_PX", "FOCAL_MAX_REL_STD", "OBLIQUE_WARN",
            "SEARCH_PX", "SNAP_CLICKS_BETTER", "SNAP_SUSPECT_RMS_PX", "fit_guard", "measure_faces",
@@ -103,21 +104,36 @@ def refine_faces(
                      clicked.side_complete, clicked.side_face), fits
 
 
-def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warnings: list[str]) -> None:
-    """Say how oblique a single photo measured with the square-on model is, and what it costs."""
+def perspective_focal(focal: Focal, image: np.ndarray) -> float:
+    """The focal length (px) the square-on model's perspective cost is read through: the one
+    known (given, camera, EXIF, pooled), else the photo's diagonal (a 43 mm lens on 35 mm film;
+    a phone's 26 mm main camera sees more perspective still)."""
+    return focal.focal_px or float(np.hypot(image.shape[0], image.shape[1]))
+
+
+def _oblique_warning(spec: ScanSpec, quads: FaceQuads, dims: Dimensions, warnings: list[str],
+                     focal_px: float) -> None:
+    """Say how oblique a single photo measured with the square-on model is, and what it costs:
+    the obliqueness the model ignores, on its worst dimension, and the perspective it cannot
+    see, on every dimension measured (both are in their ±)."""
     view = obliqueness(quads.front, quads.side, quads.side_face)
-    if view is None:
+    cost = np.zeros(3) if view is None else square_on_cost(view, spec.scale)
+    unseen = perspective_cost(quads.front, quads.side, focal_px)
+    if cost.max() <= OBLIQUE_WARN and unseen <= OBLIQUE_WARN:
         return
-    cost = square_on_cost(view, spec.scale)
-    if cost.max() <= OBLIQUE_WARN:
-        return
-    worst = ("width", "height", "depth")[int(np.argmax(cost))]
+    names = ("width", "height", "depth")
+    given = spec.scale.edge if isinstance(spec.scale, KnownEdge) else None
+    measured = " and the ".join(n for n in names if n != given)
     model = "the paper's method" if spec.method == "paper" else "the square-on model"
     fix = "" if spec.method == "paper" else "; mark P6 and P7 to have perspective corrected"
     second = "top face" if quads.side_face == "top" else "side face"
-    warnings.append(f"oblique photo measured with {model}: the front face is seen {view.front_deg:.0f}° "
-                    f"and the {second} {view.side_deg:.0f}° off square-on, which costs about "
-                    f"{cost.max():.0%} on the {worst}{fix}")
+    said = f"oblique photo measured with {model}: "
+    if view is not None and cost.max() > OBLIQUE_WARN:
+        said += (f"the front face is seen {view.front_deg:.0f}° and the {second} {view.side_deg:.0f}° "
+                 f"off square-on, which costs about {cost.max():.0%} on the {names[int(np.argmax(cost))]}; ")
+    said += (f"the perspective it cannot see may cost about {unseen:.0%} on the {measured} (in their ±)"
+             f"{fix}")
+    warnings.append(said)
 
 
 def measure_faces(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
@@ -162,12 +178,14 @@ def measure_faces(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dic
     shape = clicked_quads(spec.points, two_photo=False, side_face=face) if spec.method == "paper" else quads
     view = None if spec.two_photo else obliqueness(shape.front, shape.side, face)
     # A Pinhole scale's mm-per-pixel reads the focal length (given, camera or EXIF).
+    unseen_focal = None if spec.two_photo else perspective_focal(focal, images[0])
     dims = measure_affine(quads.front, quads.side, spec.scale, focal_px=focal.focal_px,
                           two_photo=spec.two_photo, view=view,
                           corner_noise_px=NOISE_CLICK_PX,
-                          clicked=(marked.front, marked.side) if fits else None, side_face=face)
-    if not spec.two_photo:
-        _oblique_warning(spec, shape, dims, warnings)
+                          clicked=(marked.front, marked.side) if fits else None, side_face=face,
+                          perspective_focal_px=unseen_focal)
+    if unseen_focal is not None:
+        _oblique_warning(spec, shape, dims, warnings, unseen_focal)
     return dims, quads, camera
 
 

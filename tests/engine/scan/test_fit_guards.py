@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from prismcore import InputError, ScanSpec, plan_scan
 from prismcore.geometry.faces import validate_quad
+from prismcore.io.images import load_image
 from prismcore.scan.measure import obliqueness
 from prismsynth import Box, render_oblique_view
 
@@ -81,6 +83,31 @@ def test_oblique_photo_with_the_square_on_model_is_warned_with_its_cost(scene, m
     true_error = max(abs(d.height / 90 - 1), abs(d.depth / 70 - 1))
     assert true_error > 0.05  # the warning is about a real error...
     assert cost == pytest.approx(true_error, rel=0.5)  # ... and says roughly how large
+
+
+SAMPLE = Path(__file__).resolve().parents[3] / "samples" / "box.jpg"  # a 120 x 80 x 60 mm box
+SAMPLE_FIVE = [[395, 293], [943, 331], [919, 761], [943, 331], [1035, 298]]
+
+
+def test_five_points_on_the_sample_state_a_sigma_that_covers_the_height():
+    """Issue 37: five points on samples/box.jpg, the width given, read the height 94.04 ± 1.73 mm
+    (true 80: 17.6 % high, 8 sigma out) with a warning naming only the depth. The perspective
+    the square-on model cannot see is now in the measured dimensions' sigma, and named."""
+    image = load_image(str(SAMPLE))
+    plan = plan_scan(ScanSpec(image="x", points=SAMPLE_FIVE, scale={"kind": "edge", "edge": "width",
+                                                                    "length_mm": 120.0}), image)
+    d, s_height = plan.dimensions, plan.dimensions.uncertainty[1]
+    assert d.width == pytest.approx(120.0) and d.height == pytest.approx(94.04, abs=0.05)  # as before
+    assert abs(d.height - 80.0) <= 2 * s_height, (d.height, s_height)  # was 8.1 sigma out
+    assert s_height < 0.35 * d.height  # wide as the error is, not unbounded
+    [warning] = [w for w in plan.warnings if w.startswith("oblique photo")]
+    assert "81% on the depth" in warning and "on the height and the depth (in their ±)" in warning, warning
+    assert "P6 and P7" in warning
+    # Seven points: the perspective is fitted, and nothing of this is added.
+    seven = [*SAMPLE_FIVE, [411, 647], [1009, 660]]
+    plan = plan_scan(ScanSpec(image="x", points=seven, scale={"kind": "edge", "edge": "width",
+                                                              "length_mm": 120.0}), image)
+    assert plan.dimensions.uncertainty[1] < 1.0 and not any(w.startswith("oblique") for w in plan.warnings)
 
 
 def test_five_points_whose_implied_corner_leaves_the_photo_still_measure():
