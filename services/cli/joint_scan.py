@@ -11,6 +11,7 @@ sigma, the focal length, the views left out and why) and written to ``joint.json
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,9 @@ from prismcore import InputError
 from prismcore.io.images import load_image
 from prismcore.multiview.joint import JointResult, View, fit_views
 from prismcore.multiview.report import joint_report
-from prismcore.spec import KnownEdge, ScanSpec
+from prismcore.outputs.writers import write_part
+from prismcore.quality.verdicts import quality_from_report
+from prismcore.spec import FILE_NAMES, PART_FORMATS, KnownEdge, ScanSpec, output_files
 
 from .console import rich_console as console
 
@@ -76,16 +79,34 @@ def result_json(result: JointResult) -> dict[str, Any]:
     return joint_report(result)
 
 
+def write_part_files(report: dict[str, Any], scale: KnownEdge, formats: Sequence[str], out: Path,
+                     nominal: Any = None, tolerance_mm: Any = None) -> dict[str, Path]:
+    """The part's files of `formats` (step, drawing: the others make no sense without a cloud)
+    from a joint fit's report, with its verdicts against `nominal` and its scale; {kind: path}."""
+    paths = {}
+    measured = {**report, "quality": quality_from_report(report, nominal, tolerance_mm),
+                "inputs": {"scale": scale.model_dump()}}
+    for kind in output_files([f for f in formats if f in PART_FORMATS]):
+        paths[kind] = out / FILE_NAMES[kind]
+        write_part(kind, paths[kind], measured)
+    return paths
+
+
 def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str, Any] | None,
-               focal_px: float | None, max_pixels: int) -> None:
-    """Measure the photos as one box; print the result and write ``out/joint.json``."""
+               focal_px: float | None, max_pixels: int, formats: list[str] | None = None) -> None:
+    """Measure the photos as one box; print the result and write ``out/joint.json`` (and the
+    part's step and drawing files when `formats` asks for them: a joint fit makes no cloud)."""
+    asked = [f for f in formats or [] if f not in ("csv", "ply")]
+    if any(f not in PART_FORMATS for f in asked):
+        raise InputError(f"--format {','.join(formats or [])!r}: several photos measured as one box make "
+                         "no cloud; --format takes step and drawing (the part's solid and drawing)")
     if scale is None or scale.get("kind") != "edge":
         raise InputError("several photos are measured with one known edge: give --width-mm, "
                          "--height-mm or --depth-mm")
     entries = read_points_file(points_file, images)
     views = [View(load_image(path, max_pixels=max_pixels), points, side, path.name)
              for path, (points, side) in zip(images, entries, strict=True)]
-    _measure(views, KnownEdge.model_validate(scale), focal_px, out)
+    _measure(views, KnownEdge.model_validate(scale), focal_px, out, asked)
 
 
 def scan_spec_views(spec: ScanSpec, base: Path, out: Path) -> None:
@@ -93,13 +114,16 @@ def scan_spec_views(spec: ScanSpec, base: Path, out: Path) -> None:
     assert spec.views is not None and isinstance(spec.scale, KnownEdge)  # the spec's rules
     views = [View(load_image(base / v.image, max_pixels=spec.max_pixels), v.points, v.side_face,
                   v.name or Path(v.image).name) for v in spec.views]
-    _measure(views, spec.scale, spec.focal_px, out)
+    _measure(views, spec.scale, spec.focal_px, out, spec.part_formats, spec.nominal, spec.tolerance_mm)
 
 
-def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: Path) -> None:
+def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: Path,
+             formats: Sequence[str] | None = None, nominal: Any = None, tolerance_mm: Any = None) -> None:
     result = fit_views(views, scale, focal_px=focal_px)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "joint.json").write_text(json.dumps(result_json(result), indent=2) + "\n")
+    report = result_json(result)
+    (out / "joint.json").write_text(json.dumps(report, indent=2) + "\n")
+    paths = write_part_files(report, scale, formats or [], out, nominal, tolerance_mm)
     d = result.dimensions
     assert d.uncertainty is not None
     # The known edge is its length, given: "120.00 (given)", not a measurement "± 0.00".
@@ -114,3 +138,5 @@ def _measure(views: list[View], scale: KnownEdge, focal_px: float | None, out: P
         console().print(f"[yellow]left out[/] {escape(left.name)}: {escape(left.reason)}", soft_wrap=True)
     for warning in (*result.warnings, *d.notes):
         console().print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
+    for kind, path in paths.items():
+        console().print(f"{kind}: {path}", soft_wrap=True)

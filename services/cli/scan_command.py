@@ -360,7 +360,8 @@ def scan(
 
         try:
             scale = _scale(mm_per_px, distance_mm, width_mm, height_mm, depth_mm)
-            scan_views(images, points_file, out, scale, focal_px, max_pixels)
+            scan_views(images, points_file, out, scale, focal_px, max_pixels,
+                       [f.strip() for f in formats.split(",") if f.strip()])
         except ValidationError as exc:
             raise InputError(one_line(exc)) from None
         return

@@ -33,6 +33,7 @@ from prismcore.video.tracked import (
 )
 
 from .console import rich_console as console
+from .joint_scan import write_part_files
 
 __all__ = ["TRACKED_NAME", "scan_tracked"]
 
@@ -82,6 +83,7 @@ def _joint(spec: ScanSpec, path: Path, out: Path, tracking: Tracking) -> dict[st
     report = joint_report(result, chosen)
     report["tracking"] = tracking.block(chosen)
     (out / JOINT_NAME).write_text(json.dumps(report, indent=2) + "\n")
+    parts = write_part_files(report, spec.scale, spec.part_formats, out, spec.nominal, spec.tolerance_mm)
     d = result.dimensions
     assert d.uncertainty is not None
     sizes = " x ".join(f"{v:.2f} (given)" if name == spec.scale.edge else f"{v:.2f} ± {s:.2f}"
@@ -94,4 +96,6 @@ def _joint(spec: ScanSpec, path: Path, out: Path, tracking: Tracking) -> dict[st
     for warning in (*result.warnings, *d.notes):
         console().print(f"[yellow]warning[/] {escape(warning)}", soft_wrap=True)
     console().print(f"joint: {out / JOINT_NAME}")
+    for kind, where in parts.items():
+        console().print(f"{kind}: {where}", soft_wrap=True)
     return report

@@ -57,6 +57,7 @@ from prismcore.outputs.writers import (
     encode_overlay,
     overlay_name,
     write_format,
+    write_part,
     write_ply,
 )
 from prismcore.scan.cloud import decimate
@@ -69,8 +70,8 @@ from .context import WorkerContext
 
 __all__ = ["Tile", "cached_image", "cached_plan", "cached_prepared",
            "dumps_plan", "exif_focal_px", "frame_key", "item_key", "item_result", "job_key", "loads_plan",
-           "pack_tile", "plan_from_json", "plan_tiles", "plan_to_json", "tile_id", "tile_key",
-           "unpack_tile", "write_outputs"]
+           "pack_tile", "plan_from_json", "plan_tiles", "plan_to_json", "put_part_files", "tile_id",
+           "tile_key", "unpack_tile", "write_outputs"]
 
 
 # -- keys ---------------------------------------------------------------------------------------
@@ -250,6 +251,17 @@ def write_outputs(ctx: WorkerContext, job_id: str, item: int, spec: ScanSpec, re
     text = (json.dumps(report, indent=2) + "\n").encode()
     ctx.objects.put_bytes(keys["report"], text, _CONTENT_TYPES["report"])
     return item_result(report), keys
+
+
+def put_part_files(ctx: WorkerContext, job_id: str, item: int, formats: list[str],
+                   measured: dict[str, Any]) -> dict[str, str]:
+    """Store the part's files of `formats` (step, drawing) written from `measured` (a joint fit's
+    report with its quality and scale: it makes no cloud); returns {kind: key}."""
+    keys = {}
+    for kind in output_files(formats):
+        keys[kind] = item_key(job_id, item, FILE_NAMES[kind])
+        _put(ctx, keys[kind], kind, partial(write_part, kind, report=measured))
+    return keys
 
 
 def item_result(report: dict[str, Any]) -> ItemResult:

@@ -39,7 +39,7 @@ from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, TRACKED_NAME, KnownEdge
 from prismcore.video.frames import iter_frames, probe_video, select_frames
 from prismcore.video.tracked import Tracking, check_points_frame, joint_frames, tracked_views
 
-from .artifacts import item_key
+from .artifacts import item_key, put_part_files
 from .context import WorkerContext
 from .inputs import read_reference, save_input
 from .steps import max_pixels
@@ -86,6 +86,9 @@ def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[
         outputs["tracked_points"] = item_key(view.job_id, view.item.index, TRACKED_NAME)
     ctx.objects.put_json(outputs["joint"], report)
     quality = quality_from_report(report, spec.nominal, spec.tolerance_mm)
+    if spec.part_formats:  # the part's solid and drawing, from the joint fit's measurement
+        measured = {**report, "quality": quality, "inputs": {"scale": spec.scale.model_dump()}}
+        outputs |= put_part_files(ctx, view.job_id, view.item.index, list(spec.part_formats), measured)
     left = [f"{o['name']} left out: {o['reason']}" for o in report["left_out"]]
     if tracking is not None:
         left = tracking.warnings() + left

@@ -60,6 +60,7 @@ __all__ = [
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
     "METRIC_FORMATS",
+    "PART_FORMATS",
     "SUMMARY_NAME",
     "TRACKED_NAME",
     "AutoPoints",
@@ -416,7 +417,7 @@ class ScanSpec(_Strict):
                 if self._changed(name):
                     fail((name,), f"{name} does not go with views: " + _JOINT_ASIDE.get(
                         name, "each view carries its own points and side_face"), getattr(self, name))
-            if self._formats_asked():
+            if self._cloud_formats_asked():
                 fail(("formats",), "formats does not go with views: " + _JOINT_ASIDE["formats"], self.formats)
         elif self.fit == "joint" and self.points_frame is not None:
             for name in ("camera", "principal_point", "spacing_mm"):
@@ -447,7 +448,7 @@ class ScanSpec(_Strict):
                          getattr(self, name))
             changed = [name for name, off in (("method", self._changed("method")),
                                               ("cloud", self._changed("cloud")),
-                                              ("formats", self._formats_asked()),
+                                              ("formats", self._cloud_formats_asked()),
                                               *((n, self._changed(n)) for n in _CLOUD_ONLY))
                        if off]
             if changed:
@@ -473,6 +474,16 @@ class ScanSpec(_Strict):
         record reads back with the default written out, so the value, not whether it was given,
         is what can be judged.)"""
         return bool(self.formats) and set(self.formats) != set(_DEFAULT_FORMATS)
+
+    def _cloud_formats_asked(self) -> bool:
+        """Does the spec ask for formats other than the default and the part's (step, drawing),
+        which a joint fit (no cloud) writes from its report?"""
+        return self._formats_asked() and not set(self.formats) <= set(PART_FORMATS)
+
+    @property
+    def part_formats(self) -> list[OutputFormat]:
+        """The formats asked for that a joint fit writes: step and drawing."""
+        return [f for f in self.formats if f in PART_FORMATS] if self._formats_asked() else []
 
     def _focal_fittable(self) -> bool:
         """One photo with all seven points: the box fit finds the focal length itself."""
@@ -518,6 +529,10 @@ _CLOUD_ONLY = ("tolerance", "csv", "ply_ascii", "max_points")
 
 _NO_CLOUD = "a joint fit writes its report (joint.json), no cloud"
 
+PART_FORMATS: tuple[OutputFormat, ...] = ("step", "drawing")
+"""The formats written from the measurement alone (the part's STEP solid and drawing): a joint fit
+has them too."""
+
 _JOINT_ASIDE = {
     "auto_points": "it says where points \"auto\" looks, and each view carries its own seven points",
     "frames": "views are photos (a video's frames measured as one box are frame_points with fit "
@@ -532,7 +547,7 @@ _JOINT_ASIDE = {
               "(give focal_px if it is known)",
     "principal_point": "the joint fit takes the image centre as the optical centre",
     "spacing_mm": _NO_CLOUD,
-    "formats": _NO_CLOUD,
+    "formats": _NO_CLOUD + "; formats may ask for the part's step and drawing only",
     "cloud": _NO_CLOUD,
     "method": "the joint fit is the default method's perspective fit",
 }

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
+from collections.abc import Sequence
 from typing import Annotated, Literal
 
 from pydantic import (
@@ -104,7 +105,7 @@ _FORMAT_FILES: dict[str, tuple[str, ...]] = {"step": ("step", "step_meta"),
                                              "drawing": ("drawing_svg", "drawing_pdf", "drawing_dxf")}
 
 
-def output_files(formats: list[OutputFormat] | tuple[OutputFormat, ...]) -> list[str]:
+def output_files(formats: Sequence[str]) -> list[str]:
     """The file kinds (`FILE_NAMES`' keys) the formats write, in order: a format writes the file
     of its own name, except step (the solid and its JSON sidecar) and drawing (SVG, PDF, DXF)."""
     return [kind for f in formats for kind in _FORMAT_FILES.get(f, (f,))]

@@ -104,3 +104,29 @@ def test_on_a_station_the_solid_stands_where_the_station_measured_it(tmp_path):
     svg = "\n".join(t.text or "" for t in ET.parse(tmp_path / "out/drawing.svg").getroot().iter(
         "{http://www.w3.org/2000/svg}text"))
     assert "station calibration" in svg and "photo.jpg" in svg
+
+
+def test_photos_measured_as_one_box_write_the_solid_and_the_drawing_and_no_cloud(tmp_path):
+    from prismsynth import photo_like_views, save_image
+
+    scenes = photo_like_views(2, 2)
+    points = []
+    for k, p in enumerate(scenes):
+        save_image(p.image, tmp_path / f"view{k + 1}.png")
+        points.append([[float(p.clicks[f"p{i}"][0]), float(p.clicks[f"p{i}"][1])] for i in range(1, 8)])
+    (tmp_path / "points.json").write_text(json.dumps(points))
+    known = [f"--{scenes[0].known_edge}-mm", f"{scenes[0].known_length_mm:.4f}"]
+    run = prism("scan", "view1.png", "view2.png", "--points-file", "points.json", *known,
+                "--format", "step,drawing", "--out", "out", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted([*FILES, "joint.json"])
+    joint = json.loads((tmp_path / "out/joint.json").read_text())
+    w, h, d = (joint["dimensions"][k] for k in ("width", "height", "depth"))
+    assert _step_bounds(tmp_path / "out/part.step") == pytest.approx((0, 0, 0, w, h, d), abs=1e-6)
+    svg = [t.text or "" for t in ET.parse(tmp_path / "out/drawing.svg").getroot().iter(
+        "{http://www.w3.org/2000/svg}text")]
+    assert f"{h:.3f} ± {joint['uncertainty']['height']:.3f}" in svg  # no nominal: no verdict
+    assert "2 views: view1.png, view2.png" in svg
+    run = prism("scan", "view1.png", "view2.png", "--points-file", "points.json", *known,
+                "--format", "laz,step", "--out", "bad", cwd=tmp_path)
+    assert run.returncode == 2 and "make no cloud; --format takes step and drawing" in run.stderr, run.stderr

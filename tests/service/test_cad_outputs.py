@@ -123,3 +123,36 @@ def test_without_a_scale_the_submit_is_refused_with_a_problem(stack, item, fmt):
     assert body["type"].endswith("/validation")
     assert f"format '{fmt}' is in mm or metres, but without a scale" in body["detail"], body
     assert body["errors"][0]["pointer"].startswith("/items/0"), body
+
+
+def test_a_joint_fit_of_two_photos_downloads_its_solid_and_drawing(stack, tmp_path):
+    from prismsynth import photo_like_views
+
+    scenes = photo_like_views(2, 2)
+    views = []
+    for k, p in enumerate(scenes):
+        ok, data = cv2.imencode(".png", cv2.cvtColor(p.image, cv2.COLOR_RGB2BGR))
+        assert ok
+        r = stack.post("/v1/uploads", files={"file": (f"view{k + 1}.png", data.tobytes())})
+        assert r.status_code in (200, 201), r.text
+        clicks = [[float(p.clicks[f"p{i}"][0]), float(p.clicks[f"p{i}"][1])] for i in range(1, 8)]
+        views.append({"image": r.json()["reference"], "name": f"view{k + 1}.png", "points": clicks})
+    edge = {"kind": "edge", "edge": scenes[0].known_edge, "length_mm": scenes[0].known_length_mm}
+    item = {"views": views, "scale": edge, "formats": ["step", "drawing"]}
+    r = stack.post("/v1/jobs", json={"items": [item]})
+    assert r.status_code == 202, r.text
+    for _ in range(720):
+        job = stack.get(f"/v1/jobs/{r.json()['id']}").json()
+        if job["state"] not in ("queued", "running"):
+            break
+        time.sleep(0.25)
+    assert job["state"] == "succeeded", job
+    downloads = job["items"][0]["downloads"]
+    assert set(downloads) == {"joint", *MEDIA}
+    joint = httpx.get(downloads["joint"]).json()
+    meta = httpx.get(downloads["step_meta"]).json()
+    assert {d: meta["dimensions"][d]["value_mm"] for d in ("width", "height", "depth")} == {
+        d: joint["dimensions"][d] for d in ("width", "height", "depth")}
+    assert meta["photo"] == "2 views: view1.png, view2.png" and meta["frame"] == "box"
+    step = httpx.get(downloads["step"])
+    assert step.headers["content-type"] == "model/step" and step.content.startswith(b"ISO-10303-21;")

@@ -25,6 +25,7 @@ __all__ = [
     "write_csv",
     "write_format",
     "write_las",
+    "write_part",
     "write_ply",
 ]
 
@@ -43,6 +44,7 @@ _EXPORTS = {
     "write_csv": "writers",
     "write_format": "writers",
     "write_las": "las",
+    "write_part": "writers",
     "write_ply": "writers",
 }
 
@@ -55,6 +57,6 @@ if TYPE_CHECKING:
     from prismcore.outputs.overlay_report import overlay_from_report
     from prismcore.outputs.part import Part, part_from_report
     from prismcore.outputs.step import step_bytes, step_metadata
-    from prismcore.outputs.writers import write_csv, write_format, write_ply
+    from prismcore.outputs.writers import write_csv, write_format, write_part, write_ply
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

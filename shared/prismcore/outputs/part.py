@@ -155,6 +155,10 @@ def _placement(report: Mapping[str, Any]) -> tuple[str, str, Matrix]:
 
 
 def _photo(report: Mapping[str, Any]) -> str:
+    views = report.get("views")
+    if isinstance(views, list) and views:  # a joint fit's: the views used
+        names = [str(v.get("name") or v.get("index")) for v in views]
+        return f"{len(names)} views: " + ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
     inputs = report.get("inputs") or {}
     image = str(inputs.get("image") or "photo")
     name = PurePosixPath(image.replace("\\", "/")).name or image

@@ -41,7 +41,8 @@ if TYPE_CHECKING:
     from prismcore.spec import ScanSpec
 
 __all__ = ["CHUNK_ROWS", "DEFAULT_OVERLAY_FORMAT", "FILE_NAMES", "MAX_DECIMALS", "OVERLAY_FORMATS",
-           "encode_overlay", "encode_png", "overlay_name", "write_csv", "write_format", "write_ply"]
+           "PART_FILES", "encode_overlay", "encode_png", "overlay_name", "write_csv", "write_format",
+           "write_part", "write_ply"]
 
 CHUNK_ROWS = 1 << 17
 """Rows formatted per block: about 3.5 MB of CSV text at 3 decimals."""
@@ -226,16 +227,35 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
 
         data = box_glb(report, images[0], images[1] if len(images) > 1 else None)
         _emit(dest, iter([data]))
-    elif kind in _CAD_FILES:
+    elif kind in PART_FILES:
         if report is None:
             raise InputError(f"the {kind} file needs the scan's report")
-        _emit(dest, iter([_cad_file(kind, report, when or datetime.now(UTC))]))
+        write_part(kind, dest, report, when)
     else:
         raise InputError(f"unknown output format {kind!r}")
     return (time.perf_counter() - start) * 1000
 
 
-_CAD_FILES = ("step", "step_meta", "drawing_svg", "drawing_pdf", "drawing_dxf")
+PART_FILES = ("step", "step_meta", "drawing_svg", "drawing_pdf", "drawing_dxf")
+"""The part's CAD files (formats step and drawing): written from a report alone, so a joint fit,
+which makes no cloud, has them too."""
+
+
+def write_part(kind: str, dest: Dest, report: Mapping[str, Any], when: datetime | None = None) -> float:
+    """Write one of the part's CAD files (`PART_FILES`) of the measurement `report` (a scan's
+    report.json, or a joint fit's joint.json with its quality and scale), dated `when` (now, UTC,
+    by default); returns the ms taken.
+
+    Raises
+    ------
+    InputError
+        An unknown kind, a report without a scale (in px), OCP missing for step.
+    """
+    start = time.perf_counter()
+    if kind not in PART_FILES:
+        raise InputError(f"unknown part file {kind!r}: expected one of {', '.join(PART_FILES)}")
+    _emit(dest, iter([_cad_file(kind, report, when or datetime.now(UTC))]))
+    return (time.perf_counter() - start) * 1000
 
 
 def _cad_file(kind: str, report: Mapping[str, Any], when: datetime) -> bytes:
