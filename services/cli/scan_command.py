@@ -28,8 +28,8 @@ if TYPE_CHECKING:
 # tests/cli/test_cli_imports.py checks the two agree.
 DEFAULT_MAX_FRAMES = 500
 
-__all__ = ["one_line", "quality_flags", "quality_lines", "scan", "selection_from_flags", "spec_from_flags",
-           "summary_line"]
+__all__ = ["one_line", "quality_flags", "quality_lines", "scale_options", "scan", "selection_from_flags",
+           "spec_from_flags", "summary_line"]
 
 
 
@@ -37,8 +37,27 @@ def _internal(step: int | str) -> bool:
     return isinstance(step, str) and ("[" in step or step.startswith(("constrained-", "function-")))
 
 
-def one_line(error: ValidationError) -> str:
-    """A spec's validation error as one line: where, what, how many more."""
+# A bound pydantic names ("Input should be greater than 0") as the option's rule ("must be > 0").
+_BOUNDS = {"greater_than": ("gt", ">"), "greater_than_equal": ("ge", ">="), "less_than": ("lt", "<"),
+           "less_than_equal": ("le", "<=")}
+
+
+def _option_rule(option: str, first: Mapping[str, Any], message: str) -> str:
+    """The error told by the option's name: what its value must be ("--width-mm must be > 0"),
+    or the model's own reason after it."""
+    bound = _BOUNDS.get(str(first.get("type")))
+    ctx = first.get("ctx") or {}
+    if bound is not None and bound[0] in ctx:
+        return f"{option} must be {bound[1]} {ctx[bound[0]]:g}"
+    if first.get("type") == "finite_number":
+        return f"{option} must be a finite number"
+    return f"{option}: {message}"
+
+
+def one_line(error: ValidationError, options: Mapping[str, str] | None = None) -> str:
+    """A spec's validation error as one line: where, what, how many more. `options` maps a spec
+    field ("scale.edge.length_mm") to the command-line option that gave it ("--width-mm"): an
+    error there is told by the option's name ("--width-mm must be > 0")."""
     from prismcore.spec import error_message
 
     first = error.errors()[0]
@@ -48,6 +67,8 @@ def one_line(error: ValidationError) -> str:
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
     # A validator's message that names its field already ("views: ...") is not prefixed again.
     message = error_message(first["msg"])
+    if options and where in options:
+        return f"{_option_rule(options[where], first, message)}{more}"
     if message.startswith((f"{where}:", f"{where} ")):
         return f"{message}{more}"
     return f"{where}: {message}{more}"
@@ -74,6 +95,20 @@ def _scale(mm_per_px: str | None, distance_mm: float | None, width_mm: float | N
         if length is not None:
             return {"kind": "edge", "edge": edge, "length_mm": length}
     return None
+
+
+def scale_options(mm_per_px: str | None = None, distance_mm: float | None = None,
+                  width_mm: float | None = None, height_mm: float | None = None,
+                  depth_mm: float | None = None) -> dict[str, str]:
+    """The spec fields the scale options fill, each named by its option (for `one_line`); the
+    known edge's length also as a lone KnownEdge's field (a joint fit validates it alone)."""
+    options = {"focal_px": "--focal-px", "spacing_mm": "--spacing-mm", "max_pixels": "--max-pixels",
+               "tolerance": "--tolerance", "scale.pinhole.distance_mm": "--distance-mm",
+               "scale.mm_per_px.front": "--mm-per-px", "scale.mm_per_px.side": "--mm-per-px SIDE"}
+    for flag, value in (("--width-mm", width_mm), ("--height-mm", height_mm), ("--depth-mm", depth_mm)):
+        if value is not None:
+            options["scale.edge.length_mm"] = options["length_mm"] = flag
+    return options
 
 
 def _mm_values(flag: str, text: str, counts: tuple[int, ...], expected: str) -> list[float]:
@@ -109,17 +144,22 @@ def spec_from_flags(image: Path | None, points: str | None, **flags: Any) -> Sca
     from prismcore.spec import ScanSpec
 
     formats = [f.strip() for f in flags.pop("formats", "csv,ply").split(",") if f.strip()]
-    scale = _scale(*(flags.pop(k, None) for k in ("mm_per_px", "distance_mm", "width_mm",
-                                                   "height_mm", "depth_mm")))
+    given = {k: flags.pop(k, None) for k in ("mm_per_px", "distance_mm", "width_mm", "height_mm", "depth_mm")}
+    scale = _scale(**given)
     side = flags.pop("side", None)
     auto = _auto_points(points, flags.pop("hint", None), flags.pop("roi", None))
     flags.update(quality_flags(flags.pop("nominal", None), flags.pop("tolerance_mm", None)))
-    return ScanSpec.model_validate({
-        "image": str(image), "side_image": str(side) if side else None,
-        **auto, "scale": scale, "formats": formats,
-        "csv": {"header": flags.pop("csv_header", False), "colors": flags.pop("csv_colors", False)},
-        **flags,
-    })
+    from pydantic import ValidationError
+
+    try:
+        return ScanSpec.model_validate({
+            "image": str(image), "side_image": str(side) if side else None,
+            **auto, "scale": scale, "formats": formats,
+            "csv": {"header": flags.pop("csv_header", False), "colors": flags.pop("csv_colors", False)},
+            **flags,
+        })
+    except ValidationError as exc:  # a bad option's value: told by the option's name
+        raise InputError(one_line(exc, scale_options(**given))) from None
 
 
 def _numbers(flag: str, text: str, count: int) -> list[float]:
@@ -363,7 +403,8 @@ def scan(
             scan_views(images, points_file, out, scale, focal_px, max_pixels,
                        [f.strip() for f in formats.split(",") if f.strip()])
         except ValidationError as exc:
-            raise InputError(one_line(exc)) from None
+            raise InputError(one_line(exc, scale_options(mm_per_px, distance_mm, width_mm, height_mm,
+                                                         depth_mm))) from None
         return
     one: Path | None = images[0] if images else None
     from prismcore.io.video_decode import is_video
