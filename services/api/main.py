@@ -70,7 +70,7 @@ def create_app() -> FastAPI:
     def openapi() -> dict[str, Any]:
         # Built once, as FastAPI does, then every error answer declared as a problem document.
         if app.openapi_schema is None:
-            app.openapi_schema = declare_problems(FastAPI.openapi(app))
+            app.openapi_schema = stations.document_station(declare_problems(FastAPI.openapi(app)))
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

@@ -26,8 +26,8 @@ from starlette.routing import Match, Mount
 
 from prismcore.spec import error_message
 
-__all__ = ["BASE", "KINDS", "MEDIA_TYPE", "PROBLEM_SCHEMA", "Kind", "Problem", "declare_problems",
-           "install_handlers", "pointer", "problem_response", "validation_errors"]
+__all__ = ["BASE", "KINDS", "MEDIA_TYPE", "PROBLEM_SCHEMA", "PROBLEM_TYPES", "Kind", "Problem",
+           "declare_problems", "install_handlers", "pointer", "problem_response", "validation_errors"]
 
 log = logging.getLogger(__name__)
 
@@ -343,12 +343,34 @@ _DEFAULT_DESCRIPTIONS = {400: "The body cannot be read (not JSON, cut multipart)
                          500: "Internal error (nothing of it is disclosed)"}
 
 
+# The problem types an error status carries unless an operation names its own (a route's
+# `responses` entry with "x-problem-types": [slug, ...]).
+_TYPES_BY_STATUS = {**{status: [slug] for status, slug in _BY_STATUS.items()},
+                    503: ["at-capacity", "backend-unavailable"]}
+PROBLEM_TYPES = "x-problem-types"
+
+
+def _declare_types(response: dict[str, Any], status: int) -> None:
+    """The response's problem types as URIs in `x-problem-types` and named in its description,
+    so a client (and the contract test) knows which refusals an operation gives."""
+    slugs = [t.removeprefix(BASE) for t in response.get(PROBLEM_TYPES, _TYPES_BY_STATUS.get(status, []))]
+    if not slugs:
+        return
+    response[PROBLEM_TYPES] = [KINDS[slug].type for slug in slugs]
+    named = ", ".join(f"`{KINDS[slug].type}`" for slug in slugs)
+    description = response.get("description", "").rstrip(".")
+    if "Problem type" not in description:
+        response["description"] = f"{description}. Problem type: {named}." if description else \
+            f"Problem type: {named}."
+
+
 def declare_problems(schema: dict[str, Any]) -> dict[str, Any]:
     """Make every error response of every operation in an OpenAPI document a Problem.
 
     Adds the components, replaces FastAPI's HTTPValidationError answers, and adds 500 (any
     operation can fail), 422 (operations with parameters or a body) and 415 (a JSON body sent
-    as another type) where not declared.
+    as another type) where not declared. Each error response lists its problem types
+    (`x-problem-types`, the URIs of `type`; the status's own kind unless the route named others).
     """
     components = schema.setdefault("components", {}).setdefault("schemas", {})
     components["Problem"] = PROBLEM_SCHEMA
@@ -366,6 +388,7 @@ def declare_problems(schema: dict[str, Any]) -> dict[str, Any]:
             for code, response in responses.items():
                 if code.isdigit() and int(code) >= 400:
                     response["content"] = {MEDIA_TYPE: {"schema": _REF}}
+                    _declare_types(response, int(code))
     used = json.dumps(schema.get("paths", {}))
     for name in ("HTTPValidationError", "ValidationError"):
         if f"#/components/schemas/{name}" not in used:

@@ -33,7 +33,11 @@ def _first_non_finite(value: Any, path: str = "") -> str | None:
 class JobCreate(BaseModel):
     """A batch of scans: each item is the `prism scan --spec` model, images given as references."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{
+        "items": [{"image": "upload:0123456789abcdef0123456789abcdef",
+                   "points": [[395, 293], [943, 331], [919, 761], [943, 331], [1035, 298]],
+                   "scale": {"kind": "edge", "edge": "width", "length_mm": 120}}],
+        "client_reference": "batch-17"}]})
 
     items: list[ScanSpec] = Field(min_length=1, description="The scans, run in order.")
     client_reference: str | None = Field(default=None, max_length=200,

@@ -16,6 +16,7 @@ after the key is checked.
 from __future__ import annotations
 
 import json
+import math
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Annotated, Any
 from uuid import uuid4
@@ -44,25 +45,47 @@ if TYPE_CHECKING:
 
 router = APIRouter(prefix="/stations", tags=["stations"])
 
-# The body is read by hand (its model imports the engine lazily), so its shape is declared here.
+# The body is read by hand (its model imports the engine lazily), so its shape is declared here;
+# the JSON one is the Station model's schema, put in when the document is built (`document_station`).
+_MAX_PHOTOS = 40
+_MAX_FIELDS = 8  # parts sent as plain fields (no filename), as Starlette counts them
 _FILE = {"type": "string", "format": "binary"}
 _BODY: dict[str, Any] = {"requestBody": {"required": True, "content": {
-    "application/json": {"schema": {
-        "type": "object", "description": "station.json, as `prism station calibrate` writes it: version, "
-        "board, camera, plane, calibration, plate_png (base64 PNG of the empty support)."}},
+    "application/json": {"schema": {"$ref": "#/components/schemas/Station"}},
     "multipart/form-data": {"schema": {
-        "type": "object", "required": ["board", "plane"], "description": "The photos to calibrate a "
-        "station from, as `prism station calibrate` takes them.",
+        "type": "object", "required": ["board", "plane"], "additionalProperties": False,
+        "maxProperties": 5, "description": (
+            "The photos to calibrate a station from, as `prism station calibrate` takes them. Only "
+            "the five fields below (any other is refused, 422), each once but `calibration` (up to "
+            f"{_MAX_PHOTOS} photos); at most {_MAX_FIELDS} parts sent as plain fields rather than files "
+            f"(without a filename), and {_MAX_PHOTOS + 4} files: more is refused (400)."),
         "properties": {
             "board": {**_FILE, "description": "board.json (prism board, or any ChArUco board or "
                       "chessboard described so)."},
             "plane": {**_FILE, "description": "The board flat on the support, camera in its working "
                       "position: the station's frame."},
-            "calibration": {"type": "array", "items": _FILE, "description": "The board in several "
-                            "poses (the camera's intrinsics and lens), unless `camera` is given."},
+            "calibration": {"type": "array", "items": _FILE, "maxItems": _MAX_PHOTOS,
+                            "description": "The board in several poses (the camera's intrinsics and "
+                            "lens), unless `camera` is given."},
             "camera": {**_FILE, "description": "camera.json (prism calibrate): known intrinsics."},
             "plate": {**_FILE, "description": "The empty support from the working position."}}}}}}}
-_MAX_PHOTOS = 40
+
+
+def document_station(schema: dict[str, Any]) -> dict[str, Any]:
+    """Put station.json's schema (the Station model's, as `prism station calibrate` writes it) into
+    an OpenAPI document's components, where POST /v1/stations' JSON body refers to it. Called when
+    the document is built: the model imports OpenCV, which the API loads only when it is needed."""
+    from prismcore.station import Station
+
+    components = schema.setdefault("components", {}).setdefault("schemas", {})
+    station = Station.model_json_schema(ref_template="#/components/schemas/Station{model}")
+    for name, sub in station.pop("$defs", {}).items():
+        components[f"Station{name}"] = sub
+    station["description"] = ("station.json, as `prism station calibrate` writes it (the plate as "
+                              "base64 PNG). The model's own checks apply beyond this schema (a board "
+                              "and plane that agree, a plate that decodes): 422 at the field.")
+    components["Station"] = station
+    return schema
 
 
 def _not_found(station_id: str) -> Problem:
@@ -84,6 +107,17 @@ def _parse(raw: bytes) -> Station:
                                      body=document) from None
 
 
+def _finite(value: Any) -> bool:
+    """Every number in a dumped model is finite."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, dict):
+        return all(_finite(v) for v in value.values())
+    if isinstance(value, list | tuple):
+        return all(_finite(v) for v in value)
+    return True
+
+
 _limiters: dict[int, anyio.CapacityLimiter] = {}
 
 
@@ -100,7 +134,7 @@ def _invalid(field: str, detail: str) -> Problem:
 async def _calibrated(request: Request, max_pixels: int, limiter: anyio.CapacityLimiter) -> Station:
     """The station the multipart photos calibrate (InputError's reason as a 422 at its field), one
     of `limiter`'s calibrations at a time (503 at capacity)."""
-    form = await request.form(max_files=_MAX_PHOTOS + 4, max_fields=8)
+    form = await request.form(max_files=_MAX_PHOTOS + 4, max_fields=_MAX_FIELDS)
     try:
         files: dict[str, list[tuple[str, bytes]]] = {}
         for field, value in form.multi_items():
@@ -175,9 +209,11 @@ def _calibrate(files: dict[str, list[tuple[str, bytes]]], max_pixels: int) -> St
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=StationPublic, openapi_extra=_BODY,
-             responses={400: {"description": "Not JSON"},
-                        415: {"description": "Not sent as application/json"},
-                        422: {"description": "Not a station.json: `errors` points at the field"}})
+             responses={400: {"description": f"Not JSON, or a multipart body of more than {_MAX_FIELDS} "
+                                             f"plain fields or {_MAX_PHOTOS + 4} files"},
+                        415: {"description": "Sent as neither application/json nor multipart/form-data"},
+                        422: {"description": "Not a station.json, or photos and files that calibrate no "
+                                             "station: `errors` points at the field"}})
 async def create_station(request: Request, response: Response, tenant: TenantDep, objects: ObjectsDep,
                          settings: SettingsDep,
                          name: Annotated[str | None, Query(max_length=200, description=(
@@ -185,8 +221,10 @@ async def create_station(request: Request, response: Response, tenant: TenantDep
                              "(NUL, CR, LF...) and invisible format characters (right-to-left "
                              "overrides and isolates...) dropped, spaces at its ends stripped"))] = None,
                          ) -> StationPublic:
-    """Store a station: a station.json (`prism station calibrate`'s output), or one calibrated
-    here from its photos (multipart: board, plane, calibration..., camera, plate)."""
+    """Store a station: a station.json (`prism station calibrate`'s output, schema `Station`), or
+    one calibrated here from its photos (multipart: board, plane, calibration..., camera, plate;
+    no other field, at most 40 calibration photos, at most 8 parts sent as plain fields rather
+    than files and 44 files in all, more refused with 400)."""
     name = (printable_name(name) or None) if name else None  # all of it unprintable: no name
     sent = request.headers.get("content-type", "").split(";", 1)[0].strip().lower()
     if sent == "multipart/form-data":
@@ -203,6 +241,11 @@ async def create_station(request: Request, response: Response, tenant: TenantDep
     data = station.model_dump_json().encode()
     station_id = uuid4().hex
     summary = station_summary(station, station_id, name=name, created_at=datetime.now(UTC), size=len(data))
+    if not _finite(summary.model_dump(mode="python")):
+        # A pose or camera the model takes whose figures overflow (a plane 1e300 mm away): the
+        # summary could not be answered as JSON numbers, so the station is refused, not kept.
+        raise _invalid("plane", "the camera's pose and intrinsics give no finite position of the camera "
+                       "over the support")
     await anyio.to_thread.run_sync(put_station, objects, tenant, station_id, data, summary)
     response.headers["Location"] = f"/v1/stations/{station_id}"
     return summary

@@ -68,9 +68,11 @@ def _probe(upload: MultipartFile) -> dict[str, Any]:
                  200: {"description": "The same content was uploaded before: that upload",
                        "model": UploadPublic},
                  413: {"description": "Larger than the upload limit"},
-                 415: {"description": "Neither a photo nor a video: `detail` names what it is"},
-                 422: {"description": "No non-empty multipart `file`, or a photo cut short "
-                       "(damaged-file: `detail` says so)"}})
+                 415: {"description": "Neither a photo nor a video (an empty file, text, a PDF...): "
+                       "`detail` and `detected_type` name what it is"},
+                 422: {"description": "No non-empty multipart `file` (validation), or a photo cut "
+                       "short (damaged-file: `detail` says so)",
+                       "x-problem-types": ["validation", "damaged-file"]}})
 
 async def create_upload(request: Request, response: Response, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
