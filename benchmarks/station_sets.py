@@ -292,7 +292,7 @@ def _table(title: str, columns: dict[str, Tally]) -> None:
             )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--stations", type=int, default=10)
     parser.add_argument("--parts", type=int, default=10)
@@ -301,7 +301,7 @@ def main() -> None:
     parser.add_argument("--sets", default="development,report")
     parser.add_argument("--modes", default="station,hand-held")
     parser.add_argument("--dump", metavar="FILE")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     gens = [g for g in args.generators.split(",") if g]
     sets = [s for s in args.sets.split(",") if s]

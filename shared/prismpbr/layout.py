@@ -293,6 +293,9 @@ def _clutter(
             for _s in range(int(rng.integers(8, 20))):
                 heading += rng.normal(0, 0.35)
                 pts.append(pts[-1] + 40 * np.array([np.cos(heading), np.sin(heading)]))
+            # Beside the sheet, not over it: the cable ends where it would reach the sheet.
+            inside = [x0 - 20 < p[0] < x1 + 20 and y0 - 20 < p[1] < y1 + 20 for p in pts]
+            pts = pts[: inside.index(True)] if True in inside else pts
             path = tuple((float(p[0]), float(p[1])) for p in pts)
         out.append(
             Clutter(

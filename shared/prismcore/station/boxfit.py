@@ -7,12 +7,14 @@ its eight projected corners; the fit moves the six until that hull lies on the o
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
+
+from prismcore.station.edges import bilinear, refine_outline
 
 __all__ = ["BoxFit", "box_corners", "fit_box", "project", "visible_faces"]
 
@@ -38,7 +40,8 @@ def box_corners(params: np.ndarray) -> np.ndarray:
     """(8, 3) board-frame corners of the box (x, y, yaw rad, log L, log W, log H): the footprint
     (z = 0) then the top (z = -H: the board's z points into the support)."""
     x, y, yaw, a, b, c = params
-    hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
+    with np.errstate(over="ignore"):  # a step of the fit to an absurd size: infinite, then refused
+        hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
     co, si = np.cos(yaw), np.sin(yaw)
     local = np.array([[-hl, -hw], [hl, -hw], [hl, hw], [-hl, hw]])
     xy = local @ np.array([[co, si], [-si, co]]) + (x, y)
@@ -144,7 +147,6 @@ class BoxFit:
 _EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7)]
 _FACES = {"top": (4, 5, 6, 7), "s0": (0, 1, 5, 4), "s1": (1, 2, 6, 5), "s2": (2, 3, 7, 6), "s3": (3, 0, 4, 7)}
 _FOLD_SAMPLES = np.linspace(0.15, 0.85, 8)
-_FOLD_CAP_PX = 4.0  # a fold farther than this from any edge pixel is not pulled further
 
 
 def visible_faces(
@@ -213,22 +215,12 @@ class _Problem:
     vertex_weight: float
     fold_weight: float
     edge_bias: float = _EDGE_BIAS_PX
+    # A box with edges rounded by a radius is its inner box grown by that radius: its silhouette
+    # lies this many px (the radius at the part's distance) outside the inner box's.
+    rounding_px: float = 0.0
     # The last parameters' projected corners, hull and nearest edges: least_squares asks for the
     # Jacobian where it last evaluated the residuals, and the Jacobian needs the same geometry.
     last: dict[str, Any] = field(default_factory=dict, compare=False)
-
-
-def _lookup(dt: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    h, w = dt.shape
-    x = _clip(pts[:, 0], 0, w - 1.001)
-    y = _clip(pts[:, 1], 0, h - 1.001)
-    x0, y0 = x.astype(np.intp), y.astype(np.intp)
-    fx, fy = x - x0, y - y0
-    return cast(
-        "np.ndarray",
-        (dt[y0, x0] * (1 - fx) + dt[y0, x0 + 1] * fx) * (1 - fy)
-        + (dt[y0 + 1, x0] * (1 - fx) + dt[y0 + 1, x0 + 1] * fx) * fy,
-    )
 
 
 def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
@@ -242,15 +234,15 @@ def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
     hull = _hull(pts)
     near = _nearest(p.outline, pts[hull])
     p.last.update(key=params.tobytes(), hull=hull, near=near)
-    r1 = near.signed - p.edge_bias
+    r1 = near.signed - p.edge_bias - p.rounding_px
     # Each hull vertex on the outline too, so the hull cannot outgrow it where no outline lies.
     r2 = np.zeros(8)
-    r2[hull] = _lookup(p.signed, pts[hull] - p.origin) - _EDGE_BIAS_PX
+    r2[hull] = bilinear(p.signed, pts[hull] - p.origin) - _EDGE_BIAS_PX + p.rounding_px
     r3 = np.zeros(3 * len(_FOLD_SAMPLES))
     if p.fold_dt is not None:
         folds = _fold_ends(params, p.centre)
         if len(folds):
-            r3[: len(folds) * len(_FOLD_SAMPLES)] = _lookup(p.fold_dt,
+            r3[: len(folds) * len(_FOLD_SAMPLES)] = bilinear(p.fold_dt,
                                                              _fold_samples(pts, folds) - p.maps_origin)
     return np.concatenate([r1, p.vertex_weight * r2, p.fold_weight * r3])
 
@@ -285,7 +277,8 @@ def _lookup_grad(dt: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def _corner_jacobian(params: np.ndarray, p: _Problem) -> tuple[np.ndarray, np.ndarray]:
     """The 8 projected corners (8, 2) and their derivative by the parameters (8, 2, 6)."""
     x, y, yaw, a, b, c = params
-    hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
+    with np.errstate(over="ignore"):
+        hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
     co, si = np.cos(yaw), np.sin(yaw)
     sx = np.array([-1.0, 1.0, 1.0, -1.0])
     sy = np.array([-1.0, -1.0, 1.0, 1.0])
@@ -396,56 +389,6 @@ def _same_box(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.all(np.abs(sa - sb) <= tol) and np.hypot(a[0] - b[0], a[1] - b[1]) <= tol)
 
 
-def fold_distance(gray: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Distance (px, float32, capped) to the nearest intensity edge inside the part: where its
-    folds between faces of different shading show."""
-    edges = cv2.Canny(gray, 20, 60)
-    inner = cv2.erode(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
-    edges[inner == 0] = 0
-    dt = cv2.distanceTransform((edges == 0).astype(np.uint8), cv2.DIST_L2, 3)
-    return cast("np.ndarray", np.minimum(dt, _FOLD_CAP_PX).astype(np.float32))
-
-
-_PROFILE = np.arange(-4.0, 4.01, 0.5)
-
-
-def refine_outline(outline: np.ndarray, hull: np.ndarray, difference: np.ndarray) -> np.ndarray:
-    """The outline moved, along the fitted silhouette's normals, to where the photo's difference
-    from the support crosses halfway between the part's level and the support's: the edge to a
-    fraction of a pixel, whatever the threshold that found it. Points with no clear step stay out.
-
-    outline : (N, 2) px. hull : (M, 2) the fitted silhouette, counter-clockwise or not.
-    difference : (H, W) float32, the photo's distance from the (shadow-scaled) support.
-    """
-    a, b = hull, np.roll(hull, -1, axis=0)
-    ab = b - a
-    ap = outline[:, None, :] - a[None]
-    tt = np.clip(np.einsum("nmk,mk->nm", ap, ab) / np.maximum(np.einsum("mk,mk->m", ab, ab), 1e-12), 0, 1)
-    near = np.argmin(
-        np.linalg.norm(outline[:, None, :] - (a[None] + tt[..., None] * ab[None]), axis=2), axis=1
-    )
-    d = ab[near] / np.linalg.norm(ab[near], axis=1, keepdims=True)
-    normal = np.column_stack([d[:, 1], -d[:, 0]])
-    centre = hull.mean(axis=0)
-    flip = np.einsum("nk,nk->n", normal, outline - centre) < 0
-    normal[flip] *= -1  # outward
-    samples = outline[:, None, :] + _PROFILE[None, :, None] * normal[:, None, :]
-    prof = _lookup(difference, samples.reshape(-1, 2)).reshape(len(outline), len(_PROFILE))
-    inside = np.median(prof[:, :3], axis=1)
-    outside = np.median(prof[:, -3:], axis=1)
-    level = (inside + outside) / 2
-    above = prof >= level[:, None]
-    # the last sample above the level, counting outward, and the one after it
-    last = len(_PROFILE) - 1 - np.argmax(above[:, ::-1], axis=1)
-    ok = (inside - outside > 12) & (last < len(_PROFILE) - 1) & above[:, 0]
-    last = np.minimum(last, len(_PROFILE) - 2)
-    rows = np.arange(len(outline))
-    v0, v1 = prof[rows, last], prof[rows, last + 1]
-    frac = np.clip((v0 - level) / np.maximum(v0 - v1, 1e-6), 0, 1)
-    offset = _PROFILE[last] + 0.5 * frac
-    return cast("np.ndarray", (outline + offset[:, None] * normal)[ok])
-
-
 def _weak_fraction(corners_px: np.ndarray, difference: np.ndarray) -> float:
     """The share of the fitted silhouette's outline across which the photo's difference from the
     support steps by less than _WEAK_STEP levels (3 px in against 3 px out): where a part's
@@ -455,7 +398,7 @@ def _weak_fraction(corners_px: np.ndarray, difference: np.ndarray) -> float:
     s = np.linspace(0.05, 0.95, 20)[:, None]
     pts = np.concatenate([a + s * (b - a) for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
     inward = (centre - pts) / np.maximum(np.linalg.norm(centre - pts, axis=1), 1e-9)[:, None]
-    step = _lookup(difference, pts + 3 * inward) - _lookup(difference, pts - 3 * inward)
+    step = bilinear(difference, pts + 3 * inward) - bilinear(difference, pts - 3 * inward)
     return float(np.mean(step < _WEAK_STEP))
 
 
@@ -467,6 +410,7 @@ def fit_box(
     fold_dt: np.ndarray | None = None,
     difference: np.ndarray | None = None,
     origin: tuple[int, int] = (0, 0),
+    radius_mm: float = 0.0,
 ) -> BoxFit:
     """The box resting on the plane z = 0 whose silhouette (and folds) best match the photo.
 
@@ -481,7 +425,46 @@ def fit_box(
         The photo's distance from the support (:class:`~prismcore.station.segment.Silhouette`'s):
         the outline is refined to where it steps.
     origin : the photo pixel (x, y) of `fold_dt`'s and `difference`'s (0, 0) (a window of the photo).
+    radius_mm : the radius of the box's rounded edges, mm. The box fitted is then the inner box
+        (every side 2 radii shorter, raised by one radius) whose silhouette grown by the radius
+        (at the part's distance) is the outline; the fit returned is the outer box's.
     """
+    if radius_mm > 0:
+        inner = _fit(outline, K, R, t - radius_mm * R[:, 2], fold_dt, difference, origin, radius_mm)
+        return _outer(inner, radius_mm)
+    return _fit(outline, K, R, t, fold_dt, difference, origin)
+
+
+def _radius_px(radius_mm: float, params: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> float:
+    """`radius_mm` at the distance of the box `params`' centre, px."""
+    if radius_mm <= 0:
+        return 0.0
+    depth = float(np.mean(box_corners(params) @ R[2] + t[2]))
+    return radius_mm * float(K[0, 0]) / max(depth, 1.0)
+
+
+def _outer(inner: BoxFit, radius_mm: float) -> BoxFit:
+    """The box whose edges, rounded by `radius_mm`, enclose `inner` grown by that radius."""
+    params = inner.params.copy()
+    size = np.exp(params[3:]) + 2 * radius_mm
+    params[3:] = np.log(size)
+    # d log(e^a + 2r) / d a: the log-sides' covariance carried over
+    if not np.all(np.isfinite(inner.cov)):
+        return replace(inner, params=params, cov=np.full((6, 6), np.inf))
+    J = np.diag(np.r_[np.ones(3), np.exp(inner.params[3:]) / size])
+    return replace(inner, params=params, cov=J @ inner.cov @ J.T)
+
+
+def _fit(
+    outline: np.ndarray,
+    K: np.ndarray,
+    R: np.ndarray,
+    t: np.ndarray,
+    fold_dt: np.ndarray | None = None,
+    difference: np.ndarray | None = None,
+    origin: tuple[int, int] = (0, 0),
+    rounding_mm: float = 0.0,
+) -> BoxFit:
     centre = -R.T @ t
     maps_o = np.asarray(origin, np.float64)
     lo = np.floor(outline.min(axis=0)) - 20
@@ -493,12 +476,14 @@ def fit_box(
             pts = outline[:: max(1, len(outline) // n_points)]
         return _Problem(pts, signed, lo, K, R, t, centre, fold_dt, maps_o,
                         vertex_weight=float(np.sqrt(len(pts) / 8) * 0.5),
-                        fold_weight=float(np.sqrt(len(pts) / 24) * 0.5), edge_bias=edge_bias)
+                        fold_weight=float(np.sqrt(len(pts) / 24) * 0.5), edge_bias=edge_bias,
+                        rounding_px=rounding_px)
 
     # Every start scored, the best few fitted on a sparse outline, the best of those on a dense one:
     # the silhouette alone has local minima (the box turned a quarter with its sides swapped).
-    coarse = problem(_COARSE_POINTS)
     starts = _start(outline, K, R, t)
+    rounding_px = _radius_px(rounding_mm, starts[0], K, R, t)
+    coarse = problem(_COARSE_POINTS)
     costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
     # Fitted best first, until _AGREEING of them end at the best one yet (the same box at the same
     # cost, reached from different starts), or _FITTED_STARTS are fitted.
@@ -510,6 +495,7 @@ def fit_box(
         if sum(f.cost <= lowest.cost * (1 + _AGREE) and _same_box(f.x, lowest.x) for f in fits) >= _AGREEING:
             break
     best_x = min(fits, key=lambda f: f.cost).x
+    rounding_px = _radius_px(rounding_mm, best_x, K, R, t)
     dense = problem(_DENSE_POINTS)
     best = least_squares(_residuals, best_x, jac=_jacobian, args=(dense,), method="lm", x_scale="jac",
                          max_nfev=60)

@@ -15,8 +15,11 @@ import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
-from prismcore.station.boxfit import _FACES, BoxFit, fit_box, fold_distance, project, visible_faces
+from prismcore.geometry.rounding import RESOLVED_PX
+from prismcore.station.boxfit import _FACES, BoxFit, fit_box, project, visible_faces
 from prismcore.station.calibrate import Station
+from prismcore.station.edges import fold_distance
+from prismcore.station.rounding import edge_radius
 from prismcore.station.segment import Registration, register, segment_part, undistorter
 
 __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
@@ -31,6 +34,9 @@ _WARN_WEAK = 0.15
 _TOP_ONLY_SIGMA = 0.05  # relative: a footprint side read on the top face alone
 _SIDE_SEEN = 0.15
 _MIN_SIDE_PX = 4.0  # a fitted side shorter than this in the photo is no side
+_RADIUS_SHARE = 1.0  # a side's error per mm of error in the rounding's radius
+_HIDDEN_SHARE = 0.6  # a side's shortfall per mm of a rounding the fit did not know of (renders: 0.45-0.65)
+_HIDDEN_MAX_MM = 3.0  # the largest rounding taken to hide below the folds' resolution
 
 
 def _sides_seen(corners: np.ndarray, image_pts: np.ndarray, camera_centre: np.ndarray) -> int:
@@ -265,7 +271,12 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
     # the folds and the outline's steps looked for in the part's window only
     gray = cv2.cvtColor(photo_u[sil.window], cv2.COLOR_RGB2GRAY)
-    fit = fit_box(sil.contour, K, R, t, fold_distance(gray, sil.mask[sil.window]), sil.difference, sil.origin)
+    folds = fold_distance(gray, sil.mask[sil.window])
+    fit = fit_box(sil.contour, K, R, t, folds, sil.difference, sil.origin)
+    radius = edge_radius(photo_u, fit, K, R, t)
+    if radius is not None:
+        # rounded edges pull the silhouette in: the box refitted as its inner box grown by them
+        fit = fit_box(sil.contour, K, R, t, folds, sil.difference, sil.origin, radius_mm=radius.radius_mm)
     t4, c4 = time.perf_counter(), time.thread_time()
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)
@@ -302,7 +313,16 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     # way along a whole side (blur, JPEG, the threshold), and the camera's pose is known to its
     # calibration: a floor of _SYSTEMATIC_PX at the part's distance, and 0.2 %.
     mm_per_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], -H / 2]) + t)) / K[0, 0]
-    sig = {k: float(np.sqrt(sig[k] ** 2 + (_SYSTEMATIC_PX * mm_per_px) ** 2 + (0.002 * dims[k]) ** 2))
+    # and the rounding's radius: as read, each side moves by about its error; not read, a rounding
+    # too narrow to show at this resolution (its ramp under RESOLVED_PX) may still pull the
+    # silhouette in by up to _HIDDEN_SHARE of its radius on each side
+    if radius is not None:
+        r_sd = _RADIUS_SHARE * radius.std_mm
+    else:
+        hidden = min(RESOLVED_PX * mm_per_px, _HIDDEN_MAX_MM)
+        r_sd = _HIDDEN_SHARE * hidden / np.sqrt(3.0)  # a radius anywhere from 0 to `hidden`
+    sig = {k: float(np.sqrt(sig[k] ** 2 + (_SYSTEMATIC_PX * mm_per_px) ** 2 + (0.002 * dims[k]) ** 2
+                            + r_sd**2))
            for k in dims}
     if fit.weak_fraction > _WARN_WEAK:
         warnings.append(f"{fit.weak_fraction:.0%} of the part's outline barely differs from the support "

@@ -16,6 +16,7 @@ from prismcore.camera import CameraModel
 from prismcore.errors import InputError
 from prismcore.station.board import BoardSpec, find_board_corners
 from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
+from prismcore.station.photometry import deepest_shadow, pattern_broken, tone_curve, toned
 
 __all__ = [
     "MAX_SHIFT_PX",
@@ -357,7 +358,8 @@ _MIN_RUN = 64  # columns: a shorter run inside the part is computed (each block 
 _INSIDE = np.float32(442.0)  # the residual read inside the part where it is not computed (> any RGB distance)
 
 
-def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None) -> np.ndarray:
+def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None,
+              shadow: tuple[float, float] = SHADOW_RANGE) -> np.ndarray:
     """A shadow scales the support; the part does not. The support is also compared shifted by a
     pixel each way and the least difference kept: the registration's last fraction of a pixel
     then shows no difference along the board's edges, while the part differs from every shift.
@@ -379,7 +381,7 @@ def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None) -> 
         best: np.ndarray | None = None
         for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
             rows, cols = slice(r0 + 1 - dy, r1 + 1 - dy), slice(c0 + 1 - dx, c1 + 1 - dx)
-            d2 = difference2(pr, [q[rows, cols] for q in padded], padded2[rows, cols])
+            d2 = difference2(pr, [q[rows, cols] for q in padded], padded2[rows, cols], shadow)
             best = d2 if best is None else np.minimum(best, d2, out=best)
         assert best is not None
         if out is None:
@@ -431,6 +433,14 @@ def _mask(resid: np.ndarray, noise: float, scale: float) -> np.ndarray:
     )
 
 
+_NCC_WINDOW = 5  # coarse px: the window the support's pattern is compared over
+_NCC_FULL = 7  # at full size
+_NCC_SHRINK = 2
+_BROKEN_LEVEL = np.float32(60.0)  # the residual a window with its pattern broken is given, at least
+_MIRRORED = 0.03  # of the part's area: broken pattern beyond this joins the outline
+_TONE_BETTER = 0.8  # the tone curve is taken where the support's median residual is this much of the gain's
+
+
 _SPLIT_GAP_PX = 3.0  # coarse px
 _SPLIT_GAP = 0.3  # of the part's size (the square root of its area)
 _COARSE = 4  # the part is first found in a photo this many times smaller
@@ -457,13 +467,29 @@ def segment_part(
     to_small = np.array([[small[0] / w, 0, 0.5 * small[0] / w - 0.5],
                          [0, small[1] / h, 0.5 * small[1] / h - 0.5], [0, 0, 1.0]])
     Ps = cv2.resize(photo_u, small, interpolation=cv2.INTER_AREA).astype(np.float32)
-    Bs = cv2.warpPerspective(
+    Bs8 = cv2.warpPerspective(
         cv2.resize(plate_u, small, interpolation=cv2.INTER_AREA),
         to_small @ homography @ np.linalg.inv(to_small),
         small, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,
-    ).astype(np.float32)
+    )
+    Bs = Bs8.astype(np.float32)
     gain, light_warning = _gain(Ps, Bs)
-    resid_s = _residual(Ps, Bs * gain)
+    # The part first against the plate under the light's gain, then the camera's tone curve fitted
+    # without it, and kept only where it explains the support clearly better than the gain: a
+    # light that only changed needs none, and a curve fitted to a large part's levels would invent one.
+    linear = np.minimum(np.arange(256, dtype=np.float32)[None] * gain[:, None], 255.0)
+    resid_g = _residual(Ps, toned(Bs8, linear))
+    first = _mask(resid_g, float(np.median(resid_g)) * 1.4826 + 1.0, 1 / _COARSE) > 0
+    support = cv2.dilate(first.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    lut = tone_curve(Ps, Bs, gain, ~support)
+    resid_t = _residual(Ps, toned(Bs8, lut))
+    if not float(np.median(resid_t[support])) < _TONE_BETTER * float(np.median(resid_g[support])):
+        lut = linear
+    Bs = toned(Bs8, lut)
+    shadow = (deepest_shadow(Ps, Bs, _NCC_WINDOW, SHADOW_RANGE[0]), SHADOW_RANGE[1])
+    resid_s = _residual(Ps, Bs, shadow=shadow)
+    broken_s = pattern_broken(Ps, Bs, _NCC_WINDOW)
+    resid_s[broken_s] = np.maximum(resid_s[broken_s], _BROKEN_LEVEL)
     noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
     mask_s = _mask(resid_s, noise_s, 1 / _COARSE)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask_s, connectivity=8)
@@ -499,15 +525,15 @@ def segment_part(
     X1, Y1 = min(w, (x0 + bw + m) * _COARSE), min(h, (y0 + bh + m) * _COARSE)
     P = photo_u[Y0:Y1, X0:X1].astype(np.float32)
     window_h = np.array([[1, 0, -X0], [0, 1, -Y0], [0, 0, 1.0]]) @ homography
-    bg = cv2.warpPerspective(
+    bg = toned(cv2.warpPerspective(
         plate_u, window_h, (X1 - X0, Y1 - Y0), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    ).astype(np.float32) * gain
+    ), lut)
     # the coarse blob at full size in the window (nearest: each coarse pixel's full-size pixels)
     cols = np.minimum(np.arange(X0, X1) * small[0] // w, small[0] - 1)
     rows = np.minimum(np.arange(Y0, Y1) * small[1] // h, small[1] - 1)
     blob = np.isin(labels, pieces).astype(np.uint8)
     core = cv2.erode(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * _CORE + 1,) * 2))
-    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None)
+    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None, shadow)
     near: np.ndarray = blob[np.ix_(rows, cols)]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
@@ -520,9 +546,22 @@ def segment_part(
     largest = int(np.max(st[1:, cv2.CC_STAT_AREA]))
     in_part = [j for j in range(1, count) if st[j, cv2.CC_STAT_AREA] >= _SECOND_PART * largest
                and near[lab == j].any()]
+    if not in_part:
+        # what differs at full size lies away from where the coarse photo found the part
+        raise InputError("no part found on the support (nothing differs from the plate where the part "
+                         "showed at a quarter of the size)")
     part = np.isin(lab, in_part).astype(np.uint8)
+    # Where the support's pattern is broken near the part but no pixel differs enough (a face that
+    # mirrors the board): the part reaches there too. A box's silhouette is convex: the outline is
+    # then the hull of both.
+    broken = pattern_broken(P, bg, _NCC_FULL, _NCC_SHRINK) & (near > 0) & (part == 0)
+    mirrored = int(broken.sum()) > _MIRRORED * max(int(part.sum()), 1)
+    if mirrored:
+        part |= broken.astype(np.uint8)
+        warnings.append("part of the part's outline was found only where it breaks the support's pattern "
+                        "(a face mirroring the support, or alike it): the dimensions may be off")
     contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    if len(in_part) > 1:
+    if len(in_part) > 1 or mirrored:
         # Its pieces joined by their convex hull (a box's silhouette is convex), the hull's sides
         # sampled every pixel as an outline.
         every = np.vstack([c.reshape(-1, 2) for c in contours])
@@ -530,8 +569,9 @@ def segment_part(
         contour = np.vstack([
             a + np.linspace(0, 1, max(2, int(np.linalg.norm(b - a))), endpoint=False)[:, None] * (b - a)
             for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True)])
-        warnings.append(f"the part's outline was found in {len(in_part)} pieces (a face's colour close to "
-                        "the support's between them): joined as one box; the dimensions may be off")
+        if len(in_part) > 1:
+            warnings.append(f"the part's outline was found in {len(in_part)} pieces (a face's colour close "
+                            "to the support's between them): joined as one box; the dimensions may be off")
     else:
         contour = max(contours, key=cv2.contourArea).reshape(-1, 2).astype(np.float64)
     filled = np.zeros_like(part)
