@@ -151,7 +151,21 @@ def board_image(board: BoardSpec, px_per_mm: float) -> np.ndarray:
     w_mm, h_mm = board.size_mm
     size = (round(w_mm * px_per_mm), round(h_mm * px_per_mm))
     if board.type == "charuco":
-        return board.charuco().generateImage(size, marginSize=0, borderBits=1)
+        try:
+            return board.charuco().generateImage(size, marginSize=0, borderBits=1)
+        except cv2.error:
+            # OpenCV rounds a marker's place in a square of a fractional size past the image at some
+            # sizes (a board of measured, non-whole squares): drawn at whole pixels a square, resized
+            # (some whole sizes round so too: the next few are tried)
+            first = int(np.ceil(board.square_mm * px_per_mm))
+            for sq in range(first, first + 16):
+                try:
+                    whole = board.charuco().generateImage((board.squares_x * sq, board.squares_y * sq),
+                                                          marginSize=0, borderBits=1)
+                except cv2.error:
+                    continue
+                return cv2.resize(whole, size, interpolation=cv2.INTER_AREA)
+            raise
     # A chessboard: the top-left square black, as OpenCV's own pattern.
     ys, xs = np.mgrid[0 : size[1], 0 : size[0]]
     cell = ((xs / px_per_mm // board.square_mm) + (ys / px_per_mm // board.square_mm)) % 2

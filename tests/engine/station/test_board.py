@@ -55,3 +55,19 @@ def test_a_board_json_that_cannot_be_is_refused_naming_why(fields, says) -> None
 def test_squares_too_small_for_the_paper_are_refused() -> None:
     with pytest.raises(InputError, match="under 5 mm"):
         default_board("A4", (32, 32))
+
+
+@pytest.mark.parametrize("square_mm, marker_mm, px_per_mm", [(23.99, 17.99, 1.25), (55.89, 41.92, 18.5),
+                                                             (39.0, 29.2, 3.3), (33.07, 24.8, 7.77)])
+def test_a_board_of_measured_squares_is_drawn_at_any_scale(square_mm, marker_mm, px_per_mm) -> None:
+    """OpenCV's drawing refuses some fractional sizes of a square (a marker rounded past the
+    image): a board printed at another scale, its squares measured, is still drawn, at the size
+    asked, its squares where the board says."""
+    board = BoardSpec(type="charuco", dictionary="DICT_5X5_100", squares_x=9, squares_y=6,
+                      square_mm=square_mm, marker_mm=marker_mm)
+    img = board_image(board, px_per_mm)
+    w, h = board.size_mm
+    assert img.shape == (round(h * px_per_mm), round(w * px_per_mm))
+    # the top-left square is black (OpenCV's pattern), its right neighbour white with a marker
+    sq = square_mm * px_per_mm
+    assert img[int(sq / 2), int(sq / 2)] < 60
