@@ -28,6 +28,7 @@ PAPER_MM: dict[str, tuple[float, float]] = {
 }
 _DICTIONARIES = {name: getattr(cv2.aruco, name) for name in dir(cv2.aruco) if name.startswith("DICT_")}
 MIN_CORNERS = 6  # a pose from fewer corners of one plane is too weakly determined to use
+_ENOUGH_CORNERS = 12  # found fewer with two markers beside each corner: corners beside one are tried
 
 
 class BoardSpec(BaseModel):
@@ -215,6 +216,14 @@ def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
         return BoardView(np.asarray(corners, np.float64), board.corner_points(), ids)
     detector = cv2.aruco.CharucoDetector(board.charuco())
     corners, ids, _, _ = detector.detectBoard(gray)
+    if ids is None or len(ids) < _ENOUGH_CORNERS:
+        # A part over the board hides markers: a corner beside one marker found (not two) is
+        # placed by that marker alone; taken only where the default finds too few to use.
+        params = cv2.aruco.CharucoParameters()
+        params.minMarkers = 1
+        more, more_ids, _, _ = cv2.aruco.CharucoDetector(board.charuco(), params).detectBoard(gray)
+        if more_ids is not None and (ids is None or len(more_ids) > len(ids)):
+            corners, ids = more, more_ids
     if ids is None or len(ids) < MIN_CORNERS:
         return None
     ids = ids.ravel().astype(int)

@@ -71,3 +71,25 @@ def test_a_board_of_measured_squares_is_drawn_at_any_scale(square_mm, marker_mm,
     # the top-left square is black (OpenCV's pattern), its right neighbour white with a marker
     sq = square_mm * px_per_mm
     assert img[int(sq / 2), int(sq / 2)] < 60
+
+
+def test_corners_beside_one_marker_are_found_when_a_part_hides_the_others() -> None:
+    """Every other marker hidden (as a part over the board hides them): OpenCV's default wants two
+    markers beside a corner and finds 6 corners here, under the 12 a plane needs; corners beside
+    one marker are then taken, each where the board's own pattern puts it."""
+    import cv2
+
+    board = default_board("A4", (7, 5))
+    px = 4.0
+    img = cv2.copyMakeBorder(board_image(board, px), 40, 40, 40, 40, cv2.BORDER_CONSTANT, value=255)
+    sq = board.square_mm * px
+    white = [(r, c) for r in range(board.squares_y) for c in range(board.squares_x) if (r + c) % 2 == 1]
+    for r, c in white[1::2]:
+        y0, x0 = int(40 + (r + 0.1) * sq), int(40 + (c + 0.1) * sq)
+        img[y0 : int(y0 + 0.8 * sq), x0 : int(x0 + 0.8 * sq)] = 150
+    _, default_ids, _, _ = cv2.aruco.CharucoDetector(board.charuco()).detectBoard(img)
+    assert default_ids is not None and len(default_ids) < 12
+    view = find_board_corners(np.dstack([img] * 3), board)
+    assert view is not None and len(view) >= 12
+    expected = view.object_points[:, :2] * px + 40 - 0.5  # pixel centres: (i + 0.5) / px mm
+    assert np.abs(view.image_points - expected).max() < 1.0
