@@ -122,25 +122,20 @@ def _part_bsdf(part: Part, rng: np.random.Generator) -> dict[str, Any]:
     }
 
 
+def _varnished(alpha: float, reflectance: dict[str, Any]) -> dict[str, Any]:
+    """A diffuse surface under a clear coat of roughness `alpha` (a varnished or laminated top)."""
+    return {"type": "roughplastic", "alpha": alpha, "distribution": "ggx", "diffuse_reflectance": reflectance}
+
+
 def _table(scene: Scene, rng: np.random.Generator) -> dict[str, Any]:
     x0, y0, x1, y1 = scene.table_extent_mm
     px = 0.5  # texture px per mm
     size = (int((y1 - y0) * px), int((x1 - x0) * px))
     kind = scene.table
     if kind == "wood":
-        bsdf = {
-            "type": "roughplastic",
-            "alpha": float(rng.uniform(0.1, 0.4)),
-            "distribution": "ggx",
-            "diffuse_reflectance": _bitmap(wood(rng, size)),
-        }
+        bsdf = _varnished(float(rng.uniform(0.1, 0.4)), _bitmap(wood(rng, size)))
     elif kind == "laminate":
-        bsdf = {
-            "type": "roughplastic",
-            "alpha": float(rng.uniform(0.08, 0.3)),
-            "distribution": "ggx",
-            "diffuse_reflectance": _bitmap(laminate(rng, size)),
-        }
+        bsdf = _varnished(float(rng.uniform(0.08, 0.3)), _bitmap(laminate(rng, size)))
     elif kind == "metal":
         bsdf = {
             "type": "roughconductor",
@@ -200,38 +195,13 @@ def _plastic(rgb: tuple[float, ...], metal: bool) -> dict[str, Any]:
 def _clutter(i: int, c: Clutter, work: Path) -> dict[str, Any]:
     key = f"clutter{i}"
     bsdf = _plastic(c.rgb, c.metal)
-    if c.kind == "box":
-        return {
-            key: {
-                "type": "cube",
-                "to_world": _t4(
-                    _trs(
-                        (c.x_mm, c.y_mm, -c.size[2] / 2),
-                        c.yaw_deg,
-                        (c.size[0] / 2, c.size[1] / 2, c.size[2] / 2),
-                    )
-                ),
-                "bsdf": bsdf,
-            }
-        }
-    if c.kind == "ruler":
-        return {
-            key: {
-                "type": "cube",
-                "to_world": _t4(
-                    _trs(
-                        (c.x_mm, c.y_mm, -c.size[2] / 2),
-                        c.yaw_deg,
-                        (c.size[0] / 2, c.size[1] / 2, c.size[2] / 2),
-                    )
-                ),
-                "bsdf": {
-                    "type": "roughplastic",
-                    "alpha": 0.3,
-                    "diffuse_reflectance": _rgb(linear(np.array([0.9, 0.88, 0.8]))),
-                },
-            }
-        }
+    if c.kind in ("box", "ruler"):
+        if c.kind == "ruler":  # a pale plastic rule, whatever the clutter's colour
+            pale = _rgb(linear(np.array([0.9, 0.88, 0.8])))
+            bsdf = {"type": "roughplastic", "alpha": 0.3, "diffuse_reflectance": pale}
+        half = (c.size[0] / 2, c.size[1] / 2, c.size[2] / 2)
+        return {key: {"type": "cube", "to_world": _t4(_trs((c.x_mm, c.y_mm, -half[2]), c.yaw_deg, half)),
+                      "bsdf": bsdf}}
     if c.kind == "ball":
         r = c.size[0]
         return {key: {"type": "sphere", "center": [c.x_mm, c.y_mm, -r], "radius": r, "bsdf": bsdf}}

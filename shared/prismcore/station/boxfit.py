@@ -455,16 +455,8 @@ def _outer(inner: BoxFit, radius_mm: float) -> BoxFit:
     return replace(inner, params=params, cov=J @ inner.cov @ J.T)
 
 
-def _fit(
-    outline: np.ndarray,
-    K: np.ndarray,
-    R: np.ndarray,
-    t: np.ndarray,
-    fold_dt: np.ndarray | None = None,
-    difference: np.ndarray | None = None,
-    origin: tuple[int, int] = (0, 0),
-    rounding_mm: float = 0.0,
-) -> BoxFit:
+def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_dt: np.ndarray | None,
+         difference: np.ndarray | None, origin: tuple[int, int], rounding_mm: float = 0.0) -> BoxFit:
     centre = -R.T @ t
     maps_o = np.asarray(origin, np.float64)
     lo = np.floor(outline.min(axis=0)) - 20
