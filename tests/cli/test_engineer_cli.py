@@ -64,7 +64,7 @@ def test_no_nominal_no_quality_lines(tmp_path):
     (("--nominal", "120,0,60", "--tolerance-mm", "1"), "sizes are > 0 mm"),
     (("--nominal", "120,80,nan", "--tolerance-mm", "1"), "expected W,H,D in mm"),
     (("--tolerance-mm", "1"), "--nominal and --tolerance-mm go together"),
-    (("--spacing-mm", "0"), "spacing_mm"),
+    (("--spacing-mm", "0"), "--spacing-mm must be > 0"),
     (("--format", "csv,obj"), "formats"),
 ])
 def test_bad_values_exit_2_with_one_line(tmp_path, flags, message):

@@ -95,7 +95,7 @@ def test_a_view_with_wrong_points_is_named_and_left_out(shots, tmp_path) -> None
     (["view1.png", "view2.png", "--width-mm", "100"], {"view1.png": [[1, 2]] * 7},
      "no entry for 'view2.png'"),
     (["view1.png", "view2.png", "--mm-per-px", "0.5"], [[[1, 2]] * 7] * 2, "one known edge"),
-    (["view1.png", "view2.png", "--width-mm", "-3"], [[[1, 2]] * 7] * 2, "length_mm"),
+    (["view1.png", "view2.png", "--width-mm", "-3"], [[[1, 2]] * 7] * 2, "--width-mm must be > 0"),
     (["view1.png", "view2.png", "--width-mm", "100"], "not json", "is not JSON"),
 ])
 def test_bad_input_is_one_line_and_exit_2(shots, tmp_path, args, points, message) -> None:

@@ -161,7 +161,7 @@ def test_failing_item_beside_a_good_one(stack, scene):
     bad = stack.upload(photo[:200] + bytes(b ^ 0x5A for b in photo[200:400]) + photo[400:], name="bad.png")
     job = stack.wait(stack.submit([_item(bad, scene),
                                    _item(stack.upload(_jpeg(scene.image)), scene)]).json()["id"])
-    assert job["state"] == "succeeded"
+    assert job["state"] == "completed_with_failures" and job["items_failed"] == 1
     failed, good = job["items"]
     assert (failed["state"] == "failed" and "bad.png" in failed["error"]) or "corrupt" in failed["error"]
     assert good["state"] == "succeeded" and good["downloads"]
