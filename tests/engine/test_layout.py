@@ -36,9 +36,9 @@ LAYERS: list[set[str]] = [
 ]
 LAYER = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
-# What the engine never imports: the test renderer, the services, their frameworks.
+# What the engine never imports: the test renderers, the services, their frameworks.
 FORBIDDEN = {
-    "prismsynth", "prism_api", "prism_worker", "prism_cli", "prism_common", "services",
+    "prismsynth", "prismpbr", "mitsuba", "prism_api", "prism_worker", "prism_cli", "prism_common", "services",
     "fastapi", "starlette", "uvicorn", "celery", "kombu", "redis", "boto3", "botocore",
 }
 
