@@ -83,13 +83,7 @@ def _part_bsdf(part: Part, rng: np.random.Generator) -> dict[str, Any]:
     if m == "kraft":
         return {"type": "diffuse", "reflectance": _bitmap(kraft(rng, tex))}
     if m == "glossy":
-        return {
-            "type": "roughplastic",
-            "distribution": "ggx",
-            "alpha": float(rng.uniform(0.03, 0.12)),
-            "diffuse_reflectance": _bitmap(glossy_print(rng, tex)),
-            "int_ior": 1.5,
-        }
+        return _varnished(float(rng.uniform(0.03, 0.12)), _bitmap(glossy_print(rng, tex)), ior=1.5)
     if m == "aluminium":
         return {
             "type": "roughconductor",
@@ -106,25 +100,15 @@ def _part_bsdf(part: Part, rng: np.random.Generator) -> dict[str, Any]:
             "alpha": float(rng.uniform(0.03, 0.15)),
         }
     if m == "black":
-        return {
-            "type": "roughplastic",
-            "distribution": "ggx",
-            "alpha": float(rng.uniform(0.1, 0.35)),
-            "diffuse_reflectance": _rgb(linear(np.full(3, rng.uniform(0.06, 0.16)))),
-            "int_ior": 1.49,
-        }
-    return {
-        "type": "roughplastic",
-        "distribution": "ggx",
-        "alpha": float(rng.uniform(0.1, 0.35)),
-        "diffuse_reflectance": _rgb(linear(rng.uniform(0.86, 0.95, 3))),
-        "int_ior": 1.49,
-    }
+        return _varnished(float(rng.uniform(0.1, 0.35)), _rgb(linear(np.full(3, rng.uniform(0.06, 0.16)))))
+    return _varnished(float(rng.uniform(0.1, 0.35)), _rgb(linear(rng.uniform(0.86, 0.95, 3))))
 
 
-def _varnished(alpha: float, reflectance: dict[str, Any]) -> dict[str, Any]:
-    """A diffuse surface under a clear coat of roughness `alpha` (a varnished or laminated top)."""
-    return {"type": "roughplastic", "alpha": alpha, "distribution": "ggx", "diffuse_reflectance": reflectance}
+def _varnished(alpha: float, reflectance: dict[str, Any], ior: float = 1.49) -> dict[str, Any]:
+    """A diffuse surface under a clear coat of roughness `alpha` and index `ior` (a varnished or
+    laminated top, printed packaging, plastic; 1.49 is Mitsuba's own default)."""
+    return {"type": "roughplastic", "alpha": alpha, "distribution": "ggx", "diffuse_reflectance": reflectance,
+            "int_ior": ior}
 
 
 def _table(scene: Scene, rng: np.random.Generator) -> dict[str, Any]:

@@ -6,7 +6,6 @@ SeaweedFS of the fixtures: whatever it sends (valid and invalid by the schema), 
 from __future__ import annotations
 
 import hashlib
-import time
 import warnings
 from typing import Any
 
@@ -67,8 +66,8 @@ def test_no_5xx_and_every_answer_matches_the_schema(case, figures):
 # than a missing thing (404), a conflict (409) or the rate limit (429) must be one the operation
 # documents, by status and by problem type (the response's `x-problem-types`). The ids in paths
 # and the image references of generated jobs are swapped for real ones (generated hex names no
-# upload), so generated requests reach the checks behind the lookups.
-LIVE_BUDGET_S = 45.0
+# upload), so generated requests reach the checks behind the lookups. Bounded by 12 examples an
+# operation (derandomized), not by a clock: every operation is tried, however loaded the machine.
 
 
 @pytest.fixture(scope="module")
@@ -108,7 +107,7 @@ def real_ids(live_api) -> dict[str, list[str]]:
 # schemathesis.pytest.from_fixture would read it from the server, but fails on this pytest.
 LIVE = schemathesis.openapi.from_dict(create_app().openapi())
 _TOLD = {401, 404, 409, 429}  # a missing key, a missing thing, a conflict, the rate limit: always said
-_seen: dict[str, Any] = {"started": None, "accepted jobs": 0}
+_seen: dict[str, Any] = {"accepted jobs": 0}
 
 
 def _with_real_ids(case: Any, ids: dict[str, list[str]]) -> None:
@@ -145,10 +144,6 @@ def _documented(case: Any, response: Any) -> bool:
 @LIVE.parametrize()
 @settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
 def test_schema_valid_requests_are_accepted_or_refused_as_documented(case, live_api, real_ids, figures):
-    if _seen["started"] is None:
-        _seen["started"] = time.monotonic()
-    if time.monotonic() - _seen["started"] > LIVE_BUDGET_S:
-        pytest.skip(f"the {LIVE_BUDGET_S:.0f} s budget of the live fuzz is spent")
     _with_real_ids(case, real_ids)
     response = case.call(base_url=live_api, headers={"X-API-Key": API_KEYS["acme"]}, timeout=30)
     figures["inputs tried"] += 1

@@ -202,9 +202,15 @@ def _gray(image: np.ndarray) -> np.ndarray:
     return np.asarray(gray, dtype=np.uint8)
 
 
-def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
+def find_board_corners(image: np.ndarray, board: BoardSpec, *, beside_one_marker: bool = False
+                       ) -> BoardView | None:
     """The board's corners in `image` (RGB (H, W, 3) or gray (H, W)), or None when fewer than
-    ``MIN_CORNERS`` show (a chessboard: when not every inner corner shows)."""
+    ``MIN_CORNERS`` show (a chessboard: when not every inner corner shows).
+
+    beside_one_marker : where fewer than ``_ENOUGH_CORNERS`` are found between two markers, also
+        the corners beside one marker found (a hand-held photo whose part hides markers). Off for
+        a station: its re-registration is better from fewer corners placed by two markers each
+        (a 165 mm part over the board was re-registered wrong from single-marker corners)."""
     gray = _gray(image)
     if board.type == "chessboard":
         from prismcore.geometry.calibration import find_board
@@ -216,7 +222,7 @@ def find_board_corners(image: np.ndarray, board: BoardSpec) -> BoardView | None:
         return BoardView(np.asarray(corners, np.float64), board.corner_points(), ids)
     detector = cv2.aruco.CharucoDetector(board.charuco())
     corners, ids, _, _ = detector.detectBoard(gray)
-    if ids is None or len(ids) < _ENOUGH_CORNERS:
+    if beside_one_marker and (ids is None or len(ids) < _ENOUGH_CORNERS):
         # A part over the board hides markers: a corner beside one marker found (not two) is
         # placed by that marker alone; taken only where the default finds too few to use.
         params = cv2.aruco.CharucoParameters()

@@ -34,7 +34,7 @@ _BLACK_LIT = 1.5  # a black square's pixel brighter than this against the plate'
 
 
 def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
-    view = find_board_corners(photo, board)
+    view = find_board_corners(photo, board, beside_one_marker=True)
     if view is None or len(view) < MIN_PLANE_CORNERS:
         found = 0 if view is None else len(view)
         raise InputError(

@@ -11,12 +11,13 @@ mirrors the support, which the per-pixel shadow scale explains pixel by pixel
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import cast
 
 import cv2
 import numpy as np
 
-__all__ = ["deepest_shadow", "pattern_broken", "tone_curve", "toned"]
+__all__ = ["PatternMatch", "deepest_shadow", "pattern_broken", "pattern_match", "tone_curve", "toned"]
 
 _TONE_BIN = 16  # levels of the plate per bin of the tone curve
 _TONE_MIN = 30  # pixels a bin needs to place its point
@@ -82,44 +83,51 @@ _SHADOW_MARGIN = 0.15
 _FLOOR_MAX = 0.35  # the least scale read is held to this at most: an umbra may fall where no pattern shows it
 
 
-def deepest_shadow(P: np.ndarray, bg: np.ndarray, window: int, least: float) -> float:
-    """The least scale a shadow puts on the support in this photo: where the support has a
-    pattern and the photo shows it darkened (correlated with it, no part there), the 2nd
-    percentile of the darkening, a little deeper, at least `least`; `least` where no such
-    shadow is seen. A part darker than a shadow may be is then no shadow (a black part on white paper
-    reads as a deep shadow's scale of it)."""
+@dataclass(frozen=True)
+class PatternMatch:
+    """The photo against the support's pattern, window by window ((H, W) float32 each): ncc, their
+    normalised cross-correlation; structured, where the support's pattern varies enough to judge
+    it (bool); ratio, the photo's mean level over the support's."""
+
+    ncc: np.ndarray
+    structured: np.ndarray
+    ratio: np.ndarray
+
+
+def pattern_match(P: np.ndarray, bg: np.ndarray, window: int) -> PatternMatch:
+    """The photo `P` against the support `bg` (both (H, W, 3) float32) over `window` px windows."""
     p, b = P.mean(axis=2), bg.mean(axis=2)
     k = (window, window)
     mp, mb = cv2.blur(p, k), cv2.blur(b, k)
-    vb = cv2.blur(b * b, k) - mb * mb
     vp = cv2.blur(p * p, k) - mp * mp
+    vb = cv2.blur(b * b, k) - mb * mb
     ncc = (cv2.blur(p * b, k) - mp * mb) / np.sqrt(np.maximum(vp, 1.0) * np.maximum(vb, 1.0))
-    ratio = mp / np.maximum(mb, 1.0)
-    dark = (vb > _NCC_STRUCTURE**2) & (ncc > _SHADOW_NCC) & (ratio < _SHADOWED) & (ratio > 0.05)
+    return PatternMatch(ncc, vb > _NCC_STRUCTURE**2, mp / np.maximum(mb, 1.0))
+
+
+def deepest_shadow(match: PatternMatch, least: float) -> float:
+    """The least scale a shadow puts on the support in this photo: where the support has a
+    pattern and the photo shows it darkened (correlated with it, no part there), the 2nd
+    percentile of the darkening, a little deeper, at least `least`; `least` where no such
+    shadow is seen. A part darker than a shadow may be is then no shadow (a black part on white
+    paper reads as a deep shadow's scale of it)."""
+    ratio = match.ratio
+    dark = match.structured & (match.ncc > _SHADOW_NCC) & (ratio < _SHADOWED) & (ratio > 0.05)
     if int(dark.sum()) < _SHADOW_PIXELS:
         return least
     return float(np.clip(np.percentile(ratio[dark], 2) - _SHADOW_MARGIN, least, _FLOOR_MAX))
 
 
-def pattern_broken(P: np.ndarray, bg: np.ndarray, window: int, shrink: int = 0) -> np.ndarray:
-    """Where the photo `P` does not show the support's pattern `bg` (both (H, W, 3) float32):
-    (H, W) bool. A shadow, however soft, and the light's change scale the pattern and a colour
-    bled onto the support adds to it; neither changes its correlation with the plate. A part
-    hides it, and a mirror-like part shows another piece of it, which the per-pixel shadow scale
-    can explain pixel by pixel (a white square reflected as black reads as a deep shadow): the
-    normalised cross-correlation over `window` px windows tells them apart, where the support
-    has a pattern at all. A window reaching partly over the part is broken too: the evidence is
-    eroded by `shrink` px so that it does not grow the part past its edge."""
-    p = P.mean(axis=2)
-    b = bg.mean(axis=2)
-    k = (window, window)
-    mp, mb = cv2.blur(p, k), cv2.blur(b, k)
-    vp = cv2.blur(p * p, k) - mp * mp
-    vb = cv2.blur(b * b, k) - mb * mb
-    cov = cv2.blur(p * b, k) - mp * mb
-    structured = vb > _NCC_STRUCTURE**2
-    ncc = cov / np.sqrt(np.maximum(vp, 1.0) * np.maximum(vb, 1.0))
-    broken = (structured & (ncc < _NCC_BROKEN)).astype(np.uint8)
+def pattern_broken(match: PatternMatch, shrink: int = 0) -> np.ndarray:
+    """Where the photo does not show the support's pattern: (H, W) bool. A shadow, however soft,
+    and the light's change scale the pattern and a colour bled onto the support adds to it;
+    neither changes its correlation with the plate. A part hides it, and a mirror-like part shows
+    another piece of it, which the per-pixel shadow scale can explain pixel by pixel (a white
+    square reflected as black reads as a deep shadow): the normalised cross-correlation tells
+    them apart, where the support has a pattern at all. A window reaching partly over the part is
+    broken too: the evidence is eroded by `shrink` px so that it does not grow the part past its
+    edge."""
+    broken: np.ndarray = (match.structured & (match.ncc < _NCC_BROKEN)).astype(np.uint8)
     if shrink > 0:
         broken = cv2.erode(broken, np.ones((2 * shrink + 1, 2 * shrink + 1), np.uint8))
     return cast("np.ndarray", broken > 0)

@@ -16,7 +16,7 @@ from prismcore.camera import CameraModel
 from prismcore.errors import InputError
 from prismcore.station.board import BoardSpec, find_board_corners
 from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
-from prismcore.station.photometry import deepest_shadow, pattern_broken, tone_curve, toned
+from prismcore.station.photometry import deepest_shadow, pattern_broken, pattern_match, tone_curve, toned
 
 __all__ = [
     "MAX_SHIFT_PX",
@@ -486,9 +486,10 @@ def segment_part(
     if not float(np.median(resid_t[support])) < _TONE_BETTER * float(np.median(resid_g[support])):
         lut = linear
     Bs = toned(Bs8, lut)
-    shadow = (deepest_shadow(Ps, Bs, _NCC_WINDOW, SHADOW_RANGE[0]), SHADOW_RANGE[1])
+    coarse_match = pattern_match(Ps, Bs, _NCC_WINDOW)  # one pass for the shadow's depth and the pattern
+    shadow = (deepest_shadow(coarse_match, SHADOW_RANGE[0]), SHADOW_RANGE[1])
     resid_s = _residual(Ps, Bs, shadow=shadow)
-    broken_s = pattern_broken(Ps, Bs, _NCC_WINDOW)
+    broken_s = pattern_broken(coarse_match)
     resid_s[broken_s] = np.maximum(resid_s[broken_s], _BROKEN_LEVEL)
     noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
     mask_s = _mask(resid_s, noise_s, 1 / _COARSE)
@@ -554,7 +555,7 @@ def segment_part(
     # Where the support's pattern is broken near the part but no pixel differs enough (a face that
     # mirrors the board): the part reaches there too. A box's silhouette is convex: the outline is
     # then the hull of both.
-    broken = pattern_broken(P, bg, _NCC_FULL, _NCC_SHRINK) & (near > 0) & (part == 0)
+    broken = pattern_broken(pattern_match(P, bg, _NCC_FULL), _NCC_SHRINK) & (near > 0) & (part == 0)
     mirrored = int(broken.sum()) > _MIRRORED * max(int(part.sum()), 1)
     if mirrored:
         part |= broken.astype(np.uint8)

@@ -89,7 +89,7 @@ def test_corners_beside_one_marker_are_found_when_a_part_hides_the_others() -> N
         img[y0 : int(y0 + 0.8 * sq), x0 : int(x0 + 0.8 * sq)] = 150
     _, default_ids, _, _ = cv2.aruco.CharucoDetector(board.charuco()).detectBoard(img)
     assert default_ids is not None and len(default_ids) < 12
-    view = find_board_corners(np.dstack([img] * 3), board)
+    view = find_board_corners(np.dstack([img] * 3), board, beside_one_marker=True)
     assert view is not None and len(view) >= 12
     expected = view.object_points[:, :2] * px + 40 - 0.5  # pixel centres: (i + 0.5) / px mm
     assert np.abs(view.image_points - expected).max() < 1.0
