@@ -12,6 +12,7 @@ import redis
 from boto3.exceptions import S3UploadFailedError
 from botocore.exceptions import BotoCoreError
 from fastapi import APIRouter, FastAPI
+from fastapi.routing import APIRoute
 from prism_common.settings import get_settings
 
 from .bodylimit import BodyLimit
@@ -47,10 +48,18 @@ _V1_RESPONSES: dict[int | str, dict] = {
 }
 
 
+def operation_id(route: APIRoute) -> str:
+    """An operation's id is its handler's name (create_job, get_job): a generated client names
+    its modules and functions after the ids, and FastAPI's default (create_job_v1_jobs_post)
+    spells the path and method again. Handler names are unique across the routers."""
+    return route.name
+
+
 def create_app() -> FastAPI:
     # FastAPI's own /docs and /redoc load their scripts from a CDN: ours are served from the package.
     app = FastAPI(title="PrismCloud", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
-                  description="Measured 3D point clouds of box-shaped parts from photos.")
+                  description="Measured 3D point clouds of box-shaped parts from photos.",
+                  generate_unique_id_function=operation_id)
     v1 = APIRouter(prefix="/v1", responses=_V1_RESPONSES)
     v1.include_router(uploads.router)
     v1.include_router(upload_video.router)

@@ -80,7 +80,9 @@ def document_station(schema: dict[str, Any]) -> dict[str, Any]:
     components = schema.setdefault("components", {}).setdefault("schemas", {})
     station = Station.model_json_schema(ref_template="#/components/schemas/Station{model}")
     for name, sub in station.pop("$defs", {}).items():
-        components[f"Station{name}"] = sub
+        # titled as named: a generated client names its classes by title, and the engine's own
+        # CameraModel (a job's camera) would otherwise be defined twice
+        components[f"Station{name}"] = {**sub, "title": f"Station{name}"}
     station["description"] = ("station.json, as `prism station calibrate` writes it (the plate as "
                               "base64 PNG). The model's own checks apply beyond this schema (a board "
                               "and plane that agree, a plate that decodes): 422 at the field.")
