@@ -381,8 +381,10 @@ def scan(
         from .station_scan import scan_on_board_photo, scan_on_station
 
         if station is not None:
+            # the tolerance judges the camera's drift since calibration (prismcore.station.certify)
+            judged = quality_flags(nominal, tolerance_mm).get("tolerance_mm")
             scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels,
-                            overlay_format=overlay_format)
+                            overlay_format=overlay_format, tolerance_mm=judged)
         else:
             assert board is not None
             scan_on_board_photo(images[0], board, out, camera=_camera_file(camera) if camera else None,

@@ -207,8 +207,50 @@ def calibrate(
         f"plane: {station.plane.corners} corners, RMS {station.plane.rms_px:.3f} px; camera "
         f"{-centre[2]:.0f} mm above the support"
     )
+    from prismcore.station.capability import capability_lines
+
+    for line in capability_lines(station):
+        console().print(line, markup=False)
     if station.plate_png is None:
         console().print(
             "[yellow]warning:[/] no --plate: prism scan --station needs a photo of the empty support"
         )
     console().print(f"station: {out}")
+
+
+@station_app.command("show")
+def show(
+    station_file: Annotated[
+        Path, typer.Argument(metavar="station", help="station.json (prism station calibrate).")
+    ],
+) -> None:
+    """What a station.json holds: its camera, support plane and plate, its capability (mm per pixel
+    at the support's near and far edge, the smallest part and tolerance it can hold) and its
+    verification (verified on DATE with each dimension's bias and repeatability, or not verified)."""
+    from prismcore.station.capability import capability_lines
+    from prismcore.station.certify import verification_status
+
+    station = load_station(station_file)
+    c, info = station.camera, station.calibration
+    out = console()
+    rms = f", RMS {info['rms_px']:.3f} px" if isinstance(info.get("rms_px"), (int, float)) else ""
+    out.print(f"camera: {c.image_width}x{c.image_height} px, fx {c.fx:.1f} fy {c.fy:.1f} px "
+              f"(from {info.get('source', 'photos')}{rms})", markup=False)
+    centre = station.plane.camera_centre()
+    out.print(f"plane: {station.plane.corners} corners, RMS {station.plane.rms_px:.3f} px; camera "
+              f"{-centre[2]:.0f} mm above the support; plate {'stored' if station.plate_png else 'missing'}",
+              markup=False)
+    w, h = station.board.size_mm
+    out.print(f"board: {w:g} x {h:g} mm", markup=False)
+    for line in capability_lines(station):
+        out.print(line, markup=False)
+    status = verification_status(station.verification, moved=False)
+    out.print(f"verification: {status['text']}", markup=False)
+    v = station.verification
+    if v is not None:
+        ref = " x ".join(f"{x:g}" for x in v.reference_mm.values())
+        tol = "no tolerance" if v.tolerance_mm is None else f"tolerance +-{v.tolerance_mm:g} mm"
+        out.print(f"  reference {ref} mm (width x depth x height), {len(v.photos)} placements, {tol}",
+                  markup=False)
+        for failure in v.decided_by:
+            out.print(f"  {failure}", markup=False)

@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from prismcore.camera import CameraModel
     from prismcore.station.scan import StationScan
 
-__all__ = ["scan_on_board_photo", "scan_on_station"]
+__all__ = ["certification_line", "scan_on_board_photo", "scan_on_station"]
 
 
 def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
@@ -29,9 +29,10 @@ def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
 
 def scan_on_station(
     image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000,
-    overlay_format: str = "jpeg",
+    overlay_format: str = "jpeg", tolerance_mm: float | tuple[float, float, float] | None = None,
 ) -> dict[str, Any]:
-    """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report."""
+    """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report.
+    tolerance_mm (--tolerance-mm) is what the camera's drift is judged against."""
     from prismcore.io.images import load_image
     from prismcore.station.scan import scan_on_station as scan
 
@@ -40,8 +41,8 @@ def scan_on_station(
     started = time.perf_counter()
     station = load_station(station_file)
     photo = load_image(image, max_pixels=max_pixels)
-    return _write(scan(photo, station, str(image), _spec_extra(formats, max_pixels)), photo, out, started,
-                  overlay_format)
+    done = scan(photo, station, str(image), _spec_extra(formats, max_pixels), tolerance_mm)
+    return _write(done, photo, out, started, overlay_format)
 
 
 def scan_on_board_photo(
@@ -59,6 +60,14 @@ def scan_on_board_photo(
     photo = load_image(image, max_pixels=max_pixels)
     return _write(scan_on_board(photo, board, camera, str(image), _spec_extra(formats, max_pixels)), photo,
                   out, started, overlay_format)
+
+
+def certification_line(station_report: dict[str, Any]) -> str:
+    """'station verified on 2026-12-06: bias ...; camera moved 0.1 px (0.0 mm) since calibration'."""
+    status = cast("dict[str, Any]", station_report["verification"])
+    moved = cast("dict[str, Any]", station_report["drift"])
+    return (f"station {status['text']}; camera moved {moved['shift_px']:.1f} px "
+            f"({moved['shift_mm']:.1f} mm on the support) since calibration")
 
 
 def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
@@ -83,6 +92,8 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
                   f"(position {position[0]:.1f}, {position[1]:.1f} mm, "
                   f"yaw {station_report['yaw_deg']:.1f} deg; "
                   f"outline {station_report['silhouette_residual_px']:.2f} px)", soft_wrap=True)
+    if "verification" in station_report:  # a station's (a hand-held board has none)
+        console().print(certification_line(station_report), markup=False, soft_wrap=True)
     for warning in report["warnings"]:
         console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))

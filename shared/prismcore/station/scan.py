@@ -16,7 +16,7 @@ from prismcore.station.board import BoardSpec
 from prismcore.station.calibrate import Station
 from prismcore.station.measure import StationMeasurement, measure_on_station
 
-__all__ = ["StationScan", "scan_on_board", "scan_on_station", "station_spec"]
+__all__ = ["StationScan", "certify", "scan_on_board", "scan_on_station", "station_spec"]
 
 
 @dataclass
@@ -49,7 +49,12 @@ def station_spec(measured: StationMeasurement, image: str, extra: dict[str, Any]
 
 
 def _with_cloud(
-    measured: StationMeasurement, photo: np.ndarray, image: str, extra: dict[str, Any] | None, source: str
+    measured: StationMeasurement,
+    photo: np.ndarray,
+    image: str,
+    extra: dict[str, Any] | None,
+    source: str,
+    certification: dict[str, Any] | None = None,
 ) -> StationScan:
     spec: ScanSpec | None = None
     result: ScanResult | None = None
@@ -59,7 +64,7 @@ def _with_cloud(
         report = result.report
     except InputError as exc:  # the measurement stands; the cloud could not be made from its points
         report = {"warnings": [f"no cloud: the derived points were refused ({exc})"], "timings_ms": {}}
-    station_report = measured.report()
+    station_report = {**measured.report(), **(certification or {})}
     report["engine_dimensions"] = report.get("dimensions")  # the engine's reading of the derived points
     report["dimensions"] = station_report["dimensions"]
     report["uncertainty"] = station_report["uncertainty"]
@@ -72,18 +77,51 @@ def _with_cloud(
 
 
 def scan_on_station(
-    photo: np.ndarray, station: Station, image: str = "photo", extra: dict[str, Any] | None = None
+    photo: np.ndarray,
+    station: Station,
+    image: str = "photo",
+    extra: dict[str, Any] | None = None,
+    tolerance_mm: float | tuple[float, float, float] | None = None,
 ) -> StationScan:
     """Measure the part in `photo` (RGB (H, W, 3) uint8) on `station`, then make its cloud.
 
-    extra : more ScanSpec fields for the cloud (formats, max_pixels, ...).
+    extra : more ScanSpec fields for the cloud (formats, max_pixels, ...). tolerance_mm : the
+    measurement's T of +-T (one, or width, height, depth), which the drift's cost is judged
+    against (`certify.drift`). The report's ``station`` says the station's verification and the
+    camera's drift since calibration, warned when not verified or when the drift costs too much.
 
     Raises
     ------
     InputError
         As :func:`measure_on_station`: the photo cannot be measured on this station.
     """
-    return _with_cloud(measure_on_station(photo, station), photo, image, extra, "station")
+    measured = measure_on_station(photo, station)
+    certification = certify(measured, station, tolerance_mm)
+    return _with_cloud(measured, photo, image, extra, "station", certification)
+
+
+def certify(measured: StationMeasurement, station: Station,
+            tolerance_mm: float | tuple[float, float, float] | None = None) -> dict[str, Any]:
+    """The station's verification status and the camera's drift as `measured` states them
+    (report.json's ``station.verification`` and ``station.drift``); their warnings are added to
+    `measured.warnings`."""
+    from prismcore.station.certify import drift, verification_status
+
+    reg = measured.registration
+    moved = drift(station, reg.homography, reg.shift_px, measured.position_mm, measured.dimensions,
+                  measured.uncertainty, tolerance_mm)
+    status = verification_status(station.verification, moved["moved"], moved["shift_px"], moved["shift_mm"])
+    if status["warning"]:
+        measured.warnings.append(status["warning"])
+    if moved["reverify"]:
+        worst = max(moved["cost_mm"], key=lambda k: moved["cost_mm"][k] / max(moved["allowed_mm"][k], 1e-12))
+        measured.warnings.append(
+            f"the camera moved {moved['shift_px']:.1f} px ({moved['shift_mm']:.1f} mm on the support) since "
+            f"calibration: unless the re-registration followed it exactly, it may move the {worst} by "
+            f"{moved['cost_mm'][worst]:.2f} mm, over a third of the tolerance "
+            f"({moved['allowed_mm'][worst]:.2f} mm, from {moved['tolerance_from']}); verify the station "
+            "again (prism station verify)")
+    return {"verification": status, "drift": moved}
 
 
 def scan_on_board(
