@@ -4,14 +4,11 @@ several times across the support. The statistics and the verdict are the engine'
 
 from __future__ import annotations
 
-import re
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
-
-from prismcore import InputError
 
 from .station_command import console, load_station
 
@@ -20,18 +17,11 @@ if TYPE_CHECKING:
 
 __all__ = ["parse_reference", "verify"]
 
-_NUMBER = r"\s*(\d+(?:\.\d*)?|\.\d+)\s*"
-
-
 def parse_reference(text: str) -> tuple[float, float, float]:
     """--reference W,D,H (mm) as three numbers; anything else exits 2 quoting it."""
-    match = re.fullmatch(",".join([_NUMBER] * 3), text)
-    if not match:
-        raise InputError(
-            f"--reference {text!r}: expected W,D,H in mm (width >= depth, then height), e.g. 70,45,30"
-        )
-    w, d, h = (float(v) for v in match.groups())
-    return w, d, h
+    from prismcore.station.certify import parse_reference as parse
+
+    return parse(text)
 
 
 def verify(
@@ -76,33 +66,14 @@ def verify(
     verified, 1 not verified, 2 bad input (fewer than 5 placements, or placements not spread over
     the support, refused with the reason)."""
     from prismcore.io.images import load_image
-    from prismcore.station.measure import measure_on_station
-    from prismcore.station.verify import DIMENSIONS, check_count, verify_placements
+    from prismcore.station.certify import verify_station
+    from prismcore.station.verify import check_count
 
     size = parse_reference(reference)
     check_count(len(photos))
     station = load_station(station_file)
-    measured, sigmas, positions, yaws = [], [], [], []
-    for photo in photos:
-        try:
-            m = measure_on_station(load_image(photo), station)
-        except InputError as exc:
-            raise InputError(f"{photo}: {exc}") from None
-        measured.append([m.dimensions[k] for k in DIMENSIONS])
-        sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
-        positions.append(m.position_mm)
-        yaws.append(m.yaw_deg)
-    done = verify_placements(
-        measured,
-        sigmas,
-        size,
-        tolerance,
-        positions_mm=positions,
-        yaws_deg=yaws,
-        board_size_mm=station.board.size_mm,
-        photos=[str(p) for p in photos],
-        date=datetime.now(UTC).replace(microsecond=0),
-    )
+    done = verify_station(station, [(str(p), load_image(p)) for p in photos], size, tolerance,
+                          datetime.now(UTC).replace(microsecond=0))
     _print(done)
     station_file.write_text(
         station.model_copy(update={"verification": done}).model_dump_json(indent=2) + "\n"

@@ -15,12 +15,14 @@ the camera moved since calibration (drift) and what that move may cost.
   ``tolerance_mm``), else the verification's, else three times the dimension's stated sigma (its
   own 3 sigma interval: then a move costing more than one sigma is warned).
 
-Pure functions over the station, its registration of the photo and the measurement.
+Pure functions over the station, its registration of the photo and the measurement; and
+``verify_station``, the reference part's photos measured and verified (the CLI and the API run it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from datetime import datetime
 from typing import Any, cast
 
 import numpy as np
@@ -36,8 +38,10 @@ __all__ = [
     "VERIFIED_BEFORE_MOVE",
     "drift",
     "mm_per_px",
+    "parse_reference",
     "plane_homography",
     "verification_status",
+    "verify_station",
 ]
 
 # The support moved further than this in the photo since calibration: the camera moved. Under it,
@@ -197,3 +201,57 @@ def verification_status(verification: Verification | None, moved: bool, shift_px
                            f"({shift_mm:.1f} mm on the support) since calibration: its verification no "
                            "longer describes it; calibrate and verify it again"}
     return {"status": VERIFIED, **common, "text": f"verified on {day}: {figures}", "warning": None}
+
+
+_NUMBER = r"\s*(\d+(?:\.\d*)?|\.\d+)\s*"
+
+
+def parse_reference(text: str, name: str = "--reference") -> tuple[float, float, float]:
+    """A reference part's size 'W,D,H' (mm) as three numbers; anything else is an InputError quoting it."""
+    import re
+
+    from prismcore.errors import InputError
+
+    match = re.fullmatch(",".join([_NUMBER] * 3), text)
+    if not match:
+        raise InputError(
+            f"{name} {text!r}: expected W,D,H in mm (width >= depth, then height), e.g. 70,45,30"
+        )
+    w, d, h = (float(v) for v in match.groups())
+    return w, d, h
+
+
+def verify_station(
+    station: Station,
+    photos: Sequence[tuple[str, np.ndarray]],
+    reference: Sequence[float],
+    tolerance: float | None,
+    date: datetime,
+) -> Verification:
+    """Measure each (name, RGB photo) of the reference part on `station` and verify it
+    (`verify.verify_placements`): what `prism station verify` and the service's
+    ``POST /v1/stations/{id}/verifications`` both run.
+
+    Raises
+    ------
+    InputError
+        Fewer than ``verify.MIN_PLACEMENTS`` photos, a photo the station cannot measure (its name
+        first), or placements ``verify_placements`` refuses.
+    """
+    from prismcore.errors import InputError
+    from prismcore.station.measure import measure_on_station
+    from prismcore.station.verify import check_count, verify_placements
+
+    check_count(len(photos))
+    measured, sigmas, positions, yaws = [], [], [], []
+    for name, photo in photos:
+        try:
+            m = measure_on_station(photo, station)
+        except InputError as exc:
+            raise InputError(f"{name}: {exc}") from None
+        measured.append([m.dimensions[k] for k in DIMENSIONS])
+        sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
+        positions.append(m.position_mm)
+        yaws.append(m.yaw_deg)
+    return verify_placements(measured, sigmas, reference, tolerance, positions_mm=positions, yaws_deg=yaws,
+                             board_size_mm=station.board.size_mm, photos=[n for n, _ in photos], date=date)
