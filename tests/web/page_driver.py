@@ -17,6 +17,8 @@ from service.conftest import API_KEYS
 from prismsynth import Scene
 
 KEY = API_KEYS["acme"]
+# The Scale setting's choice for a scan in pixels (the page chooses no scale by itself).
+NO_SCALE = "None: the dimensions in pixels, not millimetres"
 T = TypeVar("T")
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from page_driver import KEY, PageDriver, save_photo
+from page_driver import KEY, NO_SCALE, PageDriver, save_photo
 from playwright.sync_api import expect
 
 from prismsynth import Box, render_oblique_view
@@ -86,6 +86,8 @@ def test_errors_are_plain_words(page, tmp_path):
     d.log_in()
     scene = render_oblique_view(Box(100, 70, 50), seed=2)
     d.add_photos(save_photo(scene, tmp_path / "box.png"))
+    # The scale is chosen (the page has no default): the errors below are the points' and tolerance's.
+    page.get_by_label("Scale", exact=True).select_option(label=NO_SCALE)
     page.get_by_label("Also mark P6 and P7").uncheck()  # five points
     error = page.locator("#form-error")
     for name in ("p1", "p2", "p3"):

@@ -11,7 +11,7 @@ import re
 import cv2
 import httpx
 import numpy as np
-from page_driver import KEY, PageDriver, save_photo
+from page_driver import KEY, NO_SCALE, PageDriver, save_photo
 from playwright.sync_api import expect
 
 from prismcore.locate.search import find_points
@@ -44,7 +44,8 @@ def test_found_points_are_placed_checked_dragged_and_measured(page, stack, tmp_p
     expect(page.locator("#next-point")).to_contain_text("Every point is placed")
 
     # As found, the scan goes as points "auto": the worker finds the same points again, and the
-    # results say so.
+    # results say so. In pixels, chosen (the page has no default scale).
+    page.get_by_label("Scale", exact=True).select_option(label=NO_SCALE)
     page.get_by_role("button", name="Add this scan to the batch").click()
     expect(page.locator("#batch")).to_contain_text("scene.png (points found)")
     expect(page.get_by_label("P1 x (pixels)")).to_have_value("")  # a scan added: points cleared
@@ -100,5 +101,6 @@ def test_a_second_face_the_person_changed_counts_as_adjusted(page, tmp_path):
     select = page.get_by_label("Second face", exact=True)
     found = select.input_value()
     select.select_option(next(f for f in ("right", "left", "top") if f != found))
+    page.get_by_label("Scale", exact=True).select_option(label=NO_SCALE)
     page.get_by_role("button", name="Add this scan to the batch").click()
     expect(page.locator("#batch")).to_contain_text("scene.png (points found, then adjusted)")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import httpx
 import pytest
-from page_driver import KEY, PageDriver
+from page_driver import KEY, NO_SCALE, PageDriver
 from playwright.sync_api import expect
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
@@ -186,3 +186,48 @@ def test_the_photo_to_mark_owns_the_screen(page, stack, screen):
     expect(page.locator("#next-point")).to_contain_text("Every point is placed")
     assert page.evaluate("window.scrollY") == 0
     assert abs(float(d.mark("p3")[0]) - POINTS["p3"][0]) <= 1.5 / scale
+
+
+def test_the_scale_is_chosen_and_a_result_in_pixels_says_so(page, stack):
+    # No scale is chosen for the person (issue 37: "None (output in pixels)" was the default, and
+    # a scan came back in pixels unsaid): submitting without one is refused on the page, at the
+    # field, and nothing is sent. "None" chosen, the result says its dimensions are pixels.
+    d = PageDriver(page)
+    _sample(d, seven=True)
+    scale = page.get_by_label("Scale", exact=True)
+    expect(scale).to_have_value("")
+    expect(scale.locator("option")).to_have_text([
+        "Choose one: it sets the dimensions' unit", NO_SCALE,
+        "Millimetres per pixel", "Shooting distance and focal length", "One known edge"])
+    sent: list[str] = []
+    page.on("request", lambda r: sent.append(r.url) if r.url.endswith("/v1/jobs") and r.method == "POST"
+            else None)
+    page.get_by_role("button", name="Submit job").click()
+    expect(page.locator("#form-error")).to_have_text(
+        "Choose a scale under Scale: one known edge, millimetres per pixel, or a shooting distance and focal "
+        "length give the dimensions in millimetres; “None” gives them in pixels.")
+    expect(scale).to_be_focused()
+    expect(page.locator("#settings-panel")).to_have_attribute("open", "")
+    assert sent == []
+
+    scale.select_option(label=NO_SCALE)
+    assert "Done" in d.submit_and_wait()
+    assert len(sent) == 1
+    expect(page.locator("#dimensions dd[data-field=height]")).to_have_text(
+        re.compile(r"^\d+\.\d\d ± \d+\.\d\d px$"))
+    note = page.locator("#pixels-note")
+    expect(note).to_be_visible()
+    expect(note).to_have_text(
+        re.compile(r"^These dimensions are in pixels, not millimetres: the scan had no scale\."))
+    expect(page.locator("#result-warnings")).to_contain_text("pixels, not mm")  # the scan's own warning
+
+    # With a scale the note is gone (the settings were folded away under the result).
+    page.locator("#settings-panel > summary").click()
+    scale.select_option(label="One known edge")
+    page.get_by_label("Its length (mm)").fill("120")
+    if d.mark("p1") is None:  # the points of a submitted scan were cleared: mark them again
+        for name in ("p1", "p2", "p3", "p4", "p5", "p6", "p7"):
+            d.click_photo(POINTS[name])
+    assert "Done" in d.submit_and_wait()
+    expect(page.locator("#dimensions dd[data-field=height]")).to_have_text(re.compile(r" mm$"))
+    expect(page.locator("#pixels-note")).to_have_count(0)

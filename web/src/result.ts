@@ -7,6 +7,7 @@
 import { call, message } from "./api";
 import type { ColourMode } from "./colours";
 import { jointFocal, jointLine, jointOf, jointTable } from "./joint-result";
+import { pixelsNote } from "./pixels";
 import { ResultsTableView } from "./results-table";
 import { isTracked, trackView } from "./track-view";
 import type { Dimension, Frame, Item, Job, Result } from "./types";
@@ -242,6 +243,7 @@ function summary(item: Item): Summary {
     out.push(p);
   }
   if (joint) out.push(jointLine(joint));
+  if (unit === "px") out.push(pixelsNote());
   const dl = document.createElement("dl");
   dl.id = "dimensions";
   const details = document.createElement("dl");

@@ -115,6 +115,14 @@ export class SettingsForm {
       }
       Object.assign(settings, quality);
     }
+    // No default scale: left unchosen, a scan would come back in pixels while the person read
+    // millimetres. "None" is a choice like the others.
+    if (kind === "") {
+      $<HTMLDetailsElement>("settings-panel").open = true;
+      $("scale-kind").focus();
+      throw new Error("Choose a scale under Scale: one known edge, millimetres per pixel, or a shooting distance " +
+        "and focal length give the dimensions in millimetres; “None” gives them in pixels.");
+    }
     return settings;
   }
 }

@@ -2,6 +2,7 @@
 // small table) and the list of frames, each with its state, dimensions or error, and downloads.
 
 import type { Dimension, Frame, Item, Summary } from "./types";
+import { pixelsNote } from "./pixels";
 import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
@@ -31,6 +32,7 @@ export function videoResult(item: Item): HTMLElement[] {
   if (summary) {
     const { selected, measured, failed } = summary.frames;
     out.push(el("p", `Measured ${measured} of ${selected} frames` + (failed ? `; ${failed} could not be measured.` : ".")));
+    if (summary.unit === "px") out.push(pixelsNote());
     out.push(summaryTable(summary.dimensions, summary.unit ?? ""));
     if (item.downloads.summary) {
       const links = el("p", "", { class: "downloads" });
