@@ -12,6 +12,8 @@ and refused as soon as it passes the cap.
 
 from __future__ import annotations
 
+import re
+
 from fastapi import HTTPException, status
 from prism_common.settings import get_settings
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -22,6 +24,8 @@ __all__ = ["BodyLimit"]
 
 _EXEMPT = ("/v1/uploads",)  # streamed to storage under PRISM_UPLOAD_MAX_BYTES
 _STATIONS = "/v1/stations"  # under PRISM_STATION_MAX_BYTES
+# and a station's verification photos (a reference part in 5 or more placements)
+_VERIFICATIONS = re.compile(r"/v1/stations/[^/]+/verifications")
 
 
 def _too_large(limit: int, setting: str = "PRISM_REQUEST_MAX_BYTES") -> str:
@@ -51,7 +55,9 @@ class BodyLimit:
         # The settings the routes see, overrides included (as in main.lifespan).
         settings = scope["app"].dependency_overrides.get(get_settings, get_settings)()
         limit, setting = settings.request_max_bytes, "PRISM_REQUEST_MAX_BYTES"
-        if path.rstrip("/") == _STATIONS and scope.get("method") == "POST" and _multipart(scope):
+        route = path.rstrip("/")
+        photos = route == _STATIONS or _VERIFICATIONS.fullmatch(route) is not None
+        if photos and scope.get("method") == "POST" and _multipart(scope):
             # Photos to calibrate a station from; a station.json (one plate) stays under the
             # request's cap: the JSON body is held whole and parsed.
             limit, setting = settings.station_max_bytes, "PRISM_STATION_MAX_BYTES"

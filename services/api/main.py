@@ -18,7 +18,17 @@ from prism_common.settings import get_settings
 from .bodylimit import BodyLimit
 from .deps import get_objects
 from .problems import declare_problems, install_handlers
-from .routes import health, jobs, previews, results, stations, upload_points, upload_video, uploads
+from .routes import (
+    health,
+    jobs,
+    previews,
+    results,
+    station_verifications,
+    stations,
+    upload_points,
+    upload_video,
+    uploads,
+)
 from .webapp import mount_docs, mount_guide, mount_web
 
 __all__ = ["app", "create_app"]
@@ -68,6 +78,7 @@ def create_app() -> FastAPI:
     v1.include_router(previews.router)
     v1.include_router(results.router)
     v1.include_router(stations.router)
+    v1.include_router(station_verifications.router)
     app.include_router(v1)
     app.include_router(health.router)
     mount_web(app)

@@ -35,7 +35,7 @@ from urllib.parse import urlsplit
 
 import httpx
 from prism_common.public import JobList, JobPublic, ResultsTable
-from prism_common.stations import StationList, StationPublic
+from prism_common.stations import StationList, StationPublic, VerificationList, VerificationPublic
 
 from prismcore.spec import FILE_NAMES, frame_folder
 
@@ -183,6 +183,22 @@ class ApiClient:
         files = [(field, (path.name, path.read_bytes())) for field, path in named]
         response = self._call("POST", "/v1/stations", files=files, params={"name": name} if name else {})
         return StationPublic.model_validate(response.json())
+
+    def verify_station(self, station_id: str, photos: list[Path], reference: str | tuple[float, float, float],
+                       tolerance: float | None = None) -> VerificationPublic:
+        """Verify the station with a reference part (as `prism station verify` does): its photos in
+        5 or more placements, its size W,D,H mm (width >= depth, then height), optionally T of +-T.
+        The verification, verified or not (`.verified`); the service stores it with the station."""
+        size = reference if isinstance(reference, str) else ",".join(f"{v:g}" for v in reference)
+        files = [("photo", (path.name, path.read_bytes())) for path in photos]
+        data = {"reference": size, **({"tolerance": f"{tolerance:g}"} if tolerance is not None else {})}
+        response = self._call("POST", f"/v1/stations/{station_id}/verifications", files=files, data=data)
+        return VerificationPublic.model_validate(response.json())
+
+    def station_verifications(self, station_id: str) -> list[VerificationPublic]:
+        """The station's verifications, newest first."""
+        found = self._call("GET", f"/v1/stations/{station_id}/verifications").json()
+        return VerificationList.model_validate(found).verifications
 
     def station(self, station_id: str) -> StationPublic:
         return StationPublic.model_validate(self._call("GET", f"/v1/stations/{station_id}").json())

@@ -10,9 +10,15 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from prismcore import InputError
+
+from .client_commands import ApiKey, ApiUrl
+from .client_commands import _client as client
 from .station_command import console, load_station
 
 if TYPE_CHECKING:
+    from prism_common.stations import VerificationPublic
+
     from prismcore.station.verify import Verification
 
 __all__ = ["parse_reference", "verify"]
@@ -26,10 +32,11 @@ def parse_reference(text: str) -> tuple[float, float, float]:
 
 def verify(
     station_file: Annotated[
-        Path,
+        str,
         typer.Argument(
             metavar="station",
-            help="station.json (prism station calibrate); the verification is stored in it.",
+            help="station.json (prism station calibrate); the verification is stored in it. With "
+            "--remote: the service's station id (prism station upload, prism station list).",
         ),
     ],
     photos: Annotated[
@@ -54,6 +61,17 @@ def verify(
             "accepted."
         ),
     ] = None,
+    remote: Annotated[
+        bool,
+        typer.Option(
+            "--remote",
+            help="Verify the service's station named by its id: the photos are sent to "
+            "POST /v1/stations/{id}/verifications, measured there and the verification stored "
+            "with the station (its history: GET /v1/stations/{id}/verifications).",
+        ),
+    ] = False,
+    api: ApiUrl = "http://127.0.0.1:8000",
+    key: ApiKey = "",
 ) -> None:
     """Verify a station with a reference part of known size (a gauge block, a box measured with
     calipers), photographed in several placements across the support. Prints and stores in
@@ -71,19 +89,32 @@ def verify(
 
     size = parse_reference(reference)
     check_count(len(photos))
-    station = load_station(station_file)
+    if tolerance is not None and not tolerance > 0:
+        raise InputError(f"tolerance {tolerance:g}: expected T > 0 (mm, for +-T)")
+    if remote:
+        missing = [p for p in photos if not p.is_file()]
+        if missing:
+            raise InputError(f"{missing[0]}: no such file")
+        with client(api, key) as service:
+            found = service.verify_station(station_file, photos, size, tolerance)
+        _print(found)
+        console().print(f"stored with station {station_file} on the service (verification {found.id}, "
+                        f"{found.date:%Y-%m-%d %H:%M} UTC)", markup=False)
+        if not found.verified:
+            raise typer.Exit(1)
+        return
+    path = Path(station_file)
+    station = load_station(path)
     done = verify_station(station, [(str(p), load_image(p)) for p in photos], size, tolerance,
                           datetime.now(UTC).replace(microsecond=0))
     _print(done)
-    station_file.write_text(
-        station.model_copy(update={"verification": done}).model_dump_json(indent=2) + "\n"
-    )
-    console().print(f"stored in {station_file} (verification, {done.date:%Y-%m-%d %H:%M} UTC)", markup=False)
+    path.write_text(station.model_copy(update={"verification": done}).model_dump_json(indent=2) + "\n")
+    console().print(f"stored in {path} (verification, {done.date:%Y-%m-%d %H:%M} UTC)", markup=False)
     if not done.verified:
         raise typer.Exit(1)
 
 
-def _print(done: Verification) -> None:
+def _print(done: Verification | VerificationPublic) -> None:
     out = console()
     names = list(done.dimensions)
     wide = max(len(p) for p in done.photos)

@@ -19,6 +19,7 @@ from .records import ItemResult, ItemState, JobRecord, State
 
 __all__ = ["VERDICTS", "DimensionsPublic", "FramePublic", "ItemPublic", "JobList", "JobPublic",
            "JointLeftOutPublic", "JointPublic", "JointViewPublic", "ResultPublic", "ResultsTable",
+           "StationCheckPublic", "StationDriftPublic", "StationVerificationPublic",
            "download_name", "to_public"]
 
 
@@ -80,6 +81,42 @@ class JointPublic(BaseModel):
                                     "edges together (the division model's kappa).")
 
 
+class StationVerificationPublic(BaseModel):
+    status: Literal["verified", "not verified", "verified before the camera moved"] = Field(
+        description="The station's verification with a reference part as this measurement stands: "
+        "verified (on `date`), not verified (none, or the last one failed), or verified before the "
+        "camera moved (more than `drift.moved_over_px` since calibration).")
+    text: str = Field(description="The status in words, with each dimension's bias and repeatability.")
+    date: datetime | None = Field(description="When the station was last verified; null if never.")
+    bias_mm: dict[str, float] | None = Field(description="The verification's bias per dimension.")
+    repeatability_mm: dict[str, float] | None = Field(
+        description="The verification's repeatability per dimension.")
+    tolerance_mm: float | None = Field(description="The verification's T of +-T.")
+    warning: str | None = Field(description="The warning this status adds to the result's (null when "
+                                "verified).")
+
+
+class StationDriftPublic(BaseModel):
+    shift_px: float = Field(description="How far the support moved in the photo since calibration "
+                            "(the re-registration's median shift), px.")
+    shift_mm: float = Field(description="The same on the support, mm.")
+    moved: bool = Field(description="shift_px over moved_over_px: the camera moved.")
+    moved_over_px: float
+    cost_mm: dict[str, float] = Field(description="What the move may cost each dimension if the "
+                                      "re-registration did not follow it: the support's scale at the "
+                                      "part as calibrated against as now, times the dimension.")
+    allowed_mm: dict[str, float] = Field(description="A third of each dimension's tolerance.")
+    tolerance_from: str = Field(description="Whose tolerance: the measurement's, the verification's, "
+                                "or 3 sigma when neither gives one.")
+    threshold_px: float | None = Field(description="The shift whose cost reaches the allowance, px.")
+    reverify: bool = Field(description="A cost over its allowance: warned, re-verification asked for.")
+
+
+class StationCheckPublic(BaseModel):
+    verification: StationVerificationPublic
+    drift: StationDriftPublic
+
+
 class ResultPublic(BaseModel):
     points: int = Field(description="Points in the cloud (a video: summed over its frames; a joint "
                         "fit: 0, it makes no cloud).")
@@ -126,6 +163,9 @@ class ResultPublic(BaseModel):
         "measured as ONE box: those used and those left out with the reason. The item's "
         "dimensions, uncertainty, focal_px (focal_source fitted or given), warnings and quality are "
         "the joint fit's; downloads hold its report (joint), no cloud. Null otherwise.")
+    station: StationCheckPublic | None = Field(
+        default=None, description="Items measured on a station: its verification's status and how far "
+        "the camera moved since calibration. Null otherwise.")
 
 
 class FramePublic(BaseModel):

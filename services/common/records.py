@@ -74,6 +74,8 @@ class ItemResult(BaseModel):
     given_dimension: str | None = None  # the dimension a known edge gave (not measured)
     reference_points: dict[str, list[float] | None] | None = None  # p1..p7 (x, y) the scan used, px
     joint: dict[str, Any] | None = None  # a joint fit: views used, left out, camera (JointPublic)
+    # measured on a station: its verification's status and the camera's drift (StationCheckPublic)
+    station: dict[str, Any] | None = None
 
 
 class FrameRecord(BaseModel):

@@ -276,7 +276,17 @@ def item_result(report: dict[str, Any]) -> ItemResult:
                       points_source=report.get("points_source", "clicked"),
                       points_confidence=(report.get("auto_points") or {}).get("confidence"),
                       given_dimension=given_dimension(report),
-                      reference_points=(report.get("inputs") or {}).get("points"))
+                      reference_points=(report.get("inputs") or {}).get("points"),
+                      station=station_check(report))
+
+
+def station_check(report: dict[str, Any]) -> dict[str, Any] | None:
+    """A station measurement's verification status and drift (report.json's ``station``); None for
+    others (a hand-held board's measurement has no station to verify)."""
+    found = report.get("station") or {}
+    if "verification" not in found:
+        return None
+    return {"verification": found["verification"], "drift": found["drift"]}
 
 
 def _display_size(picture: np.ndarray, max_side: int = OVERLAY_MAX_SIDE) -> np.ndarray:

@@ -99,7 +99,8 @@ def measure_station(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dic
                              if getattr(spec, name) is not None}
     extra["max_pixels"] = limit
     extra = json.loads(json.dumps(extra, default=lambda v: v.model_dump(mode="json")))
-    done = scan_on_station(photo, station, label, extra)
+    # the tolerance judges the camera's drift since calibration (prismcore.station.certify)
+    done = scan_on_station(photo, station, label, extra, spec.tolerance_mm)
     report = done.report
     # The verdicts judge the station's dimensions (the derived points' scan never saw the nominal).
     report["quality"] = quality_from_report(report, spec.nominal, spec.tolerance_mm)
