@@ -30,12 +30,22 @@ def _first_non_finite(value: Any, path: str = "") -> str | None:
     return next((f for f in found if f is not None), None)
 
 
+def _webhook_schema(schema: dict[str, Any]) -> None:
+    # An http(s) URL with a host (prism_common.outbound); which hosts is the operator's list.
+    for option in schema.get("anyOf", []):
+        if option.get("type") == "string":
+            option.update(format="uri", pattern="^[Hh][Tt][Tt][Pp][Ss]?://[^/?#@]+")
+
+
 class JobCreate(BaseModel):
     """A batch of scans: each item is the `prism scan --spec` model, images given as references."""
 
     model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [{
+        # samples/box.jpg's seven points, in the form the schema names (a list of pairs is
+        # taken too, but the schema does not say so)
         "items": [{"image": "upload:0123456789abcdef0123456789abcdef",
-                   "points": [[395, 293], [943, 331], [919, 761], [943, 331], [1035, 298]],
+                   "points": {"p1": [395, 293], "p2": [943, 331], "p3": [919, 761], "p4": [943, 331],
+                              "p5": [1035, 298], "p6": [411, 647], "p7": [1009, 660]},
                    "scale": {"kind": "edge", "edge": "width", "length_mm": 120}}],
         "client_reference": "batch-17"}]})
 
@@ -43,6 +53,7 @@ class JobCreate(BaseModel):
     client_reference: str | None = Field(default=None, max_length=200,
                                          description="Your own id for the batch, echoed back.")
     webhook_url: str | None = Field(default=None, max_length=2000,
+                                    json_schema_extra=_webhook_schema,
                                     description="POSTed the finished job, signed by the Standard "
                                                 "Webhooks spec. https (http only where the "
                                                 "service allows it), on an allow-listed host.")

@@ -91,8 +91,30 @@ def _spec_schema(schema: dict[str, Any]) -> None:
     schema["required"] = [n for n in schema.get("required", []) if n != "image"]
     if not schema["required"]:
         del schema["required"]
-    schema["anyOf"] = [{"required": ["image", "points"]}, {"required": ["image", "frame_points"]},
-                       {"required": ["views"]}]
+    # Each way of giving the points, the field given and not null (null is "not given"); a
+    # station item has none, the station finds the part.
+    schema["anyOf"] = [{"required": ["image", name] if name != "views" else [name],
+                        "properties": {name: {"not": {"type": "null"}}}}
+                       for name in ("points", "frame_points", "views", "station")]
+
+
+def _views_schema(schema: dict[str, Any]) -> None:
+    # The count _joint_consistent holds views to, stated where a client (or a fuzzer) reads it.
+    for option in schema.get("anyOf", []):
+        if option.get("type") == "array":
+            option.update(minItems=2, maxItems=JOINT_MAX_VIEWS)
+
+
+def _seven_points_schema(schema: dict[str, Any]) -> None:
+    # A view's points are ReferencePoints with p6 and p7 given (ViewSpec._seven).
+    schema["required"] = ["p6", "p7"]
+    schema["properties"] = {"p6": {"type": "array"}, "p7": {"type": "array"}}
+
+
+def _station_schema(schema: dict[str, Any]) -> None:
+    for option in schema.get("anyOf", []):
+        if option.get("type") == "string":
+            option["pattern"] = _STATION_ID.pattern
 
 
 def _auto_schema(schema: dict[str, Any]) -> None:
@@ -136,7 +158,7 @@ class ViewSpec(_Strict):
     points: ReferencePoints = Field(description="The seven reference points p1..p7 on this photo, "
                                     "in the documented order; every view marks the same front face "
                                     "(p1 the same corner). All seven are needed: each view is fitted "
-                                    "in perspective.")
+                                    "in perspective.", json_schema_extra=_seven_points_schema)
     side_face: SideFace = Field(default="auto", description="The face p4, p5 and p7 mark besides "
                                 "the front in this photo (right, left or top; auto reads it from the "
                                 "points): each view may show another one.")
@@ -204,7 +226,7 @@ class ScanSpec(_Strict):
         f"edge as the scale. A view that disagrees with the others beyond its noise is named and left "
         f"out (3 views or more; two that disagree get a warning). Instead of image and points (image, "
         f"when given, must be the first view's). The item's outputs are the fit's report (joint.json), "
-        f"no cloud.")
+        f"no cloud.", json_schema_extra=_views_schema)
     fit: Literal["frames", "joint"] | None = Field(
         default=None, description="How several views are combined. A video's frames: \"frames\" "
         "(the default) measures each frame as a photo and summarises the medians; \"joint\" "
@@ -214,7 +236,8 @@ class ScanSpec(_Strict):
     station: str | None = Field(
         default=None, description="The service: a stored station's id (POST /v1/stations): the part "
         "resting on its support is found and measured in mm from the photo alone (prismcore.station), "
-        "with no points and no scale; the photo must come from the station's camera at its image size.")
+        "with no points and no scale; the photo must come from the station's camera at its image size.",
+        json_schema_extra=_station_schema)
     tolerance: float = Field(default=12.0, ge=0.0, le=128.0, description="RGB tolerance per channel.")
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None

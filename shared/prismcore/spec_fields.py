@@ -9,7 +9,7 @@ import math
 import re
 from collections import Counter
 from collections.abc import Sequence
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -153,8 +153,16 @@ class ReferencePoints(_Strict):
         return {n: getattr(self, n) for n in _POINT_NAMES if getattr(self, n) is not None}
 
 
+def _kind_required(schema: dict[str, Any]) -> None:
+    # `kind` tells the three scales apart (Scale's discriminator): a scale without it is refused,
+    # so the published schema requires it, though the models default it for code building one.
+    schema["required"] = ["kind", *schema.get("required", [])]
+
+
 class MmPerPx(_Strict):
     """Millimetres per pixel in the face plane; `side` is the side photo's (two-photo mode)."""
+
+    model_config = ConfigDict(json_schema_extra=_kind_required)
 
     kind: Literal["mm_per_px"] = "mm_per_px"
     front: MmPerPxValue
@@ -168,6 +176,8 @@ class Pinhole(_Strict):
     mm-per-pixel = distance / focal.
     """
 
+    model_config = ConfigDict(json_schema_extra=_kind_required)
+
     kind: Literal["pinhole"] = "pinhole"
     distance_mm: PositiveMm
     side_distance_mm: PositiveMm | None = None
@@ -175,6 +185,8 @@ class Pinhole(_Strict):
 
 class KnownEdge(_Strict):
     """One real edge length of the part."""
+
+    model_config = ConfigDict(json_schema_extra=_kind_required)
 
     kind: Literal["edge"] = "edge"
     edge: Literal["width", "height", "depth"] = "width"

@@ -63,5 +63,9 @@ def test_schema_is_json_schema():
     assert schema["type"] == "object" and "image" in schema["properties"]
     # the photo (or video) and its reference points: the same for every photo or frame, or per
     # frame of a video; or several views of one part, each with its photo and points
-    assert schema["anyOf"] == [{"required": ["image", "points"]}, {"required": ["image", "frame_points"]},
-                               {"required": ["views"]}]
+    # (a station's photo needs none: the station finds the part); each given and not null
+    assert [option["required"] for option in schema["anyOf"]] == [
+        ["image", "points"], ["image", "frame_points"], ["views"], ["image", "station"]]
+    for option in schema["anyOf"]:
+        name = option["required"][-1]
+        assert option["properties"] == {name: {"not": {"type": "null"}}}
