@@ -38,18 +38,22 @@ def capability(station: Station) -> dict[str, Any]:
         its middle), ``min_part_mm`` and ``min_tolerance_mm`` (+-T) at the far edge, and
         ``min_tolerance_near_mm`` at the near edge, with ``rule`` in words.
     """
-    K = station.camera.matrix()
-    H = plane_homography(K, station.plane)
-    bw, bh = station.board.size_mm
-    edges = np.array([[bw / 2, 0.0], [bw, bh / 2], [bw / 2, bh], [0.0, bh / 2]])
-    camera = station.plane.camera_centre()[:2]
-    order = np.argsort(np.linalg.norm(edges - camera, axis=1))
-    scales = mm_per_px(H, edges[[order[0], order[-1]]])
+    # a degenerate station.json (a pose or camera whose figures overflow) gives inf or nan here,
+    # not a warning: the API refuses a summary that is not finite
+    with np.errstate(all="ignore"):
+        K = station.camera.matrix()
+        H = plane_homography(K, station.plane)
+        bw, bh = station.board.size_mm
+        edges = np.array([[bw / 2, 0.0], [bw, bh / 2], [bw / 2, bh], [0.0, bh / 2]])
+        camera = station.plane.camera_centre()[:2]
+        order = np.argsort(np.linalg.norm(edges - camera, axis=1))
+        scales = mm_per_px(H, edges[[order[0], order[-1]]])
     near, far = float(scales[0]), float(scales[1])
     min_part = _SMALL_SPAN_PX * far
 
     def tolerance(scale: float) -> float:
-        sigma = float(np.hypot(_SYSTEMATIC_PX * scale, _RELATIVE_SIGMA * min_part))
+        with np.errstate(all="ignore"):  # a degenerate pose's inf stays inf (the caller checks)
+            sigma = float(np.hypot(_SYSTEMATIC_PX * scale, _RELATIVE_SIGMA * min_part))
         return 6.0 * sigma / (2.0 * MAX_GRR_PERCENT / 100.0)
 
     return {

@@ -70,15 +70,18 @@ def mm_per_px(H: np.ndarray, support_mm: np.ndarray) -> np.ndarray:
     """The support's scale, mm per px (the geometric mean over the two directions), at each of
     `support_mm` ((n, 2) points on the support) seen through `H` (support -> pixels)."""
     X = np.atleast_2d(np.asarray(support_mm, np.float64))
-    h = np.column_stack([X, np.ones(len(X))]) @ H.T
-    w = h[:, 2]
-    u, v = h[:, 0] / w, h[:, 1] / w
-    # d(u, v)/d(x, y) of the projective map, px per mm
-    j11 = (H[0, 0] - u * H[2, 0]) / w
-    j12 = (H[0, 1] - u * H[2, 1]) / w
-    j21 = (H[1, 0] - v * H[2, 0]) / w
-    j22 = (H[1, 1] - v * H[2, 1]) / w
-    return cast("np.ndarray", 1.0 / np.sqrt(np.abs(j11 * j22 - j12 * j21)))
+    # a degenerate pose (a station.json's plane through the camera) gives inf, not a warning:
+    # the caller's finiteness check refuses it
+    with np.errstate(all="ignore"):
+        h = np.column_stack([X, np.ones(len(X))]) @ H.T
+        w = h[:, 2]
+        u, v = h[:, 0] / w, h[:, 1] / w
+        # d(u, v)/d(x, y) of the projective map, px per mm
+        j11 = (H[0, 0] - u * H[2, 0]) / w
+        j12 = (H[0, 1] - u * H[2, 1]) / w
+        j21 = (H[1, 0] - v * H[2, 0]) / w
+        j22 = (H[1, 1] - v * H[2, 1]) / w
+        return cast("np.ndarray", 1.0 / np.sqrt(np.abs(j11 * j22 - j12 * j21)))
 
 
 def _tolerances(tolerance_mm: float | tuple[float, float, float] | None, verification: Verification | None,

@@ -23,7 +23,7 @@ from datetime import datetime
 
 import numpy as np
 from numpy.typing import ArrayLike
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from prismcore.errors import InputError
 
@@ -107,11 +107,23 @@ class Verification(BaseModel):
     photos: list[str] = Field(description="The placements' photos, in order.")
     positions_mm: list[tuple[float, float]] = Field(description="Each placement's centre on the support.")
     yaws_deg: list[float] = Field(description="Each placement's yaw.")
-    dimensions: dict[str, DimensionVerification]
+    dimensions: dict[str, DimensionVerification] = Field(
+        description="width, depth and height, each once.",
+        # the keys as the validator takes them, so the published schema says what is accepted
+        json_schema_extra={"required": list(DIMENSIONS), "propertyNames": {"enum": list(DIMENSIONS)}},
+    )
     verified: bool
     rule: str = RULE
     grr_formula: str = GRR_FORMULA
     decided_by: list[str] = Field(description="The clauses failed (empty when verified).")
+
+    @field_validator("dimensions")
+    @classmethod
+    def _three(cls, value: dict[str, DimensionVerification]) -> dict[str, DimensionVerification]:
+        # every reader (a measurement's verification status, prism station show) takes all three
+        if set(value) != set(DIMENSIONS):
+            raise ValueError(f"expected width, depth and height, got {', '.join(map(str, value)) or 'none'}")
+        return value
 
 
 def _finite_1d(values: ArrayLike, name: str) -> np.ndarray:
