@@ -70,6 +70,63 @@ def _png_pixel_bytes(ihdr: bytes) -> int | None:
                for x0, y0, dx, dy in _ADAM7)
 
 
+def _bmp_end(head: bytes) -> int:
+    """Where a BMP's pixels end: their offset plus the rows its header's size and depth take
+    (uncompressed or bit fields), or the image size it states (compressed); 0 when unknown."""
+    if len(head) < 26:
+        return 0
+    le = lambda a, b: int.from_bytes(head[a:b], "little")  # noqa: E731
+    offset, dib = le(10, 14), le(14, 18)
+    if dib == 12:  # BITMAPCOREHEADER
+        width, height, bits, compression, stated = le(18, 20), le(20, 22), le(24, 26), 0, 0
+    elif dib >= 40 and len(head) >= 38:
+        width = abs(int.from_bytes(head[18:22], "little", signed=True))
+        height = abs(int.from_bytes(head[22:26], "little", signed=True))
+        bits, compression, stated = le(28, 30), le(30, 34), le(34, 38)
+    else:
+        return 0
+    if compression in (0, 3, 6) and bits in (1, 2, 4, 8, 16, 24, 32):
+        return offset + (width * bits + 31) // 32 * 4 * height
+    return offset + stated if stated else 0
+
+
+_HEADER_KEEP = 1 << 20  # a BMP's or TIFF's bytes read for its header and first directory
+_TIFF_DATA = {273: 279, 324: 325}  # StripOffsets -> StripByteCounts, TileOffsets -> TileByteCounts
+_TIFF_SIZES = {3: 2, 4: 4, 16: 8}  # SHORT, LONG, LONG8
+
+
+def _tiff_end(head: bytes) -> int:
+    """How far a TIFF must reach: past its first image directory and, when that directory lies
+    in `head`, past the strips or tiles it lists; 0 when unknown (BigTIFF, a bad offset)."""
+    order: Any = "little" if head[:2] == b"II" else "big"
+    ifd = int.from_bytes(head[4:8], order)
+    if ifd < 8:
+        return 0
+    if ifd + 2 > len(head):
+        return ifd + 2  # the directory lies past the bytes kept: its own start is checked
+    count = int.from_bytes(head[ifd : ifd + 2], order)
+    end = ifd + 2 + 12 * count + 4
+    if end > len(head):
+        return end
+    values: dict[int, list[int]] = {}
+    for k in range(count):
+        entry = head[ifd + 2 + 12 * k : ifd + 14 + 12 * k]
+        tag, kind, n = (int.from_bytes(entry[0:2], order), int.from_bytes(entry[2:4], order),
+                        int.from_bytes(entry[4:8], order))
+        size = _TIFF_SIZES.get(kind)
+        if size is None or tag not in (*_TIFF_DATA, *_TIFF_DATA.values()):
+            continue
+        at = 8 if n * size <= 4 else int.from_bytes(entry[8:12], order)
+        source = entry if n * size <= 4 else head
+        if at + n * size > len(source):
+            continue  # the list lies past the bytes kept: not checked here
+        values[tag] = [int.from_bytes(source[at + i * size : at + (i + 1) * size], order) for i in range(n)]
+    for offsets, counts in _TIFF_DATA.items():
+        if offsets in values and counts in values and len(values[offsets]) == len(values[counts]):
+            end = max(end, *(o + c for o, c in zip(values[offsets], values[counts], strict=True)))
+    return end
+
+
 class ImageEnd:
     """Fed a photo's bytes as they pass, says whether the photo's end was in them.
 
@@ -82,20 +139,28 @@ class ImageEnd:
     chunks closed after it is cut short too). Data that does not inflate is left for the worker
     to report as damaged, and a PNG over `max_pixels` for the worker to refuse as too large: it
     is not inflated, nor is data past the pixels' bytes, so a decompression bomb costs nothing
-    here. A WebP ends where its RIFF header's size says. Other formats (BMP, TIFF) are not
-    checked here: the worker reports them damaged.
+    here. A WebP ends where its RIFF header's size says; a BMP where its pixels end (their
+    offset, plus the rows its header's size and depth take); a TIFF past its first image
+    directory and the strips or tiles that directory points to (what of it lies in the bytes
+    kept at the start: a directory written after the pixels is checked for its own end only).
     """
 
     def __init__(self, head: bytes, max_pixels: int | None = None) -> None:
         self.format = ("JPEG" if head.startswith(b"\xff\xd8\xff") else
                        "PNG" if head.startswith(b"\x89PNG\r\n\x1a\n") else
-                       "WEBP" if head[:4] == b"RIFF" and head[8:12] == b"WEBP" else None)
+                       "WEBP" if head[:4] == b"RIFF" and head[8:12] == b"WEBP" else
+                       "BMP" if head.startswith(b"BM") else
+                       "TIFF" if head[:4] in (b"II*\x00", b"MM\x00*") else None)
         self.size = 0
         self.ended = self.format is None  # nothing to check
         self._buf = b""
         self._skip = 2 if self.format == "JPEG" else 8 if self.format == "PNG" else 0  # SOI, signature
         self._entropy = False
         self._riff = int.from_bytes(head[4:8], "little") + 8 if self.format == "WEBP" else 0
+        # A BMP's or TIFF's first bytes (the first feed may be a few bytes of a multipart body),
+        # read for where the file must reach once every byte was fed.
+        self._head = b""
+        self._needed = 0
         # A PNG's image data: its bytes still to come in the current IDAT chunk, the stream
         # inflating it (None when not checked: it does not inflate, the image is over
         # `max_pixels`, or its pixels' bytes were all seen), the bytes it gave and those expected.
@@ -112,6 +177,9 @@ class ImageEnd:
             return
         if self.format == "WEBP":
             self.ended = self.size >= self._riff
+            return
+        if self.format in ("BMP", "TIFF"):
+            self._head += data[: max(_HEADER_KEEP - len(self._head), 0)]
             return
         if self._idat:  # the rest of an IDAT chunk, then its CRC
             n = min(self._idat, len(data))
@@ -212,6 +280,9 @@ class ImageEnd:
 
     def problem(self, name: str) -> str | None:
         """Why the photo is cut short, once every byte was fed; None when it is whole."""
+        if self.format in ("BMP", "TIFF"):
+            self._needed = _bmp_end(self._head) if self.format == "BMP" else _tiff_end(self._head)
+            self.ended = self.size >= self._needed  # 0: the header does not tell, taken as whole
         if self.ended and not self._short_data:
             return None
         if self._short_data:
@@ -219,7 +290,9 @@ class ImageEnd:
                     f"{self._pixels:,} of the {self._expected or 0:,} bytes of pixels its header announces): "
                     "the file was not written whole; upload the complete photo")
         end = {"JPEG": "its end-of-image marker", "PNG": "its IEND chunk",
-               "WEBP": f"the {self._riff:,} bytes its header announces"}[self.format or ""]
+               "WEBP": f"the {self._riff:,} bytes its header announces",
+               "BMP": f"the {self._needed:,} bytes its header's pixels take",
+               "TIFF": f"the {self._needed:,} bytes its image directory points to"}[self.format or ""]
         return (f"{name!r} is a truncated {self.format} ({self.size:,} bytes, cut short before {end}): "
                 "the file was not copied whole; upload the complete photo")
 

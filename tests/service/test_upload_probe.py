@@ -245,6 +245,45 @@ def test_a_png_whose_image_data_is_cut_short_is_refused_and_not_kept(client, obj
     assert set(objects.list_keys("uploads/")) == before  # deleted again
 
 
+def _pil(image: np.ndarray, fmt: str, **options) -> bytes:
+    out = io.BytesIO()
+    Image.fromarray(image).save(out, fmt, **options)
+    return out.getvalue()
+
+
+# Every other photo format the upload takes, as OpenCV and Pillow write them: the TIFFs with their
+# image directory after the pixels (OpenCV) and before them (Pillow), strips plain or compressed.
+OTHER_FORMATS = {
+    "bmp-opencv": (cv2.imencode(".bmp", NOISE)[1].tobytes(), "BMP"),
+    "bmp-pillow": (_pil(NOISE, "BMP"), "BMP"),
+    "bmp-grey": (_pil(NOISE[..., 0], "BMP"), "BMP"),
+    "tiff-opencv": (cv2.imencode(".tiff", NOISE)[1].tobytes(), "TIFF"),
+    "tiff-pillow": (_pil(NOISE, "TIFF"), "TIFF"),
+    "tiff-lzw": (_pil(NOISE, "TIFF", compression="tiff_lzw"), "TIFF"),
+    "tiff-jpeg": (_pil(NOISE, "TIFF", compression="jpeg"), "TIFF"),
+    "webp": (cv2.imencode(".webp", NOISE)[1].tobytes(), "WEBP"),
+}
+
+
+@pytest.mark.parametrize("kind", OTHER_FORMATS)
+def test_every_other_format_cut_short_is_refused_and_whole_is_taken(client, objects, kind):
+    """Issue 37: a cut BMP or TIFF was stored and its job failed later; like a JPEG, PNG or WebP
+    it is refused at upload now, by the bytes its header points to."""
+    data, fmt = OTHER_FORMATS[kind]
+    r = post(client, data, f"whole.{fmt.lower()}")
+    assert r.status_code == 201 and r.json()["probe"]["format"] == fmt, r.text
+    for cut in (0.95, 0.5):
+        short = data[: int(len(data) * cut)]
+        before = set(objects.list_keys("uploads/"))
+        r = post(client, short, f"cut.{fmt.lower()}")
+        assert r.status_code == 422, (cut, r.text)
+        body = r.json()
+        assert body["type"] == "https://prismcloud.dev/problems/damaged-file" and body["truncated"] is True
+        said = f"'cut.{fmt.lower()}' is a truncated {fmt} ({len(short):,} bytes"
+        assert body["detail"].startswith(said), body
+        assert set(objects.list_keys("uploads/")) == before  # not kept
+
+
 def test_a_png_over_the_pixel_limit_is_not_inflated_at_upload(make_client):
     # A decompression bomb costs the API nothing: past PRISM_MAX_PIXELS its data is not read (the
     # worker refuses the photo as too large), so its pixels are not counted either.
