@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from prismcore.station.edges import bilinear, refine_outline
+from prismcore.station.influence import jackknife_cov, soft_l1_weights
 
 __all__ = ["BoxFit", "box_corners", "fit_box", "project", "visible_faces"]
 
@@ -34,6 +35,12 @@ _AGREE_SIZE = 0.03  # of the box's largest side: the same box
 _WEAK_STEP = 20.0  # RGB levels
 _ROBUST_PX = 1.0  # soft-l1 scale of the last fit: outline points farther count less
 _MAX_OUTLIERS = 0.10  # of the outline beyond 3 sigma: more, and the fit's sigma is its whole RMS
+# A distinct box whose (robust) misfit is within this share of the best one's fits the outline as
+# well, as far as an outline with stretches that are not the box's can tell (development set:
+# clean fits' rivals cost 3-20 times the best; wrong fits' rivals 1-17 % more)
+_RIVAL_COST = 0.15
+_RIVAL_SIGMAS = 2.0
+_RIVALS = 3  # distinct starts' fits polished and compared, at most
 
 
 def box_corners(params: np.ndarray) -> np.ndarray:
@@ -122,6 +129,9 @@ class BoxFit:
     outline_px: int
     missing_fraction: float = 0.0  # of the outline lying well inside the box: a stretch not found
     weak_fraction: float = 0.0  # of the fitted silhouette where the photo barely differs across it
+    # (3,) mm: how far, in length, width and height, another box fitting the outline almost as well
+    # (a distinct minimum of the fit) lies from this one
+    ambiguity_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def length_mm(self) -> float:
@@ -138,7 +148,10 @@ class BoxFit:
     def sigma_mm(self) -> tuple[float, float, float]:
         """One-sigma of length, width, height, mm."""
         s = np.sqrt(np.maximum(np.diag(self.cov)[3:], 0))
-        return (self.length_mm * float(s[0]), self.width_mm * float(s[1]), self.height_mm * float(s[2]))
+        own = (self.length_mm * float(s[0]), self.width_mm * float(s[1]), self.height_mm * float(s[2]))
+        # a rival box fitting as well is taken as lying _RIVAL_SIGMAS sigma away
+        both = [float(np.hypot(o, a / _RIVAL_SIGMAS)) for o, a in zip(own, self.ambiguity_mm, strict=True)]
+        return (both[0], both[1], both[2])
 
     def corners(self) -> np.ndarray:
         return box_corners(self.params)
@@ -455,6 +468,50 @@ def _outer(inner: BoxFit, radius_mm: float) -> BoxFit:
     return replace(inner, params=params, cov=J @ inner.cov @ J.T)
 
 
+def _widened(cov: np.ndarray, x: np.ndarray, r: np.ndarray, p: _Problem, noise_var: float) -> np.ndarray:
+    """`cov` widened, parameter by parameter, to the spread of the fits that leave out one side of
+    the silhouette (or the folds) at a time, where that spread is the larger: sides that disagree
+    (a shadow or a mirrored face taken for the part, a face lost against the support) show in it,
+    where the outline's noise alone does not."""
+    if not np.all(np.isfinite(cov)):
+        return cov
+    pts = project(box_corners(x), p.K, p.R, p.t)
+    near = _nearest(p.outline, pts[_hull(pts)])
+    n = len(p.outline)
+    groups = [np.flatnonzero(near.k == k) for k in np.unique(near.k)]
+    folds = n + 8 + np.arange(3 * len(_FOLD_SAMPLES))
+    J = _jacobian(x, p)
+    if np.any(J[folds] != 0):
+        groups.append(folds)
+    jack = jackknife_cov(J, r, soft_l1_weights(r, _ROBUST_PX), groups, noise_var)
+    d = np.diag(cov)
+    scale = np.sqrt(np.maximum(1.0, np.diag(jack) / np.maximum(d, 1e-300)))
+    return cast("np.ndarray", cov * np.outer(scale, scale))
+
+
+def _rivals(best: Any, starts: list[np.ndarray], p: _Problem) -> tuple[float, float, float]:
+    """How far (mm, per length, width, height of `best`) the distinct boxes among the starts' fits,
+    polished on the final problem, lie from `best` where they fit within _RIVAL_COST of its cost."""
+    spread = np.zeros(3)
+    size = np.exp(best.x[3:])
+    tried = 0
+    for x in starts:
+        if tried >= _RIVALS:
+            break
+        if _same_box(x, best.x):
+            continue
+        tried += 1
+        rival = least_squares(_residuals, x, jac=_jacobian, args=(p,), method="trf", loss="soft_l1",
+                              f_scale=_ROBUST_PX, x_scale="jac", max_nfev=30)
+        if _same_box(rival.x, best.x) or rival.cost > (1 + _RIVAL_COST) * best.cost:
+            continue
+        other = np.exp(rival.x[3:])
+        if (other[0] >= other[1]) != (size[0] >= size[1]):
+            other[:2] = other[1::-1]  # the same sides, named as in `best` (a box turned a quarter)
+        spread = np.maximum(spread, np.abs(other - size))
+    return (float(spread[0]), float(spread[1]), float(spread[2]))
+
+
 def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_dt: np.ndarray | None,
          difference: np.ndarray | None, origin: tuple[int, int], rounding_mm: float = 0.0) -> BoxFit:
     centre = -R.T @ t
@@ -524,11 +581,16 @@ def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_
         cov = np.linalg.inv(J.T @ J) * sigma**2 * inflation
     except np.linalg.LinAlgError:
         cov = np.full((6, 6), np.inf)
+    cov = _widened(cov, best.x, best.fun, dense, sigma**2 * inflation)
     params = best.x.copy()
     params[2] = params[2] % np.pi  # yaw in [0, pi): a box turned half a turn is the same box
     # The outline's RMS distance from the box, its worst tenth left out (a shadow's notch, a
     # label's corner): what says whether the part is a box at all.
     trimmed = np.sort(np.abs(r1))[: max(1, int(0.9 * len(r1)))]
+    # the rivals: the other starts' fits, then the starts not fitted (the multi-start stopped once
+    # its best agreed), by their cost
+    unfitted = [starts[i] for i in np.argsort(costs)[len(fits):]]
+    ambiguity = _rivals(best, [f.x for f in sorted(fits, key=lambda f: f.cost)] + unfitted, dense)
     weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t) - maps_o,
                                                          difference)
     return BoxFit(
@@ -538,4 +600,5 @@ def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_
         cov=cov,
         residual_px=float(np.sqrt(np.mean(np.square(trimmed)))),
         outline_px=len(outline),
+        ambiguity_mm=ambiguity,
     )

@@ -116,3 +116,24 @@ def test_a_fit_that_leaves_much_of_the_outline_out_widens_its_sigma(seed: int) -
     assert min(np.array(dent.sigma_mm()) / np.array(whole.sigma_mm())) > 3
     # and the stretch left out is still said (by the robust sigma, not the widened one)
     assert dent.missing_fraction > 0.08 > whole.missing_fraction
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_fit_whose_sides_disagree_widens_its_sigma_and_a_clean_one_does_not(seed: int) -> None:
+    """One side of the silhouette pushed 6 px out along its whole length (a shadow taken for the
+    part): the sides no longer agree on one box, and the fit's sigma must say so (the leave-one-
+    side-out spread, or a rival box fitting as well), where the same box's clean outline keeps
+    its sigma near the outline's noise."""
+    rng = np.random.default_rng(100 + seed)
+    _, p = _problem(rng, noise_px=0.3)
+    clean = p.outline
+    whole = fit_box(clean, p.K, p.R, p.t)
+    pushed = clean.copy()
+    side = np.r_[0:25]
+    outward = pushed[side] - clean.mean(axis=0)
+    pushed[side] += 6 * outward / np.linalg.norm(outward, axis=1, keepdims=True)
+    off = fit_box(pushed, p.K, p.R, p.t)
+    err = np.abs(np.exp(off.params[3:]) - np.exp(whole.params[3:]))
+    # the error the push made is within 3 sigma of the pushed fit, in every size
+    assert np.all(err <= 3 * np.array(off.sigma_mm()) + 0.05 * np.exp(whole.params[3:]).min())
+    assert max(whole.ambiguity_mm) < 0.5 * min(np.exp(whole.params[3:]))
