@@ -18,6 +18,7 @@ import { ResultPanel } from "./result";
 import { Runner } from "./run";
 import { SettingsForm } from "./settings";
 import { StationPhotos } from "./station-photos";
+import { StationVerify } from "./station-verify";
 import { Stations } from "./stations";
 import { clear, clearAll, photoShown, state } from "./state";
 import type { JobList } from "./types";
@@ -80,6 +81,9 @@ runner.onFinished = (job) => {
 stationPhotos.station = () => stations.chosen;
 stationPhotos.submit = (items, reference) => runner.run(items, reference);
 stations.onChoose = () => stationPhotos.render();
+const stationVerify = new StationVerify();
+stationVerify.station = () => stations.chosen;
+stationVerify.onDone = (said) => stations.load(said);
 mode.onChange = (m) => {
   result.overlayLarge(m === "station");
   if (m === "station") void stations.load();

@@ -77,6 +77,17 @@ const COLUMNS: Column[] = [
     cell: (r) => { const v = n(r.point_loss); return v === null ? "" : `${(v * 100).toFixed(2)} %`; } },
 ];
 
+/** A station's job: each row's station verification as the item stands and the camera's shift. */
+const STATION: Column = {
+  id: "station", title: "Station", key: (r) => (r.station_verification === null ? null : String(r.station_verification)),
+  cell: (r) => {
+    if (r.station_verification === null || r.station_verification === undefined) return "";
+    const px = n(r.camera_shift_px), shift = n(r.camera_shift_mm);
+    return `${r.station_verification}${px === null ? "" : ` · camera moved ${px.toFixed(1)} px`}` +
+      `${shift === null ? "" : ` (${shift.toFixed(1)} mm)`}`;
+  },
+};
+
 const failed = (r: ResultRow) => r.verdict === "fail" || r.state === "failed";
 
 export class ResultsTableView {
@@ -129,12 +140,18 @@ export class ResultsTableView {
     }
   }
 
+  /** The columns: with the Station column when a row was measured on a station. */
+  private columns(): Column[] {
+    const station = this.table?.rows.some((r) => r.station_verification !== null && r.station_verification !== undefined);
+    return station ? [...COLUMNS.slice(0, 7), STATION, ...COLUMNS.slice(7)] : COLUMNS;
+  }
+
   /** The rows as the controls want them: filtered, sorted, failed ones first if asked. */
   rows(): ResultRow[] {
     if (!this.table) return [];
     const text = $<HTMLInputElement>("table-filter").value.trim().toLowerCase();
     const verdict = $<HTMLSelectElement>("table-verdict").value;
-    const column = COLUMNS.find((c) => c.id === this.sort.column)!;
+    const column = this.columns().find((c) => c.id === this.sort.column) ?? COLUMNS[0];
     const sign = this.sort.ascending ? 1 : -1;
     const rows = this.table.rows.filter((r) => {
       if (verdict === "none" && r.verdict) return false;
@@ -142,7 +159,7 @@ export class ResultsTableView {
       if (verdict && !["none", "failed"].includes(verdict) && r.verdict !== verdict) return false;
       if (!text) return true;
       const words = [r.input, inputName(r), r.state, r.error, r.verdict, r.client_reference, `scan ${r.item + 1}`,
-        ...warningsOf(r)];
+        r.station_verification, ...warningsOf(r)];
       return words.some((w) => w !== null && w !== undefined && String(w).toLowerCase().includes(text));
     });
     const compare = (a: ResultRow, b: ResultRow): number => {
@@ -160,7 +177,7 @@ export class ResultsTableView {
   private render(): void {
     if (!this.table) return;
     const head = document.createElement("tr");
-    for (const c of COLUMNS) {
+    for (const c of this.columns()) {
       const th = document.createElement("th");
       th.scope = "col";
       const button = document.createElement("button");
@@ -196,7 +213,7 @@ export class ResultsTableView {
     if (r.verdict) tr.classList.add(`verdict-${r.verdict}`);
     tr.classList.add(`state-${r.state}`);
     if (tr.dataset.row === this.current) tr.classList.add("current");
-    for (const c of COLUMNS) {
+    for (const c of this.columns()) {
       const td = document.createElement("td");
       td.dataset.col = c.id;
       if (c.numeric) td.className = "num";
@@ -216,6 +233,7 @@ export class ResultsTableView {
           title: "A warning of this scan is about this figure" }));
       }
       if (c.id === "input" && inputName(r) !== String(r.input ?? "")) td.title = String(r.input);
+      if (c.id === "station" && r.station_verification !== "verified" && td.textContent) td.classList.add("warned");
       if (typeof dv === "string") {
         // The dimension's own verdict as a symbol and (for screen readers) a word, not colour alone.
         const mark = Object.assign(document.createElement("span"), { className: "dim-verdict", textContent:

@@ -1,7 +1,9 @@
 // Station mode, step 1: the tenant's stations (GET /v1/stations) with what an engineer checks
 // before trusting one (camera, board, the support plane's fit, whether the empty support is
 // stored), the one the photos are measured on, a new one from its station.json or calibrated by
-// the service from its photos (POST /v1/stations, JSON or multipart), and deleting one.
+// the service from its photos (POST /v1/stations, JSON or multipart), and deleting one. Each row
+// states the station's verification (verified on DATE with bias and repeatability, or not
+// verified: station-verify.ts runs one) and its capability (mm per px, the smallest part and tolerance).
 // A refused calibration is said in words, at the file at fault ("Plane photo (plane.jpg): ...").
 
 import { ApiError, call, getJson, message } from "./api";
@@ -28,6 +30,20 @@ function cameraText(s: Station): string {
     : `calibrated on ${Array.isArray(c.views) ? c.views.length : "its"} views of the board`;
   const rms = typeof c.rms_px === "number" ? `, RMS ${c.rms_px.toFixed(2)} px` : "";
   return `${s.image_width} × ${s.image_height} px, f ${s.camera.fx.toFixed(0)} px (${how}${rms})`;
+}
+
+/** "verified on 2026-12-06" or "not verified" (short: the row stays one line on a laptop; the
+ *  bias and repeatability are in its title). */
+function verificationText(s: Station): string {
+  const v = s.verification;
+  return v?.status === "verified" && v.date ? `verified on ${v.date.slice(0, 10)}` : "not verified";
+}
+
+function capabilityText(s: Station): string {
+  const c = s.capability;
+  if (!c) return "";
+  return `${c.mm_per_px.near.toFixed(2)}–${c.mm_per_px.far.toFixed(2)} mm/px; parts ≥ ${c.min_part_mm.toFixed(0)} mm, ` +
+    `± ${c.min_tolerance_mm.toFixed(2)} mm`;
 }
 
 function planeText(s: Station): string {
@@ -117,13 +133,24 @@ export class Stations {
         title: s.id }));
       const plate = s.has_plate ? "stored" : "none: no part can be found";
       const cells: (string | Node)[] = [use, name, new Date(s.created_at).toLocaleString(), cameraText(s),
-        boardText(s), planeText(s), plate];
+        boardText(s), planeText(s), plate, verificationText(s), capabilityText(s)];
       for (const c of cells) {
         const td = document.createElement("td");
         td.append(c);
         tr.append(td);
       }
-      if (!s.has_plate) tr.lastElementChild!.className = "error";
+      const [plateCell, verifiedCell] = [tr.children[6] as HTMLElement, tr.children[7] as HTMLElement];
+      if (!s.has_plate) plateCell.className = "error";
+      verifiedCell.dataset.col = "verification";
+      verifiedCell.title = s.verification?.text ?? "not verified: no verification with a reference part yet";
+      const capability = tr.children[8] as HTMLElement;
+      capability.dataset.col = "capability";
+      if (s.capability) {
+        capability.title = `mm per px at the support's near and far edge; the smallest part and tolerance ± T it ` +
+          `holds (${s.capability.rule})`;
+      }
+      // not verified: its measurements are warned so; said here before any photo is sent
+      if (s.verification?.status !== "verified") verifiedCell.className = "error";
       const remove = Object.assign(document.createElement("button"), { type: "button", textContent: "Delete" });
       remove.setAttribute("aria-label", `Delete ${stationLabel(s)}`);
       remove.addEventListener("click", () => void this.remove(s));

@@ -29,6 +29,30 @@ export interface Station {
   camera_height_mm: number;
   has_plate: boolean;
   size: number;
+  /** Its last verification with a reference part, in short (null: a summary stored before). */
+  verification?: { status: "verified" | "not verified"; text: string; date: string | null;
+    tolerance_mm: number | null; bias_mm: Record<string, number> | null;
+    repeatability_mm: Record<string, number> | null } | null;
+  /** Its scale over the support and what it can hold there. */
+  capability?: { mm_per_px: { near: number; far: number }; min_part_mm: number; min_tolerance_mm: number;
+    min_tolerance_near_mm: number; rule: string } | null;
+}
+
+/** A verification with a reference part (prism_common.stations.VerificationPublic). */
+export interface Verification {
+  id: string;
+  date: string;
+  reference_mm: Record<string, number>;
+  tolerance_mm: number | null;
+  photos: string[];
+  dimensions: Record<string, {
+    reference_mm: number; mean_mm: number; bias_mm: number; bias_ci95_mm: [number, number];
+    repeatability_mm: number; errors_mm: number[]; sigmas_mm: number[]; within_3_sigma: boolean[];
+    grr_percent: number | null; verified: boolean; failures: string[];
+  }>;
+  verified: boolean;
+  rule: string;
+  decided_by: string[];
 }
 
 export interface StationList {
