@@ -283,7 +283,10 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     if fit.residual_px > MAX_RESIDUAL_PX:
         raise InputError(
             f"the part is not a box resting flat on the support: its outline is "
-            f"{fit.residual_px:.1f} px (RMS) from the best such box (over {MAX_RESIDUAL_PX} px)"
+            f"{fit.residual_px:.1f} px (RMS) from the best such box (over {MAX_RESIDUAL_PX} px). If it is "
+            "one: stand it flat on its largest face, away from other objects, and where a face matches "
+            "the support's colour or mirrors it, light it from another side or put a mat of another "
+            "colour under it"
         )
     warnings = [*sil.warnings, *_apart(sil.others, fit, K, R, t)]
     if fit.residual_px > WARN_RESIDUAL_PX:
@@ -295,7 +298,9 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
     if min(L, W, H) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite([L, W, H])):
         raise InputError(f"the fitted box is degenerate ({L:.1f} x {W:.1f} x {H:.1f} mm, a side under "
-                         f"{_MIN_SIDE_PX:.0f} px): the outline found is not a box's; check the photo")
+                         f"{_MIN_SIDE_PX:.0f} px): the outline found is not a box's. Most often only the "
+                         "top was found, its sides matching the support's colour or mirroring it: light "
+                         "the part from another side, or put a mat of another colour under it")
     sL, sW, sH = fit.sigma_mm()
     if L >= W:
         dims, sig, yaw = (

@@ -18,24 +18,16 @@ from prismcore.station.board import BoardSpec, find_board_corners
 from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
 from prismcore.station.photometry import deepest_shadow, pattern_broken, pattern_match, tone_curve, toned
 
-__all__ = [
-    "MAX_SHIFT_PX",
-    "SHADOW_RANGE",
-    "Registration",
-    "Silhouette",
-    "difference2",
-    "norm2",
-    "planes",
-    "register",
-    "segment_part",
-    "shadow_ratio",
-    "undistorter",
-]
+__all__ = ["MAX_SHIFT_PX", "SHADOW_RANGE", "Registration", "Silhouette", "difference2", "norm2", "planes",
+           "register", "segment_part", "shadow_ratio", "undistorter"]
 
 MAX_SHIFT_PX = 25.0  # the camera moved further than this since calibration: refused
 SHADOW_RANGE = (0.25, 1.08)  # a shadow (or the light's change) scales the background by this
 _MIN_AREA_FRACTION = 2e-4  # of the photo: smaller blobs are noise or dust
 _SECOND_PART = 0.2  # a second blob this large against the first is a second part
+_NO_PART = ("no part found on the support (nothing differs from the plate): put the part in view on the "
+            "support; a part of the support's colour (dark on the black squares) needs a mat of another "
+            "colour under it")
 _LOW_CONTRAST = 25.0  # RGB levels: a part whose colour differs less from the support is flagged
 
 
@@ -498,7 +490,7 @@ def segment_part(
     min_area = _MIN_AREA_FRACTION * small[0] * small[1]
     big = [i + 1 for i in np.argsort(-areas) if areas[i] >= min_area]
     if not big:
-        raise InputError("no part found on the support (nothing differs from the plate)")
+        raise InputError(_NO_PART)
     first = big[0]
     # A blob within a small gap of the part is the part split by a band of its colour meeting the
     # support's (one face alike the table behind it): joined. Farther, it is a second part; a blob
@@ -542,7 +534,7 @@ def segment_part(
     mask = _mask(resid, noise, 1.0)
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
-        raise InputError("no part found on the support (nothing differs from the plate)")
+        raise InputError(_NO_PART)
     warnings = [] if light_warning is None else [light_warning]
     largest = int(np.max(st[1:, cv2.CC_STAT_AREA]))
     in_part = [j for j in range(1, count) if st[j, cv2.CC_STAT_AREA] >= _SECOND_PART * largest
