@@ -477,28 +477,22 @@ def _widened(cov: np.ndarray, x: np.ndarray, r: np.ndarray, p: _Problem, noise_v
         return cov
     pts = project(box_corners(x), p.K, p.R, p.t)
     near = _nearest(p.outline, pts[_hull(pts)])
-    n = len(p.outline)
     groups = [np.flatnonzero(near.k == k) for k in np.unique(near.k)]
-    folds = n + 8 + np.arange(3 * len(_FOLD_SAMPLES))
+    folds = len(p.outline) + 8 + np.arange(3 * len(_FOLD_SAMPLES))
     J = _jacobian(x, p)
     if np.any(J[folds] != 0):
         groups.append(folds)
     jack = jackknife_cov(J, r, soft_l1_weights(r, _ROBUST_PX), groups, noise_var)
-    d = np.diag(cov)
-    scale = np.sqrt(np.maximum(1.0, np.diag(jack) / np.maximum(d, 1e-300)))
+    scale = np.sqrt(np.maximum(1.0, np.diag(jack) / np.maximum(np.diag(cov), 1e-300)))
     return cast("np.ndarray", cov * np.outer(scale, scale))
 
 
 def _rivals(best: Any, starts: list[np.ndarray], p: _Problem) -> tuple[float, float, float]:
     """How far (mm, per length, width, height of `best`) the distinct boxes among the starts' fits,
     polished on the final problem, lie from `best` where they fit within _RIVAL_COST of its cost."""
-    spread = np.zeros(3)
-    size = np.exp(best.x[3:])
-    tried = 0
+    spread, size, tried = np.zeros(3), np.exp(best.x[3:]), 0
     for x in starts:
-        if tried >= _RIVALS:
-            break
-        if _same_box(x, best.x):
+        if tried >= _RIVALS or _same_box(x, best.x):
             continue
         tried += 1
         rival = least_squares(_residuals, x, jac=_jacobian, args=(p,), method="trf", loss="soft_l1",
