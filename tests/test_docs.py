@@ -140,10 +140,11 @@ MARKERS = {
     "compose": "docker compose",
     "a test file": "-m pytest ",
     "cluster": "scripts/test-cluster",
-    "station": "prism station calibrate",
-    "station verify": "prism station verify",
-    "station upload": "prism station upload",
+    "station": "prism station calibrate --board station-sample/",
+    "station verify": "prism station verify station.json",
+    "station upload": "prism station upload station.json",
     "station submit": "prism submit --station",
+    "certify": "line1.json",
     "photo to cad": "--format step,drawing",
     "cad without a scale": "--out out/no-scale",
 }
@@ -610,6 +611,43 @@ def test_station_service_blocks_store_a_station_and_measure_its_photos(served, u
         dims = item.result.dimensions.model_dump()
         for key, true in truth[part].items():
             assert abs(dims[key] - true) <= max(0.02 * true, 1.5), (part, key, dims, truth[part])
+
+
+def test_certify_station_blocks_verify_flag_a_moved_camera_and_verify_on_the_service(served, user_dir: Path):
+    """"Certify a station", each block run as written, in order, against `prism serve` for the last:
+    the sample calibrated and its capability shown as the page shows it; the reference verified
+    (its summary table as shown); a part's measurement stating "verified on", and moved.jpg
+    "verified before the camera moved", warned; the station verified on the service (--remote),
+    its history there."""
+    from prism_cli.client import ApiClient
+
+    page = ROOT / "docs" / "how-to" / "certify-station.md"
+    shown = [b for p, b in blocks("text") if p == page]
+    undated = re.compile(r"\d{4}-\d\d-\d\d")
+    env = {**_client_env(served), "COLUMNS": "300"}
+    runs = []
+    for block in _blocks(MARKERS["certify"]):
+        run = _bash(_as_user(block, served), cwd=user_dir, env=env, timeout=600)
+        assert run.returncode == 0, block + run.stdout + run.stderr
+        runs.append({undated.sub("DATE", line) for line in run.stdout.splitlines()})
+    assert len(runs) == 4 and len(shown) == 4, (len(runs), len(shown))
+    # each text block's lines, as printed by the block before it (the two scans' outputs both follow
+    # the third block)
+    for printed, text in zip([runs[0], runs[1], runs[2], runs[2]], shown, strict=True):
+        for line in text.splitlines():
+            assert undated.sub("DATE", line) in printed, (line, printed)
+    assert "verification: not verified" in runs[0]
+    report = json.loads((user_dir / "out" / "line1-moved" / "report.json").read_text())
+    assert report["station"]["verification"]["status"] == "verified before the camera moved"
+    assert report["station"]["drift"]["moved"] is True and 9 <= report["station"]["drift"]["shift_px"] <= 11
+    assert json.loads((user_dir / "out" / "line1-part" / "report.json").read_text()
+                      )["station"]["verification"]["status"] == "verified"
+    remote = "\n".join(sorted(runs[3]))
+    assert "verified on DATE with a 70 x 45 x 30 mm reference" in remote and "stored with station" in remote
+    with ApiClient(env["PRISM_API_URL"], served["key"]) as client:
+        station = next(s for s in client.stations() if s.name == "line 1" and s.verification
+                       and s.verification.status == "verified")
+        assert [v.verified for v in client.station_verifications(station.id)] == [True]
 
 
 def test_mistakes_block_refuses_a_text_file_and_a_point_outside_in_one_line_each(served, user_dir: Path):

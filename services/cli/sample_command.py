@@ -22,6 +22,8 @@ _STATION_SEED = 11
 _CALIBRATION_VIEWS = 8
 _PART_SEEDS = (21, 22, 23, 24, 25, 26)
 _HELD_SEED = 5002
+_MOVED_SEED = 5003
+MOVED_PX = 10.0  # moved.jpg: the reference part after the camera was knocked, turned this far in the photo
 # The reference part (a box measured with calipers): width >= depth, height, mm, as the station
 # reports them; placed 7 times across the board, turned so two of its sides face the camera.
 REFERENCE_MM = (70.0, 45.0, 30.0)
@@ -48,7 +50,7 @@ def sample(
             help="Instead of --out: a folder for an example station, rendered: board.json, plane.jpg, "
             "empty.jpg, calib/ (the board in 8 poses), parts/ (6 parts, their true sizes in "
             "true_sizes.csv), reference/ (one reference part placed 7 times, for prism station "
-            "verify) and handheld.jpg."
+            "verify), moved.jpg (the reference after the camera turned 10 px) and handheld.jpg."
         ),
     ] = None,
 ) -> None:
@@ -106,6 +108,18 @@ def reference_placements(setup: StationSetup) -> list[StationBox]:
     ]
 
 
+def turned(setup: StationSetup, shift_px: float) -> StationSetup:
+    """The setup's camera turned (about its own horizontal axis) so the photo moves by about
+    `shift_px`: a knock the station's plate does not know of."""
+    from dataclasses import replace
+
+    import cv2
+    import numpy as np
+
+    dR = cv2.Rodrigues(np.array([shift_px / setup.K[1, 1], 0.0, 0.0]))[0]
+    return replace(setup, R=dR @ setup.R, t=dR @ setup.t)
+
+
 def _station_sample(folder: Path) -> None:
     """Render the example station into `folder` and say what is where."""
     import cv2
@@ -140,6 +154,9 @@ def _station_sample(folder: Path) -> None:
         scene = station_scene(100 + i, setup, box=box)
         save(f"reference/{i}.jpg", scene.photo)
         truth.append((f"reference/{i}.jpg", box))
+    centre = reference_placements(setup)[2]
+    save("moved.jpg", station_scene(_MOVED_SEED, turned(setup, MOVED_PX), box=centre, nudge=False).photo)
+    truth.append(("moved.jpg", centre))
     held = station_scene(
         _HELD_SEED, station_setup(_HELD_SEED, board=board), nudge=False, inside_board=True, max_size_mm=60
     )
@@ -169,6 +186,7 @@ def _station_sample(folder: Path) -> None:
         f"{folder / 'true_sizes.csv'})\n"
         f" reference: {folder / 'reference'}/ (a {rw:g} x {rd:g} x {rh:g} mm part, width x depth x height, "
         f"placed {len(_PLACES)} times)\n"
+        f"     moved: {folder / 'moved.jpg'} (the reference after the camera turned {MOVED_PX:g} px)\n"
         f"  handheld: {folder / 'handheld.jpg'} (a part on the board, for prism scan --board)",
         soft_wrap=True,
     )

@@ -199,7 +199,7 @@ def verification_status(verification: Verification | None, moved: bool, shift_px
     figures = _figures(verification)
     if moved:
         return {"status": VERIFIED_BEFORE_MOVE, **common,
-                "text": f"verified on {day} before the camera moved ({figures})",
+                "text": f"verified on {day} before the camera moved: {figures}",
                 "warning": f"the station was verified on {day}, before the camera moved {shift_px:.1f} px "
                            f"({shift_mm:.1f} mm on the support) since calibration: its verification no "
                            "longer describes it; calibrate and verify it again"}
