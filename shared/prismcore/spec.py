@@ -31,6 +31,7 @@ from prismcore.spec_fields import (
     JOINT_MAX_VIEWS,
     JOINT_NAME,
     METRIC_FORMATS,
+    PART_FORMATS,
     SUMMARY_NAME,
     TRACKED_NAME,
     AutoPoints,
@@ -50,6 +51,7 @@ from prismcore.spec_fields import (
     frame_folder,
     output_files,
     parse_points,
+    scan_spec_rules,
     search_area_problem,
 )
 
@@ -95,7 +97,8 @@ def _spec_schema(schema: dict[str, Any]) -> None:
     # station item has none, the station finds the part.
     schema["anyOf"] = [{"required": ["image", name] if name != "views" else [name],
                         "properties": {name: {"not": {"type": "null"}}}}
-                       for name in ("points", "frame_points", "views", "station")]
+                       for name in ("points", "frame_points", "views", "station", "auto_points")]
+    schema["allOf"] = scan_spec_rules()
 
 
 def _views_schema(schema: dict[str, Any]) -> None:
@@ -552,9 +555,6 @@ _CLOUD_ONLY = ("tolerance", "csv", "ply_ascii", "max_points")
 
 _NO_CLOUD = "a joint fit writes its report (joint.json), no cloud"
 
-PART_FORMATS: tuple[OutputFormat, ...] = ("step", "drawing")
-"""The formats written from the measurement alone (the part's STEP solid and drawing): a joint fit
-has them too."""
 
 _JOINT_ASIDE = {
     "auto_points": "it says where points \"auto\" looks, and each view carries its own seven points",

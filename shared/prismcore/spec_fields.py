@@ -31,6 +31,7 @@ __all__ = [
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
     "METRIC_FORMATS",
+    "PART_FORMATS",
     "SUMMARY_NAME",
     "TRACKED_NAME",
     "AutoPoints",
@@ -49,6 +50,7 @@ __all__ = [
     "frame_folder",
     "output_files",
     "parse_points",
+    "scan_spec_rules",
     "search_area_problem",
 ]
 
@@ -99,6 +101,9 @@ and its sidecar part.step.json) and its dimensioned drawing (drawing: drawing.sv
 and drawing.dxf)."""
 
 METRIC_FORMATS: tuple[OutputFormat, ...] = ("las", "laz", "glb", "step", "drawing")
+PART_FORMATS: tuple[OutputFormat, ...] = ("step", "drawing")
+"""The formats written from the measurement alone (the part's STEP solid and drawing): a joint fit
+has them too."""
 """The formats in millimetres (or metres): a scan without a scale, in pixels, cannot have them."""
 
 _FORMAT_FILES: dict[str, tuple[str, ...]] = {"step": ("step", "step_meta"),
@@ -313,3 +318,97 @@ def parse_points(text: str) -> ReferencePoints:
     if len(points) not in (5, 7):
         raise ValueError(f"expected 5 or 7 points (P1..P5 [P6 P7]), got {len(points)} in {text!r}")
     return ReferencePoints.model_validate(points)
+
+
+# -- ScanSpec's rules across fields, stated in its published JSON Schema ---------------------------
+# ScanSpec's validators refuse combinations a field alone cannot (a station with points, views
+# with a cloud option, a nominal without its tolerance...). The commonest are stated here as
+# JSON Schema (`allOf` of if/then), so a client or a fuzzer knows what is taken; each mirrors a
+# check of ScanSpec._consistent and must stay as exact (tests/service/test_schemathesis.py holds
+# the API to both). Left to the validators, and named in that test: what depends on the files
+# named (points inside the photo, frames within the video, a stored station), what compares
+# numbers (a region's corners, frame_points' keys against frames.indices), and the rules a
+# fuzzer's generator could no longer canonicalize on top of these (each if/then doubles its
+# work; Schemathesis 4.32 gives up past about ten): a shooting distance without a focal length,
+# side_face left or top with side_image, frames with side_image, points_frame's needs, fit
+# "frames" without frames, and fit "joint"'s frame_points and options.
+
+_SEVEN = {"type": "object", "required": ["p6", "p7"],
+          "properties": {"p6": {"type": "array"}, "p7": {"type": "array"}}}
+_CLOUD_DEFAULTS = {"tolerance": {"const": 12.0}, "ply_ascii": {"const": False},
+                   "max_points": {"const": 20_000_000},
+                   "csv": {"properties": {"header": {"const": False}, "colors": {"const": False}}}}
+
+
+def _given(name: str) -> dict[str, Any]:
+    """`name` is in the body and not null (null is "not given")."""
+    return {"required": [name], "properties": {name: {"not": {"type": "null"}}}}
+
+
+def _unset(*names: str, **also: Any) -> dict[str, Any]:
+    """Each of `names` left out or null; each of `also` left out or as its schema says."""
+    return {"properties": {**{n: {"type": "null"} for n in names}, **also}}
+
+
+def _is(name: str, value: Any) -> dict[str, Any]:
+    return {"required": [name], "properties": {name: {"const": value}}}
+
+
+def _kind(kind: str) -> dict[str, Any]:
+    scale = {"type": "object", "required": ["kind"], "properties": {"kind": {"const": kind}}}
+    return {"required": ["scale"], "properties": {"scale": scale}}
+
+
+def _rule(when: dict[str, Any], then: dict[str, Any]) -> dict[str, Any]:
+    return {"if": when, "then": then}
+
+
+def _all(*clauses: dict[str, Any]) -> dict[str, Any]:
+    return {"allOf": list(clauses)}
+
+
+def _any(*clauses: dict[str, Any]) -> dict[str, Any]:
+    return {"anyOf": list(clauses)}
+
+
+def scan_spec_rules() -> list[dict[str, Any]]:
+    """ScanSpec's cross-field rules as JSON Schema clauses (its schema's `allOf`)."""
+    auto = _any(_is("points", "auto"), _given("auto_points"))
+    metric = {"required": ["formats"],
+              "properties": {"formats": {"contains": {"enum": list(METRIC_FORMATS)}}}}
+    # a joint fit makes no cloud: the cloud's options at their defaults, formats the part's or the default
+    formats = _any({"items": {"enum": list(PART_FORMATS)}},
+                   {"items": {"enum": ["csv", "ply"]},
+                    "allOf": [{"contains": {"const": "csv"}}, {"contains": {"const": "ply"}}]})
+    no_cloud = _unset(method={"const": "default"}, cloud={"const": "surface"}, formats=formats,
+                      **_CLOUD_DEFAULTS)
+    need_scale = _any(_given("scale"), _given("station"))
+    # In this order: Schemathesis' generator canonicalizes the clauses one after another, within a
+    # budget that another order of the same clauses runs past (tests/service/test_schemathesis.py).
+    return [
+        # _station_consistent: the photo alone
+        _rule(_given("station"), _unset("points", "auto_points", "frame_points", "frames", "views", "fit",
+                                        "side_image", "scale", "focal_px", "principal_point", "camera",
+                                        side_face={"const": "auto"}, method={"const": "default"})),
+        # nominal and tolerance_mm together
+        _rule(_given("nominal"), _given("tolerance_mm")),
+        _rule(_given("tolerance_mm"), _given("nominal")),
+        # points per frame, or the same points (or "auto") for every frame
+        _rule(_given("frame_points"), _unset("points", "auto_points")),
+        # what is in mm needs a scale (or a station): one clause a field (an `anyOf` in `if` is
+        # past what the generator canonicalizes beside the others)
+        _rule(metric, need_scale),
+        # _joint_consistent: one known edge
+        _rule(_any(_given("views"), _is("fit", "joint")), _kind("edge")),
+        _rule(_given("nominal"), need_scale),
+        _rule(_given("spacing_mm"), need_scale),
+        # views carry their own points and make no cloud
+        _rule(_given("views"), _all(
+            _unset("points", "auto_points", "frame_points", "frames", "side_image", "camera",
+                   "principal_point", "spacing_mm", side_face={"const": "auto"},
+                   fit=_any({"const": "joint"}, {"type": "null"})),
+            no_cloud)),
+        # "auto" is for one photo (or a video's frames), and finds the second face itself
+        _rule(auto, _unset("side_image", points=_any({"const": "auto"}, {"type": "null"}),
+                           side_face={"const": "auto"})),
+    ]

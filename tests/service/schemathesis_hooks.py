@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 from typing import Any
 
@@ -59,3 +60,40 @@ def ground(body: Any) -> None:
 def before_call(context: Any, case: Any, kwargs: dict[str, Any]) -> None:
     if case.method == "POST" and case.path == "/v1/jobs":
         ground(case.body)
+
+
+# What a job the schema allows may still be refused for (422), by the words of the refusal: the
+# files it names, numbers compared with numbers, and the rules ScanSpec's schema leaves to its
+# validators (prismcore.spec_fields.scan_spec_rules says why). Any other refusal of a schema-valid
+# job is a rule the document could state and does not: a failure.
+BEYOND_THE_SCHEMA = {
+    "a point, hint or region outside the photo": r"is outside the \d+x\d+ image",
+    "points too close together": r"closer than [\d.]+ px",
+    "points that mark no face": r"cannot tell which face",
+    "frames past the video's end": r"past the video's end",
+    "a station the tenant does not have": r"no station '",
+    "a region's corners out of order": r"with X0 < X1 and Y0 < Y1",
+    "frame_points' keys against frames.indices": r"frame_points measures exactly frames",
+    "frames' indices with a range": r"indices name the frames themselves",
+    "a shooting distance without a focal length": r"a shooting distance needs focal_px",
+    "side_face left or top with side_image": r"side_face '(left|top)' is for one photo",
+    "frames with side_image": r"a video is measured in single-photo mode",
+    "points_frame's needs": r"points_frame (is for a video|names the frame)|tracking from points_frame",
+    "fit 'frames' without frames": r"fit is for a video's frames",
+    "fit 'joint''s frame_points and options": r'fit "joint"',
+}
+
+
+@schemathesis.check
+def refused_jobs_break_a_rule_beyond_the_schema(ctx: Any, response: Any, case: Any) -> bool | None:
+    if case.method != "POST" or case.path != "/v1/jobs" or response.status_code != 422:
+        return None
+    if case.meta is None or not case.meta.generation.mode.is_positive:
+        return None
+    problem = response.json()
+    details = [e.get("detail", "") for e in problem.get("errors") or [problem]]
+    unstated = [d for d in details if not any(re.search(p, d) for p in BEYOND_THE_SCHEMA.values())]
+    if unstated:
+        raise AssertionError("a job the schema allows was refused for a rule it could state: "
+                             + " | ".join(unstated))
+    return True

@@ -5,8 +5,11 @@ job it generated must be accepted and measured by the worker.
 
 Generated jobs name real uploads and the test's webhook receiver (schemathesis_hooks.py: a
 reference's target is data, not schema). Where an answer depends on data the document cannot
-describe, the operation's configuration below says which refusal is expected, and why; nothing
-else is relaxed. Bounded by examples per operation, derandomized: the same requests every run.
+describe, the operation's configuration below says which refusal is expected, and why; for jobs,
+a check of the hooks' narrows it to the refusals it names (the files named, numbers compared,
+and the item's rules the schema leaves to its validators: prismcore.spec_fields.scan_spec_rules).
+Nothing else is relaxed. Bounded by examples per operation, derandomized: the same requests
+every run.
 """
 
 from __future__ import annotations
@@ -48,8 +51,10 @@ DATA_REFUSALS = [
     ("get_points", ["422"], "the hint lies outside the upload's photo"),
     ("list_jobs", ["422"], "a cursor this API did not give out"),
     ("create_station", ["422"], "station.json's board, plane and plate must agree (the model's checks)"),
-    ("create_job", ["422"], "the item's rules across fields (ScanSpec) and the referenced files' "
-                            "size and frames, which points and frames must lie within"),
+    # narrowed by schemathesis_hooks.refused_jobs_break_a_rule_beyond_the_schema: only the
+    # files named, numbers compared, and the rules it lists
+    ("create_job", ["422"], "the files named (points within the photo, frames within the video, a "
+                            "stored station) and the item's rules the schema leaves to its validators"),
 ]
 
 

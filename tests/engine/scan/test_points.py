@@ -63,9 +63,11 @@ def test_schema_is_json_schema():
     assert schema["type"] == "object" and "image" in schema["properties"]
     # the photo (or video) and its reference points: the same for every photo or frame, or per
     # frame of a video; or several views of one part, each with its photo and points
-    # (a station's photo needs none: the station finds the part); each given and not null
+    # (a station's photo needs none: the station finds the part; auto_points alone is a search
+    # as points "auto" is); each given and not null
     assert [option["required"] for option in schema["anyOf"]] == [
-        ["image", "points"], ["image", "frame_points"], ["views"], ["image", "station"]]
+        ["image", "points"], ["image", "frame_points"], ["views"], ["image", "station"],
+        ["image", "auto_points"]]
     for option in schema["anyOf"]:
         name = option["required"][-1]
         assert option["properties"] == {name: {"not": {"type": "null"}}}
