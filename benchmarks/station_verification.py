@@ -25,13 +25,14 @@ from prismcore import InputError
 from prismcore.camera import CameraModel
 from prismcore.station.board import BoardSpec, default_board
 from prismcore.station.calibrate import Station, calibrate_station
+from prismcore.station.certify import MOVED_PX
 from prismcore.station.measure import measure_on_station
 from prismcore.station.scan import certify
 from prismcore.station.verify import DIMENSIONS, Verification, verify_placements
 from prismsynth.station import StationSetup, station_scene, station_setup
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "services"))
-from cli.sample_command import reference_placements  # noqa: E402  (the sample's placements)
+from cli.sample_command import reference_placements
 
 MOVES_PX = (5.0, 10.0, 20.0)
 
@@ -45,7 +46,8 @@ def camera_of(setup: StationSetup, focal_factor: float = 1.0) -> CameraModel:
 
 def scaled(board: BoardSpec, factor: float) -> BoardSpec:
     """The board described `factor` times its printed size (a printer's scaling gone unnoticed)."""
-    return board.model_copy(update={"square_mm": board.square_mm * factor, "marker_mm": board.marker_mm * factor})
+    return board.model_copy(update={"square_mm": board.square_mm * factor,
+                                    "marker_mm": board.marker_mm * factor})
 
 
 def stations(seed: int) -> tuple[StationSetup, dict[str, Station]]:
@@ -72,13 +74,19 @@ def placements(seed: int, setup: StationSetup) -> list[np.ndarray]:
     return photos
 
 
-def verification(station: Station, photos: list[np.ndarray], tolerance: float) -> Verification | str:
+STILL_SHIFTS: list[float] = []  # the correct stations' placements: the camera nudged 0-3 px
+
+
+def verification(station: Station, photos: list[np.ndarray], tolerance: float,
+                 still: bool = False) -> Verification | str:
     rows, sigmas, positions, yaws = [], [], [], []
     for photo in photos:
         try:
             m = measure_on_station(photo, station)
         except InputError as exc:
             return f"refused: {exc}"
+        if still:
+            STILL_SHIFTS.append(m.registration.shift_px)
         rows.append([m.dimensions[k] for k in DIMENSIONS])
         sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
         positions.append(m.position_mm)
@@ -114,7 +122,8 @@ def _seeds(text: str) -> list[int]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="1-6")
     parser.add_argument("--tolerance", type=float, default=2.0)
     args = parser.parse_args()
@@ -125,7 +134,7 @@ def main() -> None:
         setup, kinds = stations(seed)
         photos = placements(seed, setup)
         for name, station in kinds.items():
-            done = verification(station, photos, args.tolerance)
+            done = verification(station, photos, args.tolerance, still=name == "correct")
             if isinstance(done, str):
                 print(f"seed {seed:3d} {name:<11} {done}")
                 verdicts.setdefault(name, []).append(False)
@@ -148,13 +157,18 @@ def main() -> None:
             c = certify(m, correct, args.tolerance)
             d = c["drift"]
             flagged.append(bool(d["moved"]))
-            print(f"seed {seed:3d} moved {shift:4.0f} px: shift {d['shift_px']:5.2f} px {d['shift_mm']:5.2f} mm, "
-                  f"moved {d['moved']}, cost w {d['cost_mm']['width']:.3f} mm, reverify {d['reverify']}")
+            print(f"seed {seed:3d} moved {shift:4.0f} px: shift {d['shift_px']:5.2f} px "
+                  f"{d['shift_mm']:5.2f} mm, moved {d['moved']}, cost w {d['cost_mm']['width']:.3f} mm, "
+                  f"reverify {d['reverify']}")
     print()
     for name, v in verdicts.items():
         print(f"{name:<11} verified {sum(v)} of {len(v)} stations (+-{args.tolerance:g} mm)")
-    print(f"correct stations: the bias's 95 % interval holds 0 for {sum(covered)} of {3 * len(covered)} dimensions")
+    print(f"correct stations: the bias's 95 % interval holds 0 for {sum(covered)} of {3 * len(covered)} "
+          "dimensions")
     print(f"camera moved 5-20 px: flagged {sum(flagged)} of {len(flagged)} photos")
+    moved = sum(s > MOVED_PX for s in STILL_SHIFTS)
+    print(f"camera still (nudged 0-3 px): flagged {moved} of {len(STILL_SHIFTS)} photos, shift at most "
+          f"{max(STILL_SHIFTS, default=0):.2f} px")
 
 
 if __name__ == "__main__":
