@@ -95,9 +95,12 @@ def _spec_schema(schema: dict[str, Any]) -> None:
         del schema["required"]
     # Each way of giving the points, the field given and not null (null is "not given"); a
     # station item has none, the station finds the part.
-    schema["anyOf"] = [{"required": ["image", name] if name != "views" else [name],
+    # Titled: a generated client names each way after its title (ScanWithPoints, not ScanSpecType0).
+    ways = {"points": "ScanWithPoints", "frame_points": "ScanWithFramePoints", "views": "ScanWithViews",
+            "station": "ScanOnStation", "auto_points": "ScanWithAutoPoints"}
+    schema["anyOf"] = [{"title": title, "required": ["image", name] if name != "views" else [name],
                         "properties": {name: {"not": {"type": "null"}}}}
-                       for name in ("points", "frame_points", "views", "station", "auto_points")]
+                       for name, title in ways.items()]
     schema["allOf"] = scan_spec_rules()
 
 

@@ -53,7 +53,8 @@ DRIVER = textwrap.dedent("""\
     from prismcloud_client import AuthenticatedClient
     from prismcloud_client.api.jobs import create_job, get_job, results_json
     from prismcloud_client.api.uploads import create_upload
-    from prismcloud_client.models import CreateUploadBody, JobCreate, JobPublic, State, UploadPublic
+    from prismcloud_client.models import (CreateUploadBody, JobCreate, JobPublic, ScanWithPoints, State,
+                                          UploadPublic)
     from prismcloud_client.types import File
 
     base, key, photo, points = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])
@@ -65,7 +66,8 @@ DRIVER = textwrap.dedent("""\
         assert isinstance(upload, UploadPublic), upload
         item = {"image": upload.reference, "points": points,
                 "scale": {"kind": "edge", "edge": "width", "length_mm": 120}}
-        job = create_job.sync(client=client, body=JobCreate(items=[item], client_reference="generated"))
+        job = create_job.sync(client=client, body=JobCreate(items=[ScanWithPoints.from_dict(item)],
+                                                            client_reference="generated"))
         assert isinstance(job, JobPublic), job
         polls = 0
         deadline = time.monotonic() + 240
@@ -134,6 +136,10 @@ def test_a_generated_client_submits_a_job_polls_it_and_reads_the_result(api, tmp
     assert {"create_upload", "create_job", "get_job", "list_jobs", "cancel_job", "results_json",
             "results_csv", "create_station", "get_station"} <= modules, sorted(modules)
     assert not any("_v1_" in name for name in modules), sorted(modules)
+    # and its models as the schemas are titled (each way of giving an item's points one of them)
+    models = {p.stem for p in (package / "models").glob("*.py")}
+    assert {"job_create", "job_public", "scan_with_points", "scan_with_views", "scan_on_station",
+            "station", "station_camera_model", "camera_model"} <= models, sorted(models)
 
     (tmp_path / "driver.py").write_text(DRIVER)
     run = subprocess.run([str(tools / "bin" / "python"), "driver.py", base, API_KEYS["acme"], str(SAMPLE),

@@ -71,3 +71,4 @@ def test_schema_is_json_schema():
     for option in schema["anyOf"]:
         name = option["required"][-1]
         assert option["properties"] == {name: {"not": {"type": "null"}}}
+        assert option["title"].startswith("Scan")  # a generated client's name for this way
