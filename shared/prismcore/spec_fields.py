@@ -222,6 +222,8 @@ class FrameSelection(_Strict):
     ``--max-frames``).
     """
 
+    model_config = ConfigDict(json_schema_extra=lambda schema: _frame_selection_schema(schema))
+
     every: int | None = Field(default=None, ge=1, description="Every Nth candidate frame (1: all).")
     start_s: Seconds | None = Field(default=None, description="First time measured, seconds.")
     end_s: Seconds | None = Field(default=None, description="Frames before this time, seconds.")
@@ -369,6 +371,14 @@ def _all(*clauses: dict[str, Any]) -> dict[str, Any]:
 
 def _any(*clauses: dict[str, Any]) -> dict[str, Any]:
     return {"anyOf": list(clauses)}
+
+
+def _frame_selection_schema(schema: dict[str, Any]) -> None:
+    # FrameSelection._consistent: indices alone, each once (end_s after start_s compares numbers)
+    schema["allOf"] = [_rule(_given("indices"), _unset("every", "start_s", "end_s", "sharpest"))]
+    for option in schema["properties"]["indices"].get("anyOf", []):
+        if option.get("type") == "array":
+            option["uniqueItems"] = True
 
 
 def scan_spec_rules() -> list[dict[str, Any]]:

@@ -74,7 +74,7 @@ BEYOND_THE_SCHEMA = {
     "a station the tenant does not have": r"no station '",
     "a region's corners out of order": r"with X0 < X1 and Y0 < Y1",
     "frame_points' keys against frames.indices": r"frame_points measures exactly frames",
-    "frames' indices with a range": r"indices name the frames themselves",
+    "a time range ending before it starts": r"must be after start_s",
     "a shooting distance without a focal length": r"a shooting distance needs focal_px",
     "side_face left or top with side_image": r"side_face '(left|top)' is for one photo",
     "frames with side_image": r"a video is measured in single-photo mode",
