@@ -268,7 +268,12 @@ def measure_on_board(
     corners_mm, corners_px = _corners(board, pose_h)
     tall = background.TABLE_HEIGHT * max(board.size_mm)
     zone = table_zone(corners_mm, K, R, t, tall)
-    plate_u, region, table_notes = with_table(photo_u, plate_u, board_cover(corners_px, (h, w)), zone)
+    cover = board_cover(corners_px, (h, w))
+    plate_u, region, table_notes = with_table(photo_u, plate_u, cover, zone)
+    # The part rests on the board (or over its edge): what differs only away from it is the table's
+    # (a printed cloth's pattern the median missed) or another object's, not the part.
+    reach = int(2 * np.linalg.norm(corners_px[1] - corners_px[0]) / board.squares_x) | 1
+    rests_on = cv2.dilate((cover > 0.5).astype(np.uint8), np.ones((reach, reach), np.uint8)) > 0
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {
         "undistort": 0.0,
@@ -276,7 +281,7 @@ def measure_on_board(
         "expected_board": (time.perf_counter() - t1) * 1e3,
     }
     measured = measure_registered(
-        photo_u, plate_u, cam, reg, timings, region=region,
+        photo_u, plate_u, cam, reg, timings, region=region, rests_on=rests_on,
         region_refusal=(
             "the part's outline reaches past the board and the table modelled round it in the photo "
             f"(where a part up to {tall:.0f} mm tall on the board shows): lay the part on the board "

@@ -250,19 +250,20 @@ def _apart(others: list[tuple[float, ...]], fit: BoxFit, K: np.ndarray, R: np.nd
 
 def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraModel, reg: Registration,
                        timings: dict[str, float] | None = None, *, region: np.ndarray | None = None,
-                       region_refusal: str = _REGION_REFUSAL,
+                       region_refusal: str = _REGION_REFUSAL, rests_on: np.ndarray | None = None,
                        cpu: dict[str, float] | None = None) -> StationMeasurement:
     """The part measured in an undistorted photo whose support's pose is known (`reg`), against
     `plate_u` (the support as it looks without the part, registered by `reg.homography`).
 
     region : (H, W) bool, optional. Where the support is known (a hand-held board's area): a part
-    reaching out of it is refused, with `region_refusal`'s words. timings, cpu : each stage's wall
+    reaching out of it is refused, with `region_refusal`'s words. rests_on : (H, W) bool, optional:
+    where the part may rest (:func:`segment_part`'s). timings, cpu : each stage's wall
     and CPU (this thread's) ms are added to them.
     """
     timings = {} if timings is None else timings
     cpu = {} if cpu is None else cpu
     t2, c2 = time.perf_counter(), time.thread_time()
-    sil = segment_part(photo_u, plate_u, reg.homography)
+    sil = segment_part(photo_u, plate_u, reg.homography, rests_on=rests_on)
     if region is not None:
         edge = sil.mask & ~cv2.erode(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
         if edge.sum() > 0.002 * sil.area_px:

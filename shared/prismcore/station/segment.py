@@ -439,13 +439,15 @@ _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
 def segment_part(
-    photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray, *, skip_inside: bool = True
+    photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray, *, skip_inside: bool = True,
+    rests_on: np.ndarray | None = None,
 ) -> Silhouette:
     """The one part in `photo_u` against the plate (warped by `homography` onto the photo).
 
     Found first at a quarter of the size (how many parts, where), then outlined at full size in
     the part's own window. skip_inside : the full-size residual is not computed deep inside the
-    coarse blob (False: over the whole window; the tests compare the outlines).
+    coarse blob (False: over the whole window; the tests compare the outlines). rests_on : (H, W)
+    bool: where the part may rest (a hand-held board); blobs away from it are left out, and said.
 
     Raises
     ------
@@ -489,8 +491,11 @@ def segment_part(
     areas = stats[1:, cv2.CC_STAT_AREA]
     min_area = _MIN_AREA_FRACTION * small[0] * small[1]
     big = [i + 1 for i in np.argsort(-areas) if areas[i] >= min_area]
+    on = None if rests_on is None else cv2.resize(rests_on.view("u1"), small, interpolation=cv2.INTER_AREA)
+    off_support = [] if on is None else [i for i in big if not on[labels == i].any()]
+    big = [i for i in big if i not in off_support]
     if not big:
-        raise InputError(_NO_PART)
+        raise InputError(_NO_PART + f" ({len(off_support)} off the board left out)" * bool(off_support))
     first = big[0]
     # A blob within a small gap of the part is the part split by a band of its colour meeting the
     # support's (one face alike the table behind it): joined. Farther, it is a second part; a blob
@@ -536,6 +541,9 @@ def segment_part(
     if count < 2:
         raise InputError(_NO_PART)
     warnings = [] if light_warning is None else [light_warning]
+    if off_support:
+        warnings.append(f"{len(off_support)} thing(s) apart from the board left out (a table's pattern, "
+                        "an object beside it)")
     largest = int(np.max(st[1:, cv2.CC_STAT_AREA]))
     in_part = [j for j in range(1, count) if st[j, cv2.CC_STAT_AREA] >= _SECOND_PART * largest
                and near[lab == j].any()]
