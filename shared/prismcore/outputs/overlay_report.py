@@ -16,6 +16,7 @@ from prismcore.errors import InputError
 from prismcore.outputs.overlay import CORNER_OF, SECOND_FACE_CORNERS, _as_rgb8, draw_overlay
 
 __all__ = [
+    "edge_use_notes",
     "given_dimension",
     "overlay_from_report",
     "photo_points",
@@ -100,6 +101,7 @@ def report_notes(report: Mapping[str, Any]) -> list[str]:
     fit = report.get("fit")
     if isinstance(fit, Mapping) and (rms := _number(fit.get("rms_px"))) is not None:
         notes.append(f"fit RMS {rms:.2f} px")
+    notes += edge_use_notes(fit)
     if report.get("method") == "paper":
         notes.append("paper method (no perspective correction)")
     frame = report.get("frame")
@@ -108,6 +110,29 @@ def report_notes(report: Mapping[str, Any]) -> list[str]:
         notes.append(f"frame {int(frame['index'])}" + (f" at {time_s:.2f} s" if time_s is not None else ""))
     if (found := points_found(report)) is not None:
         notes.append(found)
+    return notes
+
+
+def edge_use_notes(fit: object) -> list[str]:
+    """Per face, which sides rest on the photo's edge and which on the clicks, and why each click
+    side was kept (the report's `fit.edges`; nothing when the report has none)."""
+    edges = fit.get("edges") if isinstance(fit, Mapping) else None
+    if not isinstance(edges, Mapping):
+        return []
+    notes = []
+    for face, sides in edges.items():
+        if not isinstance(sides, Sequence):
+            continue
+        used = [s for s in sides if isinstance(s, Mapping)]
+        photo = [str(s.get("side")) for s in used if s.get("used") == "edge"]
+        clicked = [s for s in used if s.get("used") == "click"]
+        line = f"{face} edges: " + (f"{', '.join(photo)} from the photo" if photo else "none from the photo")
+        whys: dict[str, list[str]] = {}
+        for s in clicked:
+            whys.setdefault(str(s.get("why")), []).append(str(s.get("side")))
+        for why, names in whys.items():
+            line += f"; {', '.join(names)} clicked ({why})"
+        notes.append(line)
     return notes
 
 

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.edges import Bound, EdgeFit, inward, line_through, refine_quad
+from prismcore.geometry.edge_checks import OUTER_REASON, EdgeUse, clicked_fit, judge_edge
+from prismcore.geometry.edges import Bound, EdgeFit, intersect, inward, line_through, refine_quad, side_bounds
 from prismcore.geometry.faces import FaceQuads, clicked_quads, quad_labels, shared_edges, validate_quad
 from prismcore.geometry.perspective import NOISE_CLICK_PX, FaceEvidence
 from prismcore.scan.focal import Focal
@@ -29,7 +30,8 @@ from prismcore.scan.measure import (
 from prismcore.spec import KnownEdge, ScanSpec
 
 __all__ = ["FIT_FAIL_FRACTION", "FIT_FAIL_PX", "FIT_WARN_PX", "FOCAL_MAX_REL_STD", "OBLIQUE_WARN",
-           "SEARCH_PX", "SNAP_CLICKS_BETTER", "SNAP_SUSPECT_RMS_PX", "fit_guard", "measure_faces",
+           "SEARCH_PX", "SIDE_NAMES", "SNAP_CHI2", "SNAP_CLICKS_BETTER", "SNAP_SIGMAS",
+           "SNAP_SUSPECT_RMS_PX", "EdgeUses", "edge_use_json", "fit_guard", "measure_faces",
            "refine_faces", "unless_snapped"]
 
 FIT_WARN_PX = 3.0  # a click this far from the fitted model's corner is worth a look
@@ -37,6 +39,13 @@ FIT_FAIL_PX = 25.0  # ... and this far (or 5 % of the face's size) means the fit
 FIT_FAIL_FRACTION = 0.05
 SNAP_SUSPECT_RMS_PX = 5.0  # a fit to the refined edges this far (RMS) from the clicks is suspect...
 SNAP_CLICKS_BETTER = 3.0  # ... and is replaced when the clicks alone fit a box this many times closer
+SNAP_SIGMAS = 3.0
+"""The edges' box is kept while each dimension lies within this many (combined) sigmas of the
+clicks' own box: the edges measure the clicks' box more precisely, or they are another box."""
+SNAP_CHI2 = 28.0
+"""The clicks' squared distances (in click variances) that the edges' box may add to what the
+clicks alone fit: chi-square's 99.9 % point for the ~9 parameters a box's fit takes from them.
+Beyond it the edges moved correct clicks farther than their noise explains, and the clicks win."""
 FOCAL_MAX_REL_STD = 0.25  # a fitted focal less sure than this is "not determined"
 OBLIQUE_WARN = 0.01  # warn when the square-on model costs more than 1 % on some dimension
 _POINT_ROLES = {
@@ -57,27 +66,63 @@ _SECOND_FACE_ROLES = {
             "p7": "the top face's far corner above P2"},
 }
 SEARCH_PX = 10.0  # how far from a clicked side its true edge may be
+SIDE_NAMES = ("top", "right", "bottom", "left")
+EdgeUses = dict[str, list[EdgeUse]]
+
+
+def edge_use_json(uses: EdgeUses) -> dict[str, list[dict[str, str]]]:
+    """report.json's fit.edges: per face, per side, what it rests on and why."""
+    return {face: [{"side": name, **u.as_json()} for name, u in zip(SIDE_NAMES, sides, strict=True)]
+            for face, sides in uses.items()}
+
+
+def _judged(image: np.ndarray, quad: np.ndarray, fits: list[EdgeFit], search_px: float,
+            known: dict[int, EdgeFit], extra: dict[int, tuple[Bound, ...]], folds: set[int],
+            known_uses: dict[int, EdgeUse]) -> tuple[np.ndarray, list[EdgeFit], list[EdgeUse]]:
+    """Each refined side kept only where the photo clearly shows the box's edge
+    (`edge_checks.judge_edge`), else the clicked side; the corners from the sides kept."""
+    kept, uses = list(fits), []
+    for i, fit in enumerate(fits):
+        if i in known:
+            uses.append(known_uses[i])
+            continue
+        p, q = quad[i], quad[(i + 1) % 4]
+        use = judge_edge(image, p, q, fit, inside=quad.mean(axis=0), search_px=search_px,
+                         bounds=side_bounds(quad, i) + extra.get(i, ()), outline=i not in folds)
+        if use.source == "click" and fit.fitted:
+            kept[i] = clicked_fit(p, q, fit)
+        uses.append(use)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corners = np.stack([intersect(kept[(i - 1) % 4].line, kept[i].line) for i in range(4)])
+    return corners, kept, uses
 
 
 def refine_faces(
     spec: ScanSpec, images: list[np.ndarray], clicked: FaceQuads, warnings: list[str]
-) -> tuple[FaceQuads, dict[str, list[EdgeFit]]]:
-    """Edge-fit both faces; the single-photo side face reuses the front's edge it shares."""
+) -> tuple[FaceQuads, dict[str, list[EdgeFit]], EdgeUses]:
+    """Edge-fit both faces; the single-photo side face reuses the front's edge it shares. Each
+    side keeps its refined edge only where the photo clearly shows it (`_judged`); the third
+    result says, per face and side, which was used and why."""
     def search(quad: np.ndarray) -> float:
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
         return float(min(SEARCH_PX, 0.3 * sides.min()))
 
     fits: dict[str, list[EdgeFit]] = {}
+    uses: EdgeUses = {}
     refined = {}
     jobs = [("front", 0, clicked.front), ("side", 1 if spec.two_photo else 0, clicked.side)]
     for name, index, quad in jobs:
         r = search(quad)
         known: dict[int, EdgeFit] | None = None
         extra: dict[int, tuple[Bound, ...]] | None = None
+        folds: set[int] = set()
+        known_uses: dict[int, EdgeUse] = {}
         if not spec.two_photo:
             front_edge, side_edge = shared_edges(clicked.side_face)
+            folds = {front_edge if name == "front" else side_edge}
             if name == "side":
                 known = {side_edge: fits["front"][front_edge]}
+                known_uses = {side_edge: uses["front"][front_edge]}
             else:
                 # In one photo the side face lies beyond the front's shared edge: that edge must
                 # not be taken from the side face's far side.
@@ -86,6 +131,8 @@ def refine_faces(
                 extra = {front_edge: ((far, 0.5 * float(far[:2] @ ref + far[2])),)}
         corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known,
                                          extra_bounds=extra)
+        corners, face_fits, face_uses = _judged(images[index], quad, face_fits, r, known or {},
+                                                extra or {}, folds, known_uses)
         moved = np.linalg.norm(corners - quad, axis=1).max() if np.isfinite(corners).all() else np.inf
         try:
             if moved > 3 * r + 4:
@@ -94,14 +141,19 @@ def refine_faces(
         except InputError:
             warnings.append(f"{name} face: edges not found near the clicks; clicked corners used")
             corners = quad
-        if not all(f.fitted for f in face_fits):
-            missing = [s for s, f in zip(("top", "right", "bottom", "left"), face_fits,
-                                         strict=True) if not f.fitted]
+            face_fits = [clicked_fit(quad[i], quad[(i + 1) % 4], f) for i, f in enumerate(face_fits)]
+            face_uses = [EdgeUse("click", "the edges found moved the corners too far") for _ in face_uses]
+        inner = [s for s, u in zip(SIDE_NAMES, face_uses, strict=True) if u.reason == OUTER_REASON]
+        missing = [s for s, f in zip(SIDE_NAMES, face_fits, strict=True) if not f.fitted and s not in inner]
+        if missing:
             warnings.append(f"{name} face: no clear edge along the {', '.join(missing)} side; "
                             "the click was used there")
-        fits[name], refined[name] = face_fits, corners
+        if inner:  # an edge was there, but not the outermost: a printed border, not the outline
+            warnings.append(f"{name} face: the edge found along the {', '.join(inner)} side has another "
+                            "edge outside it (a printed border?); the click was used there")
+        fits[name], refined[name], uses[name] = face_fits, corners, face_uses
     return FaceQuads(refined["front"], refined["side"], clicked.front_complete,
-                     clicked.side_complete, clicked.side_face), fits
+                     clicked.side_complete, clicked.side_face), fits, uses
 
 
 def perspective_focal(focal: Focal, image: np.ndarray) -> float:
@@ -189,43 +241,71 @@ def measure_faces(spec: ScanSpec, quads: FaceQuads, marked: FaceQuads, fits: dic
     return dims, quads, camera
 
 
-def _click_rms(marked: FaceQuads, model: FaceQuads) -> float:
-    """RMS distance (px) between the clicked points and the model's corners they mark."""
-    d = [np.linalg.norm(corner - click)
-         for face in ("front", "side")
-         for label, click, corner in zip(quad_labels(marked)[face == "side"], getattr(marked, face),
-                                         getattr(model, face), strict=True) if label is not None]
-    return float(np.sqrt(np.mean(np.square(d)))) if d else 0.0
+def _click_distances(marked: FaceQuads, model: FaceQuads) -> np.ndarray:
+    """Distances (px) between the clicked points and the model's corners they mark."""
+    labels = quad_labels(marked)
+    return np.array([np.linalg.norm(corner - click)
+                     for face in ("front", "side")
+                     for label, click, corner in zip(labels[face == "side"], getattr(marked, face),
+                                                     getattr(model, face), strict=True) if label is not None])
+
+
+def _apart(a: Dimensions, b: Dimensions) -> float:
+    """The largest difference between two measures of one box, in their combined sigmas."""
+    if a.uncertainty is None or b.uncertainty is None:
+        return 0.0
+    worst = 0.0
+    for x, y, sx, sy in zip((a.width, a.height, a.depth), (b.width, b.height, b.depth), a.uncertainty,
+                            b.uncertainty, strict=True):
+        sigma = float(np.hypot(sx, sy))
+        if sigma > 0:
+            worst = max(worst, abs(x - y) / sigma)
+    return worst
+
+
+def _rms(d: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(d)))) if d.size else 0.0
 
 
 def unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
                     images: list[np.ndarray], focal: Focal, warnings: list[str],
-                    refined: tuple[Dimensions, FaceQuads, dict[str, Any]],
-                    ) -> tuple[Dimensions, FaceQuads, dict[str, Any], dict[str, list[EdgeFit]]]:
-    """The box fitted to the refined edges, unless the edges snapped to something else.
+                    refined: tuple[Dimensions, FaceQuads, dict[str, Any]], uses: EdgeUses,
+                    ) -> tuple[Dimensions, FaceQuads, dict[str, Any], dict[str, list[EdgeFit]], EdgeUses]:
+    """The box fitted to the refined edges, unless it moves the clicks more than their noise explains.
 
     Edge refinement takes the consensus line near each clicked side; on a real box that can be a
-    printed border, a lid's seam or the background past a corner (a real video: 10-20 px off).
-    Its box then sits far from the clicks while the clicks alone fit a box closely. A fit
-    farther than click noise explains (SNAP_SUSPECT_RMS_PX) is compared with the clicks' own
-    fit, and the clicks win when they fit SNAP_CLICKS_BETTER times closer.
+    printed border, a lid's seam or the background past a corner (a real video: 10-20 px off), and
+    edges used on some sides with the clicks on the others can make a box no click agrees with.
+    The clicks alone fit a box too; the edges' box is kept while the squared distances it puts
+    between the clicks and their corners exceed the clicks' own fit's by no more than click noise
+    explains (SNAP_CHI2 click variances, NOISE_CLICK_PX), or by no more than SNAP_CLICKS_BETTER
+    times when it is within SNAP_SUSPECT_RMS_PX (clicks noisier than stated, as a hurried user's).
     """
     dims, quads, camera = refined
-    rms = _click_rms(marked, quads)
-    if not rms > SNAP_SUSPECT_RMS_PX:
-        return dims, quads, camera, fits
+    if not any(f.fitted for face in fits.values() for f in face):
+        return dims, quads, camera, fits, uses
+    d = _click_distances(marked, quads)
+    rms, variance = _rms(d), NOISE_CLICK_PX**2
     plain = {n: [EdgeFit(line_through(q[i], q[(i + 1) % 4]), 0.0, 0.0, False) for i in range(4)]
              for n, q in (("front", marked.front), ("side", marked.side))}
     scratch: list[str] = []
     alt = measure_faces(spec, marked, marked, plain, images, focal, scratch)
-    alt_rms = _click_rms(marked, alt[1])
-    if not alt_rms * SNAP_CLICKS_BETTER < rms:
-        return dims, quads, camera, fits
+    alt_d = _click_distances(marked, alt[1])
+    alt_rms = _rms(alt_d)
+    moved = float(np.sum(d**2) - np.sum(alt_d**2)) / variance
+    apart = _apart(dims, alt[0])
+    if not ((alt_rms * SNAP_CLICKS_BETTER < rms and rms > SNAP_SUSPECT_RMS_PX)
+            or moved > SNAP_CHI2 or apart > SNAP_SIGMAS):
+        return dims, quads, camera, fits, uses
     warnings.extend(scratch)
     warnings.append(f"the refined edges fit a box {rms:.1f} px (RMS) from the clicks, the clicks "
-                    f"alone one {alt_rms:.1f} px: the edges found were not the box's (printed "
-                    "borders or background?), so the clicks were used")
-    return *alt, plain
+                    f"alone one {alt_rms:.1f} px, more than the clicks' noise explains: the edges found "
+                    "were not the box's (printed borders, a rounded edge's shading or background?), "
+                    "so the clicks were used")
+    why = EdgeUse("click", f"the box the edges fit sits {rms:.1f} px (RMS) from the clicks, the "
+                           f"clicks' own {alt_rms:.1f} px; its size {apart:.1f} sigma from theirs: "
+                           "more than click noise explains")
+    return *alt, plain, {face: [why] * 4 for face in uses}
 
 
 def fit_guard(spec: ScanSpec, marked: FaceQuads, model: FaceQuads, perspective: bool,

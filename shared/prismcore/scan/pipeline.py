@@ -32,7 +32,7 @@ from prismcore.geometry.faces import (
 from prismcore.quality.verdicts import quality_from_report
 from prismcore.scan.cloud import Cloud, assemble, face_points
 from prismcore.scan.colour_scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
-from prismcore.scan.fit import fit_guard, measure_faces, refine_faces, unless_snapped
+from prismcore.scan.fit import EdgeUses, edge_use_json, fit_guard, measure_faces, refine_faces, unless_snapped
 from prismcore.scan.focal import PooledFocal, camera_models, prepare_images, resolve_focal, undistorted_points
 from prismcore.scan.measure import Dimensions
 from prismcore.scan.spacing import thin_to_spacing
@@ -183,8 +183,9 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         validate_quad(marked.side, "top face" if side_face == "top" else "side face",
                       images[side_index].shape, labels=labels[1])
         fits: dict[str, list[EdgeFit]] = {}
+        uses: EdgeUses = {}
         if spec.method == "default":
-            quads, fits = refine_faces(spec, images, marked, warnings)
+            quads, fits, uses = refine_faces(spec, images, marked, warnings)
     with _timed(timings, "measure"):
         focal = resolve_focal(spec, images, cameras, exif_focal_px, pooled_focal)
         if isinstance(spec.scale, Pinhole) and focal.focal_px is None and not (
@@ -194,10 +195,12 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
                              "P6 and P7 in one photo (the focal length is then fitted)")
         dims, quads, camera = measure_faces(work, quads, marked, fits, images, focal, warnings)
         if fits and dims.perspective and not spec.two_photo and not rough_points:
-            dims, quads, camera, fits = unless_snapped(work, marked, fits, images, focal, warnings,
-                                                        (dims, quads, camera))
+            dims, quads, camera, fits, uses = unless_snapped(work, marked, fits, images, focal, warnings,
+                                                              (dims, quads, camera), uses)
         camera["undistorted"] = undistorted
         fit = fit_guard(spec, marked, quads, dims.perspective, warnings)
+        if uses:  # per side, the refined edge or the click, and why (report.json, the overlay)
+            fit["edges"] = edge_use_json(uses)
     if spec.two_photo and spec.points.p7 is None and _side_height_guess(spec) is None:
         # Nothing ties the side photo's scale to the front's: it is assumed, and said so
         # (instead of the note that the height carried it across, which would read as measured).
