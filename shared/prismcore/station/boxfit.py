@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from prismcore.station.edges import bilinear, refine_outline
+from prismcore.station.fit_starts import starting_boxes
 from prismcore.station.influence import jackknife_cov, soft_l1_weights
 
 __all__ = ["BoxFit", "box_corners", "fit_box", "project", "visible_faces"]
@@ -366,33 +367,6 @@ def _jacobian(params: np.ndarray, p: _Problem) -> np.ndarray:
     return J
 
 
-def _start(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> list[np.ndarray]:
-    """Starting boxes: the outline cast onto the support, its smallest rectangle shrunk, at a few
-    heights."""
-    rays = np.column_stack([(outline - (K[0, 2], K[1, 2])) / (K[0, 0], K[1, 1]), np.ones(len(outline))])
-    rays_b = rays @ R  # board frame directions (R.T @ ray for each)
-    centre = -R.T @ t
-    s = -centre[2] / rays_b[:, 2]
-    ground = centre[:2] + s[:, None] * rays_b[:, :2]
-    (cx, cy), (w, h), ang = cv2.minAreaRect(ground.astype(np.float32))
-    starts = []
-    for shrink, height, turn in (
-        (a, b, c) for a in (0.85, 0.6) for b in (0.3, 0.7, 1.4) for c in (0, 15, 30, 45, 60, 75)
-    ):
-        if True:
-            L, W = max(w * shrink, 1.0), max(h * shrink, 1.0)
-            H = max(height * np.sqrt(w * h) * shrink, 1.0)
-            # the footprint lies towards the camera's side of the cast outline
-            toward = centre[:2] - (cx, cy)
-            toward = toward / (np.linalg.norm(toward) + 1e-9) * (1 - shrink) * 0.5 * max(w, h)
-            starts.append(
-                np.array(
-                    [cx + toward[0], cy + toward[1], np.radians(ang + turn), np.log(L), np.log(W), np.log(H)]
-                )
-            )
-    return starts
-
-
 def _same_box(a: np.ndarray, b: np.ndarray) -> bool:
     """Two fitted parameter sets the same box within _AGREE_SIZE: footprint sides (in either order:
     a box turned a quarter with its sides swapped is the same box), height and centre."""
@@ -488,16 +462,26 @@ def _widened(cov: np.ndarray, x: np.ndarray, r: np.ndarray, p: _Problem, noise_v
 
 
 def _rivals(best: Any, starts: list[np.ndarray], p: _Problem) -> tuple[float, float, float]:
-    """How far (mm, per length, width, height of `best`) the distinct boxes among the starts' fits,
-    polished on the final problem, lie from `best` where they fit within _RIVAL_COST of its cost."""
-    spread, size, tried = np.zeros(3), np.exp(best.x[3:]), 0
+    """How far (mm, per length, width, height of `best`) the distinct boxes among the starts' fits
+    lie from `best` where they fit within _RIVAL_COST of its cost, both polished on the final
+    outline thinned to _COARSE_POINTS (on all of it they doubled the fit's time)."""
+    n = max(1, len(p.outline) // _COARSE_POINTS)
+    pts = p.outline[::n]
+    sparse = replace(p, outline=pts, vertex_weight=float(np.sqrt(len(pts) / 8) * 0.5),
+                     fold_weight=float(np.sqrt(len(pts) / 24) * 0.5), last={})
+
+    def polish(x: np.ndarray, nfev: int) -> Any:
+        return least_squares(_residuals, x, jac=_jacobian, args=(sparse,), method="lm", x_scale="jac",
+                             max_nfev=nfev, ftol=_COARSE_TOL, xtol=_COARSE_TOL)
+
+    spread, size, tried, base = np.zeros(3), np.exp(best.x[3:]), 0, None
     for x in starts:
         if tried >= _RIVALS or _same_box(x, best.x):
             continue
         tried += 1
-        rival = least_squares(_residuals, x, jac=_jacobian, args=(p,), method="trf", loss="soft_l1",
-                              f_scale=_ROBUST_PX, x_scale="jac", max_nfev=30)
-        if _same_box(rival.x, best.x) or rival.cost > (1 + _RIVAL_COST) * best.cost:
+        base = polish(best.x, 10) if base is None else base
+        rival = polish(x, 20)
+        if _same_box(rival.x, best.x) or rival.cost > (1 + _RIVAL_COST) * base.cost:
             continue
         other = np.exp(rival.x[3:])
         if (other[0] >= other[1]) != (size[0] >= size[1]):
@@ -524,7 +508,7 @@ def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_
 
     # Every start scored, the best few fitted on a sparse outline, the best of those on a dense one:
     # the silhouette alone has local minima (the box turned a quarter with its sides swapped).
-    starts = _start(outline, K, R, t)
+    starts = starting_boxes(outline, K, R, t)
     rounding_px = _radius_px(rounding_mm, starts[0], K, R, t)
     coarse = problem(_COARSE_POINTS)
     costs = [float(np.sum(np.square(_residuals(s, coarse)))) for s in starts]
