@@ -30,6 +30,7 @@ from prismsynth.station import StationSetup, station_scene, station_setup
 
 ARTEFACTS = Path(__file__).resolve().parents[2] / "test-artifacts" / "web"
 SAMPLE_SEED = 11  # prism sample --station's setup
+TIMES, DASH = "\N{MULTIPLICATION SIGN}", "\N{EN DASH}"
 
 
 def _jpeg(image: np.ndarray) -> bytes:
@@ -75,7 +76,8 @@ def test_a_station_verified_from_the_page_and_its_parts_state_it(page, files):
     row = page.locator("#stations tbody tr", has_text="line 9").first
     expect(row.locator("td[data-col=verification]")).to_have_text("not verified")
     expect(row.locator("td[data-col=verification]")).to_have_class(re.compile(r"\berror\b"))
-    expect(row.locator("td[data-col=capability]")).to_contain_text(re.compile(r"0\.\d\d–0\.\d\d mm/px; parts ≥ \d+ mm"))
+    expect(row.locator("td[data-col=capability]")).to_contain_text(
+        re.compile(rf"0\.\d\d{DASH}0\.\d\d mm/px; parts ≥ \d+ mm"))
 
     page.get_by_text("Verify the chosen station with a reference part").click()
     page.get_by_label("Its true size W,D,H in mm").fill("70x45x30")
@@ -92,13 +94,15 @@ def test_a_station_verified_from_the_page_and_its_parts_state_it(page, files):
 
     page.get_by_label("Its true size W,D,H in mm").fill("70,45,30")
     page.get_by_label("Its photos, one per placement").set_input_files(photos)
-    with page.expect_response(lambda r: r.url.endswith("/verifications") and r.request.method == "POST") as got:
+    posted = lambda r: r.url.endswith("/verifications") and r.request.method == "POST"  # noqa: E731
+    with page.expect_response(posted) as got:
         page.get_by_role("button", name="Verify", exact=True).click()
     assert got.value.status == 201
     expect(page.locator("#verify-verdict")).to_contain_text(
         "Verified on 20", timeout=120_000)
     expect(page.locator("#verify-verdict")).to_contain_text(
-        "with a 70 × 45 × 30 mm reference (width × depth × height), 7 placements, tolerance ± 2 mm.")
+        f"with a 70 {TIMES} 45 {TIMES} 30 mm reference (width {TIMES} depth {TIMES} height), 7 placements, "
+        "tolerance ± 2 mm.")
     table = page.locator("#verify-table tbody tr")
     expect(table).to_have_count(3)
     for name in ("width", "depth", "height"):
@@ -106,7 +110,8 @@ def test_a_station_verified_from_the_page_and_its_parts_state_it(page, files):
         expect(cells.nth(5)).to_have_text("7 of 7")
         expect(cells.nth(7)).to_have_text("ok")
     expect(page.locator("#station-status")).to_contain_text("Verified: line 9.")
-    verified = page.locator("#stations tbody tr", has_text="line 9").first.locator("td[data-col=verification]")
+    row = page.locator("#stations tbody tr", has_text="line 9").first
+    verified = row.locator("td[data-col=verification]")
     expect(verified).to_have_text(re.compile(r"^verified on \d{4}-\d\d-\d\d$"))
     assert "bias" in (verified.get_attribute("title") or "")
     ARTEFACTS.mkdir(parents=True, exist_ok=True)
