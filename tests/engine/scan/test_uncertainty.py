@@ -86,4 +86,5 @@ def test_report_carries_the_uncertainty_in_the_reports_unit():
     assert report["uncertainty"]["width"] == pytest.approx(0.0, abs=1e-6)  # the known edge itself
     assert 0 < report["uncertainty"]["depth"] < 0.05 * report["dimensions"]["depth"]
     assert report["camera"]["focal_source"] == "fitted" and report["camera"]["focal_std_px"] > 0
-    assert set(report["fit"]) == {"rms_px", "point_residuals_px"}
+    # Each face's sides: the refined edge or the click, and why (the overlay's legend reads it).
+    assert set(report["fit"]) == {"rms_px", "point_residuals_px", "edges"}
