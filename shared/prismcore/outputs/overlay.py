@@ -281,6 +281,22 @@ def _legend(layout: _Layout, title: str, notes: Sequence[str], alerts: Sequence[
     return swatches
 
 
+def _dashed_sides(canvas: np.ndarray, quad: np.ndarray, sides: Sequence[int], sizes: _Sizes) -> None:
+    """Dashes in the click colour along the given sides of a face (those the clicks set)."""
+    dash = 4.0 * max(sizes.line, 1)
+    for i in sides:
+        if not 0 <= int(i) < 4:
+            raise InputError(f"a face's side index must be 0-3, got {i!r}")
+        a, b = quad[int(i)], quad[(int(i) + 1) % 4]
+        length = float(np.linalg.norm(b - a))
+        count = max(1, int(length / (2 * dash)))
+        for k in range(count):
+            t0, t1 = (2 * k + 0.5) / (2 * count), (2 * k + 1.5) / (2 * count)
+            seg = np.stack([a + t0 * (b - a), a + t1 * (b - a)])
+            cv2.polylines(canvas, [_fx(seg).reshape(-1, 1, 2)], False, CLICK_COLOR, sizes.line,
+                          cv2.LINE_AA, _SHIFT)
+
+
 def draw_overlay(
     image: np.ndarray,
     clicks: Mapping[str, Sequence[float] | np.ndarray],
@@ -293,6 +309,7 @@ def draw_overlay(
     warn_px: float = 3.0,
     side_face: str = "right",
     points_key: str = "click",
+    clicked_sides: Mapping[str, Sequence[int]] | None = None,
 ) -> np.ndarray:
     """Draw the clicks and the fitted faces on a copy of `image`.
 
@@ -322,6 +339,9 @@ def draw_overlay(
         The second face P4, P5 and P7 mark (``SECOND_FACE_CORNERS``), named so in the key.
     points_key : str
         What the key calls the crosses: "click", or "found point" for points the search found.
+    clicked_sides : mapping of face name -> side indices (0 top, 1 right, 2 bottom, 3 left)
+        Sides that rest on the clicks, not on an edge the photo showed: drawn dashed in the
+        click colour over the face's outline (the report's ``fit.edges`` says why).
 
     Returns
     -------
@@ -387,6 +407,10 @@ def draw_overlay(
             else:
                 cv2.polylines(canvas, [_fx(geometry).reshape(-1, 1, 2)], kind == "closed", stroke, width,
                               cv2.LINE_AA, _SHIFT)
+
+    for name, sides in (clicked_sides or {}).items():
+        if name in quads:
+            _dashed_sides(canvas, quads[name], sides, sizes)
 
     layout = _Layout(sizes, (H, W))
     # ink: what a label or the legend should not cover (outlines, markers, labels placed so far)

@@ -16,6 +16,7 @@ from prismcore.errors import InputError
 from prismcore.outputs.overlay import CORNER_OF, SECOND_FACE_CORNERS, _as_rgb8, draw_overlay
 
 __all__ = [
+    "clicked_sides",
     "edge_use_notes",
     "given_dimension",
     "overlay_from_report",
@@ -111,6 +112,21 @@ def report_notes(report: Mapping[str, Any]) -> list[str]:
     if (found := points_found(report)) is not None:
         notes.append(found)
     return notes
+
+
+def clicked_sides(fit: object, faces: Mapping[str, Any]) -> dict[str, list[int]]:
+    """Per face drawn, the sides (0 top ... 3 left) the report's `fit.edges` says rest on the
+    clicks; empty for a report without it."""
+    edges = fit.get("edges") if isinstance(fit, Mapping) else None
+    if not isinstance(edges, Mapping):
+        return {}
+    out = {}
+    for face in faces:
+        sides = edges.get(face)
+        if isinstance(sides, Sequence):
+            out[face] = [i for i, s in enumerate(sides[:4])
+                         if isinstance(s, Mapping) and s.get("used") == "click"]
+    return out
 
 
 def edge_use_notes(fit: object) -> list[str]:
@@ -262,5 +278,6 @@ def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: 
     if side_face not in SECOND_FACE_CORNERS:
         side_face = "right"  # a report from before the choice existed, or a side photo's
     return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
+                        clicked_sides=clicked_sides(report.get("fit"), faces),
                         title=title, warn_px=warn_px, side_face=side_face,
                         points_key=_points_key(report))

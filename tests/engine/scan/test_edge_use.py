@@ -146,3 +146,30 @@ def test_real_photos_true_corners_measure_within_one_percent(real, frame, cls, f
     for value, true in zip(measured, t.sizes_mm, strict=True):
         assert value == pytest.approx(true, rel=0.01)
     assert set(plan.fit["edges"]) == {"front", "side"}
+
+
+def test_the_overlay_dashes_the_sides_the_clicks_set_and_only_those():
+    from prismcore.outputs.overlay import draw_overlay
+    from prismcore.outputs.overlay_report import clicked_sides
+
+    fit = {
+        "edges": {
+            "front": [
+                {"side": s, "used": u, "why": "w"}
+                for s, u in zip(
+                    ("top", "right", "bottom", "left"), ("edge", "click", "edge", "edge"), strict=True
+                )
+            ]
+        }
+    }
+    quad = _OUTLINE.tolist()
+    assert clicked_sides(fit, {"front": quad}) == {"front": [1]}
+    assert clicked_sides({}, {"front": quad}) == {}
+    photo = _face()
+    plain = draw_overlay(photo, {}, {"front": quad})
+    dashed = draw_overlay(photo, {}, {"front": quad}, clicked_sides={"front": [1]})
+    changed = np.argwhere(np.any(plain != dashed, axis=2))
+    assert changed.size
+    # Only along the right side (x = 300), between its corners.
+    assert np.abs(changed[:, 1] - 300).max() <= 4
+    assert changed[:, 0].min() >= 78 and changed[:, 0].max() <= 242
