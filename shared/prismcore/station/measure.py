@@ -315,6 +315,12 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
             {"width": sW, "height": sH, "depth": sL},
             fit.params[2] + np.pi / 2,
         )
+    aL, aW, aH = fit.ambiguity_mm
+    rival = dict(zip(dims, (aL, aH, aW) if L >= W else (aW, aH, aL), strict=True))
+    if any(rival[k] > max(1.0, _WARN_RELATIVE_SIGMA * dims[k]) for k in dims):
+        warnings.append("another box fits the outline almost as well (" + ", ".join(
+            f"{k} {rival[k]:.1f} mm apart" for k in dims if rival[k] > 0) + "): a face lost against the "
+            "support, or a shadow or reflection taken for the part; the sigma takes it in")
     # Beyond the outline's noise: its edge is placed to a fraction of a pixel at best, the same
     # way along a whole side (blur, JPEG, the threshold), and the camera's pose is known to its
     # calibration: a floor of _SYSTEMATIC_PX at the part's distance, and 0.2 %.
