@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.geometry.edge_checks import OUTER_REASON, EdgeUse, clicked_fit, judge_edge
-from prismcore.geometry.edges import Bound, EdgeFit, intersect, inward, line_through, refine_quad, side_bounds
+from prismcore.geometry.edge_checks import EdgeUse, clicked_fit, judge_edge
+from prismcore.geometry.edges import Bound, EdgeFit, inward, line_through, refine_quad
 from prismcore.geometry.faces import FaceQuads, clicked_quads, quad_labels, shared_edges, validate_quad
 from prismcore.geometry.perspective import NOISE_CLICK_PX, FaceEvidence
 from prismcore.scan.focal import Focal
@@ -78,25 +78,12 @@ def edge_use_json(uses: EdgeUses) -> dict[str, list[dict[str, str]]]:
             for face, sides in uses.items()}
 
 
-def _judged(image: np.ndarray, quad: np.ndarray, fits: list[EdgeFit], search_px: float,
-            known: dict[int, EdgeFit], extra: dict[int, tuple[Bound, ...]], folds: set[int],
-            known_uses: dict[int, EdgeUse]) -> tuple[np.ndarray, list[EdgeFit], list[EdgeUse]]:
-    """Each refined side kept only where the photo clearly shows the box's edge
-    (`edge_checks.judge_edge`), else the clicked side; the corners from the sides kept."""
-    kept, uses = list(fits), []
-    for i, fit in enumerate(fits):
-        if i in known:
-            uses.append(known_uses[i])
-            continue
-        p, q = quad[i], quad[(i + 1) % 4]
-        use = judge_edge(image, p, q, fit, inside=quad.mean(axis=0), search_px=search_px,
-                         bounds=side_bounds(quad, i) + extra.get(i, ()), outline=i not in folds)
-        if use.source == "click" and fit.fitted:
-            kept[i] = clicked_fit(p, q, fit)
-        uses.append(use)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        corners = np.stack([intersect(kept[(i - 1) % 4].line, kept[i].line) for i in range(4)])
-    return corners, kept, uses
+def _judged(quad: np.ndarray, fits: list[EdgeFit], known: dict[int, EdgeFit], folds: set[int],
+            known_uses: dict[int, EdgeUse]) -> list[EdgeUse]:
+    """What each side rests on before the whole fit's check (`edge_checks.judge_edge`); a side
+    shared with the front face rests on what the front's did."""
+    return [known_uses[i] if i in known else judge_edge(fit, outline=i not in folds)
+            for i, fit in enumerate(fits)]
 
 
 def refine_faces(
@@ -133,8 +120,7 @@ def refine_faces(
                 extra = {front_edge: ((far, 0.5 * float(far[:2] @ ref + far[2])),)}
         corners, face_fits = refine_quad(images[index], quad, search_px=r, known=known,
                                          extra_bounds=extra)
-        corners, face_fits, face_uses = _judged(images[index], quad, face_fits, r, known or {},
-                                                extra or {}, folds, known_uses)
+        face_uses = _judged(quad, face_fits, known or {}, folds, known_uses)
         moved = np.linalg.norm(corners - quad, axis=1).max() if np.isfinite(corners).all() else np.inf
         try:
             if moved > 3 * r + 4:
@@ -145,14 +131,10 @@ def refine_faces(
             corners = quad
             face_fits = [clicked_fit(quad[i], quad[(i + 1) % 4], f) for i, f in enumerate(face_fits)]
             face_uses = [EdgeUse("click", "the edges found moved the corners too far") for _ in face_uses]
-        inner = [s for s, u in zip(SIDE_NAMES, face_uses, strict=True) if u.reason == OUTER_REASON]
-        missing = [s for s, f in zip(SIDE_NAMES, face_fits, strict=True) if not f.fitted and s not in inner]
-        if missing:
+        if not all(f.fitted for f in face_fits):
+            missing = [s for s, f in zip(SIDE_NAMES, face_fits, strict=True) if not f.fitted]
             warnings.append(f"{name} face: no clear edge along the {', '.join(missing)} side; "
                             "the click was used there")
-        if inner:  # an edge was there, but not the outermost: a printed border, not the outline
-            warnings.append(f"{name} face: the edge found along the {', '.join(inner)} side has another "
-                            "edge outside it (a printed border?); the click was used there")
         fits[name], refined[name], uses[name] = face_fits, corners, face_uses
     return FaceQuads(refined["front"], refined["side"], clicked.front_complete,
                      clicked.side_complete, clicked.side_face), fits, uses
