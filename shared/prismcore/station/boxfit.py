@@ -41,7 +41,7 @@ _MAX_OUTLIERS = 0.10  # of the outline beyond 3 sigma: more, and the fit's sigma
 # clean fits' rivals cost 3-20 times the best; wrong fits' rivals 1-17 % more)
 _RIVAL_COST = 0.15
 _RIVAL_SIGMAS = 2.0
-_RIVALS = 3  # distinct starts' fits polished and compared, at most
+_RIVALS = 2  # distinct starts' fits polished and compared, at most
 
 
 def box_corners(params: np.ndarray) -> np.ndarray:
