@@ -82,7 +82,7 @@ def _prepare(k: int, view: View, scale: KnownEdge, focal_px: float | None,
                                                                            for p in view.points]
     spec = ScanSpec.model_validate({"image": name if "." in name else f"{name}.png", "points": points,
                                     "side_face": view.side_face, "scale": scale, "focal_px": focal_px})
-    plan = plan_scan(spec, view.image)
+    plan = plan_scan(spec, view.image, click_noise_rules=False)  # the joint fit weighs the lines
     if not plan.dimensions.perspective:
         raise InputError(f"{name}: the box was not fitted in perspective (all seven points are needed)")
     assert spec.points is not None

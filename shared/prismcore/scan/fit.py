@@ -254,6 +254,7 @@ def _rms(d: np.ndarray) -> float:
 def unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeFit]],
                     images: list[np.ndarray], focal: Focal, warnings: list[str],
                     refined: tuple[Dimensions, FaceQuads, dict[str, Any]], uses: EdgeUses,
+                    noise_rules: bool = True,
                     ) -> tuple[Dimensions, FaceQuads, dict[str, Any], dict[str, list[EdgeFit]], EdgeUses]:
     """The box fitted to the refined edges, unless it moves the clicks more than their noise explains.
 
@@ -280,7 +281,7 @@ def unless_snapped(spec: ScanSpec, marked: FaceQuads, fits: dict[str, list[EdgeF
     apart = _apart(dims, alt[0])
     # The clicks win on the noise rules only when they are a box themselves: a click on the wrong
     # corner makes the clicks' own fit far from them too, and the fit guard must see the edges' box.
-    own = float(np.sum(alt_d**2)) / variance <= SNAP_CHI2
+    own = noise_rules and float(np.sum(alt_d**2)) / variance <= SNAP_CHI2
     if not ((alt_rms * SNAP_CLICKS_BETTER < rms and rms > SNAP_SUSPECT_RMS_PX)
             or (own and (moved > SNAP_CHI2 or apart > SNAP_SIGMAS))):
         return dims, quads, camera, fits, uses

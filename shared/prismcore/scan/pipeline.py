@@ -119,7 +119,7 @@ def _side_height_guess(spec: ScanSpec) -> float | None:
 
 def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
               exif_focal_px: float | None = None, pooled_focal: PooledFocal | None = None,
-              rough_points: bool = False) -> ScanPlan:
+              rough_points: bool = False, click_noise_rules: bool = True) -> ScanPlan:
     """Validate the points, locate the faces and measure the prism.
 
     The focal length is, in this order of trust: the spec's `focal_px`, its `camera`,
@@ -131,6 +131,10 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     `rough_points`: the points are seeds a few px off (the point search's), not clicks: the
     refined edges' box is kept even when it sits far from them (a person's clicks win over
     edges that snapped to a printed border; a rough seed's do not).
+
+    `click_noise_rules`: the edges' box also gives way to the clicks' when it moves them more than
+    their noise explains (`fit.unless_snapped`); a joint fit of several views, which weighs each
+    view's lines itself, asks for the edges without it.
 
     Raises
     ------
@@ -196,7 +200,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         dims, quads, camera = measure_faces(work, quads, marked, fits, images, focal, warnings)
         if fits and dims.perspective and not spec.two_photo and not rough_points:
             dims, quads, camera, fits, uses = unless_snapped(work, marked, fits, images, focal, warnings,
-                                                              (dims, quads, camera), uses)
+                                                              (dims, quads, camera), uses,
+                                                              noise_rules=click_noise_rules)
         camera["undistorted"] = undistorted
         fit = fit_guard(spec, marked, quads, dims.perspective, warnings)
         if uses:  # per side, the refined edge or the click, and why (report.json, the overlay)
