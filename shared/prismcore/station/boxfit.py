@@ -48,11 +48,11 @@ def box_corners(params: np.ndarray) -> np.ndarray:
     """(8, 3) board-frame corners of the box (x, y, yaw rad, log L, log W, log H): the footprint
     (z = 0) then the top (z = -H: the board's z points into the support)."""
     x, y, yaw, a, b, c = params
-    with np.errstate(over="ignore"):  # a step of the fit to an absurd size: infinite, then refused
+    with np.errstate(over="ignore", invalid="ignore"):  # a step to an absurd size: not finite, refused
         hl, hw, hh = np.exp(a) / 2, np.exp(b) / 2, np.exp(c)
-    co, si = np.cos(yaw), np.sin(yaw)
-    local = np.array([[-hl, -hw], [hl, -hw], [hl, hw], [-hl, hw]])
-    xy = local @ np.array([[co, si], [-si, co]]) + (x, y)
+        co, si = np.cos(yaw), np.sin(yaw)
+        local = np.array([[-hl, -hw], [hl, -hw], [hl, hw], [-hl, hw]])
+        xy = local @ np.array([[co, si], [-si, co]]) + (x, y)
     return np.vstack([np.column_stack([xy, np.zeros(4)]), np.column_stack([xy, np.full(4, -hh)])])
 
 
@@ -239,7 +239,8 @@ class _Problem:
 
 def _residuals(params: np.ndarray, p: _Problem) -> np.ndarray:
     X = box_corners(params)
-    depth = X @ p.R[2] + p.t[2]
+    with np.errstate(invalid="ignore"):  # a box of no finite size: refused below
+        depth = X @ p.R[2] + p.t[2]
     n = len(p.outline) + 8 + 3 * len(_FOLD_SAMPLES)
     p.last.clear()
     if not (np.all(np.isfinite(X)) and np.all(depth > 1.0)):
