@@ -50,7 +50,9 @@ ROUTES = {("POST", "/v1/uploads"): 201, ("POST", "/v1/jobs"): 422, ("GET", "/v1/
           ("GET", "/v1/uploads/{upload_id}/points"): 404,
           ("POST", "/v1/stations"): 422, ("GET", "/v1/stations"): 200,
           ("GET", "/v1/stations/{station_id}"): 404, ("GET", "/v1/stations/{station_id}/station.json"): 404,
-          ("DELETE", "/v1/stations/{station_id}"): 404}
+          ("DELETE", "/v1/stations/{station_id}"): 404,
+          ("GET", "/v1/stations/{station_id}/verifications"): 404,
+          ("POST", "/v1/stations/{station_id}/verifications"): 404}
 # A station.json with no plate: its board, camera and plane are all the API checks.
 STATION = {"board": {"type": "charuco", "dictionary": "DICT_5X5_100", "squares_x": 7, "squares_y": 5,
                      "square_mm": 30, "marker_mm": 22},

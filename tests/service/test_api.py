@@ -633,7 +633,7 @@ def test_results_and_presigned_downloads(client, store, objects):
                                "uncertainty": None, "focal_px": None, "focal_source": None,
                                "fit_rms_px": None, "side_face": None, "quality": None,
                                "points_source": None, "points_confidence": None, "given_dimension": None,
-                               "reference_points": None, "joint": None}
+                               "reference_points": None, "joint": None, "station": None}
     assert set(first["downloads"]) == {"csv", "report"}  # only what the item has
     csv = httpx.get(first["downloads"]["csv"])
     assert csv.status_code == 200 and csv.content == b"1,2,3\n"
