@@ -88,16 +88,12 @@ def test_the_overlay_legend_names_each_faces_edges_and_why():
     assert report_notes({"fit": fit})[-1].startswith("front edges: ")
 
 
-@pytest.fixture(scope="module")
-def real() -> None:
-    if not rcd.available():
-        pytest.skip(f"the YCB-Video frames are not at {rcd.DATA} (see benchmarks/real_clicks_data.py)")
-
-
 @pytest.mark.parametrize("frame", [1, 4, 7, 10])
 @pytest.mark.parametrize("cls", sorted(rcd.OBJECTS))
 @pytest.mark.parametrize("focal", [True, False])
-def test_real_photos_true_corners_measure_within_one_percent(real, frame, cls, focal):
+@pytest.mark.skipif(not rcd.available(), reason=f"the YCB-Video frames (MIT licence, not in the repository) "
+                    f"are not at {rcd.DATA}: see benchmarks/real_clicks_data.py")
+def test_real_photos_true_corners_measure_within_one_percent(frame, cls, focal):
     t = rcd.truth(frame, cls)
     extra = {"focal_px": float(rcd.intrinsics()[0, 0])} if focal else {}
     spec = ScanSpec.model_validate(
