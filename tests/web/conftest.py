@@ -41,12 +41,28 @@ def stack(redis_server, s3_server, tmp_path_factory) -> Iterator[Stack]:
     if not (STATIC_DIR / "index.html").is_file():
         pytest.fail(f"the page is not built in {STATIC_DIR}: run scripts/setup (needs node and npm)")
     tmp = tmp_path_factory.mktemp("web-stack")
-    env = service_env(redis_server.port, s3_server.port, db=3, bucket="web-e2e")
+    # A lost task is found by the watchdog after job_stall_timeout_s (120 s by default, as long
+    # as a page test waits for a job): here within ~25 s, so a task lost under CI's load costs a
+    # page test a delay, not a failure (the recovery itself is tested in tests/service).
+    env = service_env(redis_server.port, s3_server.port, db=3, bucket="web-e2e",
+                      JOB_STALL_TIMEOUT_S="20", WATCHDOG_INTERVAL_S="5")
     api = start_api(tmp / "api", env)
     worker = start_worker(tmp / "worker", env, concurrency=1)
     yield Stack(api, worker)
     worker.stop()
     api.stop()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[pytest.TestReport]:
+    """A failed page test's report carries the ends of the API's and the worker's logs: a job
+    that stays queued under CI's load is then explained by what the stack did meanwhile."""
+    report: pytest.TestReport = yield
+    stack = getattr(item, "funcargs", {}).get("stack")
+    if report.failed and call.when == "call" and isinstance(stack, Stack):
+        for name, process in (("worker", stack.worker), ("API", stack.api)):
+            report.sections.append((f"the {name}'s log, its end", process.log[-6000:]))
+    return report
 
 
 @pytest.fixture(scope="module")
