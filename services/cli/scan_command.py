@@ -476,7 +476,7 @@ def scan(
         from prismcore.io.images import load_image
         from prismcore.locate.auto_points import scan_found
 
-        from .outputs import report_path, write_outputs, write_overlays
+        from .outputs import write_report, write_scan
 
         load_start = time.perf_counter()
         front = load_image(base / spec.image, max_pixels=spec.max_pixels)
@@ -494,11 +494,10 @@ def scan(
     except ValidationError as exc:
         raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
-    paths = write_outputs(result, spec, out, [front] + ([side_img] if side_img is not None else []))
-    paths.update(write_overlays(result.report, front, side_img, out, overlay_format))
+    paths = write_scan(result, spec, out, [front] + ([side_img] if side_img is not None else []),
+                       overlay_format)
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
-    paths["report"] = report_path(out)
-    paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
+    paths["report"] = write_report(result.report, out)
     console().print(summary_line(result.report), soft_wrap=True)
     for line in quality_lines(result.report.get("quality")):
         console().print(line, soft_wrap=True)

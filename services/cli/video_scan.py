@@ -27,7 +27,7 @@ from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
 from prismcore.video.summary import DIMENSIONS, frame_info, summarize
 
 from .console import rich_console as console
-from .outputs import report_path, write_outputs, write_overlays
+from .outputs import write_scan
 
 __all__ = ["scan_video"]
 
@@ -73,9 +73,7 @@ def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo,
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
-    write_outputs(result, one, folder, [frame])
-    write_overlays(result.report, frame, None, folder, overlay_format)
-    report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
+    write_scan(result, one, folder, [frame], overlay_format, report=True)
     return result.report
 
 
