@@ -31,6 +31,8 @@ class OutputFile:
     """The type it is stored and served with (IANA's where there is one: model/step, image/vnd.dxf)."""
     label: str | None = None
     """The web page's download link text; None: not offered as a download."""
+    frame_label: str | None = None
+    """Its shorter link text in a video's table of frames; None: not linked there."""
 
 
 @dataclass(frozen=True)
@@ -46,18 +48,19 @@ class Format:
 
 
 FILES: dict[str, OutputFile] = {
-    # The downloads, in the order the page lists their links.
-    "csv": OutputFile("cloud.csv", "text/csv", "Cloud (CSV)"),
-    "ply": OutputFile("cloud.ply", "application/octet-stream", "Cloud (PLY)"),
-    "las": OutputFile("cloud.las", "application/vnd.las", "Cloud (LAS)"),
-    "laz": OutputFile("cloud.laz", "application/vnd.laszip", "Cloud (LAZ)"),
-    "glb": OutputFile("box.glb", "model/gltf-binary", "Box model (glTF .glb)"),
-    "step": OutputFile("part.step", "model/step", "CAD solid (STEP)"),
+    # The downloads, in the order the page lists their links (a video's frames: the ones with a
+    # frame label, in the same order).
+    "csv": OutputFile("cloud.csv", "text/csv", "Cloud (CSV)", "CSV"),
+    "ply": OutputFile("cloud.ply", "application/octet-stream", "Cloud (PLY)", "PLY"),
+    "las": OutputFile("cloud.las", "application/vnd.las", "Cloud (LAS)", "LAS"),
+    "laz": OutputFile("cloud.laz", "application/vnd.laszip", "Cloud (LAZ)", "LAZ"),
+    "glb": OutputFile("box.glb", "model/gltf-binary", "Box model (glTF .glb)", "Box model"),
+    "step": OutputFile("part.step", "model/step", "CAD solid (STEP)", "STEP"),
     "step_meta": OutputFile("part.step.json", "application/json", "CAD solid's dimensions (JSON)"),
-    "drawing_pdf": OutputFile("drawing.pdf", "application/pdf", "Drawing (PDF)"),
+    "drawing_pdf": OutputFile("drawing.pdf", "application/pdf", "Drawing (PDF)", "Drawing (PDF)"),
     "drawing_svg": OutputFile("drawing.svg", "image/svg+xml", "Drawing (SVG)"),
-    "drawing_dxf": OutputFile("drawing.dxf", "image/vnd.dxf", "Drawing (DXF)"),
-    "report": OutputFile("report.json", "application/json", "Report (JSON)"),
+    "drawing_dxf": OutputFile("drawing.dxf", "image/vnd.dxf", "Drawing (DXF)", "DXF"),
+    "report": OutputFile("report.json", "application/json", "Report (JSON)", "Report"),
     "joint": OutputFile("joint.json", "application/json", "Report (JSON)"),
     # The overlay's name is its base: it is stored with its picture format's suffix
     # (`prismcore.outputs.writers.overlay_name`), and served with that format's type.
