@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from prismcore.errors import InputError
+from prismcore.formats import FORMATS
 
 from .console import rich_console as console
 
@@ -320,7 +321,7 @@ def scan(
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     cloud: Annotated[str, typer.Option(help="surface or volume.")] = "surface",
     formats: Annotated[str, typer.Option(
-        "--format", help="Any of csv,ply,las,laz,glb,step,drawing (las/laz: the cloud in metres, Z "
+        "--format", help=f"Any of {','.join(FORMATS)} (las/laz: the cloud in metres, Z "
                          "up; glb: the box textured from the photo; step: the part as a STEP solid, "
                          "part.step and part.step.json; drawing: its inspection drawing, drawing.svg, "
                          ".pdf and .dxf; all but csv and ply need a scale).")] = "csv,ply",

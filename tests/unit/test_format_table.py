@@ -68,3 +68,12 @@ def test_the_page_reads_the_table():
     for source in (ROOT / "web" / "src").glob("*.ts"):
         if source.name != "formats.ts":
             assert not lists.search(source.read_text()), f"{source.name} lists formats: read ./formats"
+
+
+def test_the_reference_page_lists_the_tables_formats():
+    page = (ROOT / "docs" / "reference" / "outputs.md").read_text()
+    section = page.split("\n## Formats\n", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| `(\w+)` \| (.+) \| (yes|no) \|$", section, re.M)
+    documented = {fmt: (re.findall(r"`([^`]+)`", files), needs == "yes") for fmt, files, needs in rows}
+    assert documented == {fmt: ([FILE_NAMES[kind] for kind in row.files], row.needs_scale)
+                          for fmt, row in FORMAT_TABLE.items()}
