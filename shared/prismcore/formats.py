@@ -55,6 +55,7 @@ FILES: dict[str, OutputFile] = {
     "las": OutputFile("cloud.las", "application/vnd.las", "Cloud (LAS)", "LAS"),
     "laz": OutputFile("cloud.laz", "application/vnd.laszip", "Cloud (LAZ)", "LAZ"),
     "glb": OutputFile("box.glb", "model/gltf-binary", "Box model (glTF .glb)", "Box model"),
+    "stl": OutputFile("box.stl", "model/stl", "Box mesh (STL)", "STL"),
     "step": OutputFile("part.step", "model/step", "CAD solid (STEP)", "STEP"),
     "step_meta": OutputFile("part.step.json", "application/json", "CAD solid's dimensions (JSON)"),
     "drawing_pdf": OutputFile("drawing.pdf", "application/pdf", "Drawing (PDF)", "Drawing (PDF)"),
@@ -72,7 +73,7 @@ FILES: dict[str, OutputFile] = {
 }
 """Every file kind a scan or a job leaves."""
 
-OutputFormat = Literal["csv", "ply", "las", "laz", "glb", "step", "drawing"]
+OutputFormat = Literal["csv", "ply", "las", "laz", "glb", "step", "drawing", "stl"]
 """The names of `FORMAT_TABLE` (spelled out for the type checker; checked equal at import)."""
 
 FORMAT_TABLE: dict[str, Format] = {
@@ -83,11 +84,12 @@ FORMAT_TABLE: dict[str, Format] = {
     "glb": Format(("glb",), needs_scale=True),
     "step": Format(("step", "step_meta"), needs_scale=True, part=True),
     "drawing": Format(("drawing_svg", "drawing_pdf", "drawing_dxf"), needs_scale=True, part=True),
+    "stl": Format(("stl",), needs_scale=True, part=True),
 }
 """The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
 the fitted box as a textured binary glTF model (glb), the part as a STEP solid (step: part.step
-and its sidecar part.step.json) and its dimensioned drawing (drawing: drawing.svg, drawing.pdf
-and drawing.dxf)."""
+and its sidecar part.step.json), its dimensioned drawing (drawing: drawing.svg, drawing.pdf
+and drawing.dxf) and the box as a binary STL mesh (stl: box.stl)."""
 
 if tuple(FORMAT_TABLE) != get_args(OutputFormat):  # pragma: no cover - a table edited by half
     raise RuntimeError("OutputFormat and FORMAT_TABLE name different formats")

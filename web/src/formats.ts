@@ -2,10 +2,10 @@
 // edit the table, not this file (scripts/build-web writes it again).
 
 /** Formats in millimetres: they need a scale. */
-export const METRIC: readonly string[] = ["las", "laz", "glb", "step", "drawing"];
+export const METRIC: readonly string[] = ["las", "laz", "glb", "step", "drawing", "stl"];
 
 /** The download links, [file kind, label], in the order the page lists them. */
-export const LINKS: readonly (readonly [string, string])[] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"], ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["step", "CAD solid (STEP)"], ["step_meta", "CAD solid's dimensions (JSON)"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_svg", "Drawing (SVG)"], ["drawing_dxf", "Drawing (DXF)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"], ["overlay", "Fit overlay"]];
+export const LINKS: readonly (readonly [string, string])[] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"], ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["stl", "Box mesh (STL)"], ["step", "CAD solid (STEP)"], ["step_meta", "CAD solid's dimensions (JSON)"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_svg", "Drawing (SVG)"], ["drawing_dxf", "Drawing (DXF)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"], ["overlay", "Fit overlay"]];
 
 /** A video frame's download links, [file kind, label]. */
-export const FRAME_LINKS: readonly (readonly [string, string])[] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"], ["glb", "Box model"], ["step", "STEP"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_dxf", "DXF"], ["report", "Report"]];
+export const FRAME_LINKS: readonly (readonly [string, string])[] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"], ["glb", "Box model"], ["stl", "STL"], ["step", "STEP"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_dxf", "DXF"], ["report", "Report"]];

@@ -262,7 +262,12 @@ def _cad_file(kind: str, report: Mapping[str, Any], when: datetime) -> bytes:
     """The bytes of one of the part's CAD files (`_CAD_FILES`)."""
     from prismcore.outputs.part import part_from_report
 
-    part = part_from_report(report, "the step format" if kind.startswith("step") else "the drawing")
+    part = part_from_report(report, "the step format" if kind.startswith("step")
+                            else "the stl format" if kind == "stl" else "the drawing")
+    if kind == "stl":
+        from prismcore.outputs.stl import box_stl
+
+        return box_stl(part)
     if kind == "step":
         from prismcore.outputs.step import step_bytes
 
