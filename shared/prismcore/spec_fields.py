@@ -1,6 +1,7 @@
 """The parts a job spec (`prismcore.spec.ScanSpec`) is made of: reference points and how they are
 parsed, the scales, the CSV options, a video's frame selection, where the zero-click search
-looks, and the output files' names. Pydantic only, like `prismcore.spec` (no numpy, no OpenCV).
+looks, and the output files' names (the format table's, `prismcore.formats`). Pydantic only,
+like `prismcore.spec` (no numpy, no OpenCV).
 """
 
 from __future__ import annotations
