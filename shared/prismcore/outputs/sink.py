@@ -12,6 +12,7 @@ import mimetypes
 import time
 from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
+from functools import partial
 from typing import TYPE_CHECKING, Any, BinaryIO, Protocol
 
 import numpy as np
@@ -126,7 +127,7 @@ def write_part_files(report: Mapping[str, Any], formats: Sequence[str], sink: Si
     names: dict[str, str] = {}
     for kind in output_files(formats):
         names[kind] = FILE_NAMES[kind]
-        sink.put(names[kind], lambda f, kind=kind: write_part(kind, f, report, when), media_type(kind))  # type: ignore[misc]
+        sink.put(names[kind], partial(write_part, kind, report=report, when=when), media_type(kind))
     return names
 
 
