@@ -21,11 +21,12 @@ from prismcore import InputError
 from prismcore.io.images import load_image
 from prismcore.multiview.joint import JointResult, View, fit_views
 from prismcore.multiview.report import joint_report
-from prismcore.outputs.writers import write_part
+from prismcore.outputs import sink as output_sink
 from prismcore.quality.verdicts import quality_from_report
-from prismcore.spec import FILE_NAMES, PART_FORMATS, KnownEdge, ScanSpec, output_files
+from prismcore.spec import PART_FORMATS, KnownEdge, ScanSpec
 
 from .console import rich_console as console
+from .outputs import FolderSink
 
 __all__ = ["read_points_file", "scan_spec_views", "scan_views"]
 
@@ -83,13 +84,10 @@ def write_part_files(report: dict[str, Any], scale: KnownEdge, formats: Sequence
                      nominal: Any = None, tolerance_mm: Any = None) -> dict[str, Path]:
     """The part's files of `formats` (step, drawing: the others make no sense without a cloud)
     from a joint fit's report, with its verdicts against `nominal` and its scale; {kind: path}."""
-    paths = {}
     measured = {**report, "quality": quality_from_report(report, nominal, tolerance_mm),
                 "inputs": {"scale": scale.model_dump()}}
-    for kind in output_files([f for f in formats if f in PART_FORMATS]):
-        paths[kind] = out / FILE_NAMES[kind]
-        write_part(kind, paths[kind], measured)
-    return paths
+    names = output_sink.write_part_files(measured, [f for f in formats if f in PART_FORMATS], FolderSink(out))
+    return {kind: out / name for kind, name in names.items()}
 
 
 def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str, Any] | None,

@@ -1,64 +1,57 @@
-"""Write a scan's outputs into a folder: the cloud files and the overlay pictures of the fit."""
+"""A scan's outputs in a folder: the engine's `write_outputs` into a folder sink."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.outputs.overlay_report import overlay_from_report
-from prismcore.outputs.writers import (
-    DEFAULT_OVERLAY_FORMAT,
-    FILE_NAMES,
-    encode_overlay,
-    overlay_name,
-    write_format,
-)
-from prismcore.spec import output_files
+from prismcore.formats import FILE_NAMES
+from prismcore.outputs.sink import Writer, report_bytes, write_outputs
+from prismcore.outputs.writers import DEFAULT_OVERLAY_FORMAT
 
-__all__ = ["report_path", "write_outputs", "write_overlays"]
+__all__ = ["FolderSink", "write_report", "write_scan"]
 
 
-def write_outputs(result: ScanResult, spec: ScanSpec, out_dir: Path,
-                  images: list[np.ndarray] | None = None) -> dict[str, Path]:
-    """Write the formats the spec asks for (the cloud's, the glb model of the box, which is
-    textured from `images`: the front photo, and the side photo with two, as decoded, and the
-    part's CAD files: step writes part.step and part.step.json, drawing drawing.svg, .pdf and
-    .dxf); returns {kind: path}, a kind per file (`prismcore.spec.output_files`).
+class FolderSink:
+    """A `prismcore.outputs.sink.Sink` that writes each file into `folder` (made if missing)."""
 
-    The writers' timings go into the report's `timings_ms`; the caller writes the report
-    (with `report_path`) once everything it times is done.
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        folder.mkdir(parents=True, exist_ok=True)
+
+    def put(self, name: str, data: bytes | Writer, media_type: str) -> None:
+        path = self.folder / name
+        if isinstance(data, bytes):
+            path.write_bytes(data)
+            return
+        try:
+            with open(path, "wb") as f:
+                data(f)
+        except BaseException:
+            path.unlink(missing_ok=True)  # a writer that refused leaves no file, as before the sink
+            raise
+
+
+def write_scan(result: ScanResult, spec: ScanSpec, out_dir: Path, images: list[np.ndarray],
+               overlay_format: str = DEFAULT_OVERLAY_FORMAT, *, report: bool = False) -> dict[str, Path]:
+    """Write the formats the spec asks for (the glb model textured from `images`: the front photo,
+    and the side photo with two, as decoded) and the overlay of the fit on each photo in
+    `overlay_format` (overlay.jpg by default; png or webp on request); returns {kind: path}, a kind
+    per file (`prismcore.formats.output_files`, then overlay and overlay_side).
+
+    The writers' timings go into the report's `timings_ms`; with `report` False the caller writes
+    report.json (`write_report`) once everything it times is done.
     """
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths: dict[str, Path] = {}
-    for kind in output_files(spec.formats):
-        paths[kind] = out_dir / FILE_NAMES[kind]
-        ms = write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=images)
-        result.report["timings_ms"][f"write_{kind}"] = round(ms, 3)
-    return paths
+    names = write_outputs(result, FolderSink(out_dir), spec=spec, images=images,
+                          overlay_format=overlay_format, report=report)
+    return {kind: out_dir / name for kind, name in names.items()}
 
 
-def write_overlays(report: dict, front: np.ndarray, side: np.ndarray | None,
-                   out_dir: Path, fmt: str = DEFAULT_OVERLAY_FORMAT) -> dict[str, Path]:
-    """Draw the fit on the photo (and on the side photo in two-photo mode) and write the pictures
-    in `fmt` (overlay.jpg by default; png or webp on request).
-
-    Returns {"overlay": path} plus {"overlay_side": path} with two photos; the time taken goes
-    into the report's `timings_ms["write_overlay"]`.
-    """
-    started = time.perf_counter()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = {"overlay": out_dir / overlay_name("overlay", fmt)}
-    paths["overlay"].write_bytes(encode_overlay(overlay_from_report(front, report, photo="front"), fmt))
-    if side is not None and report["inputs"].get("side_image"):
-        paths["overlay_side"] = out_dir / overlay_name("overlay_side", fmt)
-        side_picture = overlay_from_report(side, report, photo="side")
-        paths["overlay_side"].write_bytes(encode_overlay(side_picture, fmt))
-    report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
-    return paths
-
-
-def report_path(out_dir: Path) -> Path:
-    return out_dir / FILE_NAMES["report"]
+def write_report(report: dict[str, Any], out_dir: Path) -> Path:
+    """report.json in `out_dir`; returns its path."""
+    path = out_dir / FILE_NAMES["report"]
+    path.write_bytes(report_bytes(report))
+    return path

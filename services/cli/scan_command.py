@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from prismcore.errors import InputError
+from prismcore.formats import FORMATS
 
 from .console import rich_console as console
 
@@ -320,7 +321,7 @@ def scan(
     depth_mm: Annotated[float | None, typer.Option(help="Known real depth.")] = None,
     cloud: Annotated[str, typer.Option(help="surface or volume.")] = "surface",
     formats: Annotated[str, typer.Option(
-        "--format", help="Any of csv,ply,las,laz,glb,step,drawing (las/laz: the cloud in metres, Z "
+        "--format", help=f"Any of {','.join(FORMATS)} (las/laz: the cloud in metres, Z "
                          "up; glb: the box textured from the photo; step: the part as a STEP solid, "
                          "part.step and part.step.json; drawing: its inspection drawing, drawing.svg, "
                          ".pdf and .dxf; all but csv and ply need a scale).")] = "csv,ply",
@@ -476,7 +477,7 @@ def scan(
         from prismcore.io.images import load_image
         from prismcore.locate.auto_points import scan_found
 
-        from .outputs import report_path, write_outputs, write_overlays
+        from .outputs import write_report, write_scan
 
         load_start = time.perf_counter()
         front = load_image(base / spec.image, max_pixels=spec.max_pixels)
@@ -494,11 +495,10 @@ def scan(
     except ValidationError as exc:
         raise InputError(one_line(exc)) from None
     result.report["timings_ms"]["load"] = round(load_ms, 3)
-    paths = write_outputs(result, spec, out, [front] + ([side_img] if side_img is not None else []))
-    paths.update(write_overlays(result.report, front, side_img, out, overlay_format))
+    paths = write_scan(result, spec, out, [front] + ([side_img] if side_img is not None else []),
+                       overlay_format)
     result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
-    paths["report"] = report_path(out)
-    paths["report"].write_text(json.dumps(result.report, indent=2) + "\n")
+    paths["report"] = write_report(result.report, out)
     console().print(summary_line(result.report), soft_wrap=True)
     for line in quality_lines(result.report.get("quality")):
         console().print(line, soft_wrap=True)

@@ -7,7 +7,6 @@ the overlay and the other outputs as clicked points do, with the camera measured
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -73,18 +72,16 @@ def certification_line(station_report: dict[str, Any]) -> str:
 def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
            overlay_format: str = "jpeg") -> dict[str, Any]:
     """Write the outputs, the overlay in `overlay_format` (jpeg, png or webp) and report.json."""
-    from .outputs import report_path, write_outputs, write_overlays
+    from .outputs import write_report, write_scan
 
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
     report = done.report
     if done.result is not None and done.spec is not None:
-        paths = write_outputs(done.result, done.spec, out, [photo])
-        paths.update(write_overlays(report, photo, None, out, overlay_format))
+        paths = write_scan(done.result, done.spec, out, [photo], overlay_format)
     station_report = report["station"]
     report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
-    paths["report"] = report_path(out)
-    paths["report"].write_text(json.dumps(report, indent=2) + "\n")
+    paths["report"] = write_report(report, out)
     d, s = report["dimensions"], report["uncertainty"]
     position = cast("list[float]", station_report["position_mm"])
     console().print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "

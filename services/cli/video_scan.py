@@ -24,10 +24,10 @@ from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.video.frames import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
 from prismcore.video.point_search import FrameSearch
 from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
-from prismcore.video.summary import DIMENSIONS, frame_info, summarize
+from prismcore.video.summary import DIMENSIONS, frame_info, video_summary
 
 from .console import rich_console as console
-from .outputs import report_path, write_outputs, write_overlays
+from .outputs import write_scan
 
 __all__ = ["scan_video"]
 
@@ -73,9 +73,7 @@ def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo,
     result.report["frame"] = frame_info(index, info.fps)
     result.report["timings_ms"]["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
-    write_outputs(result, one, folder, [frame])
-    write_overlays(result.report, frame, None, folder, overlay_format)
-    report_path(folder).write_text(json.dumps(result.report, indent=2) + "\n")
+    write_scan(result, one, folder, [frame], overlay_format, report=True)
     return result.report
 
 
@@ -164,13 +162,9 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
         for index in indices:
             per_frame.setdefault(index, {"error": str(exc)})
         console().print(f"[red]decoding stopped:[/] {exc}")
-    summary = summarize(per_frame, fps=info.fps or None)
-    summary["video"] = {"path": str(path), **asdict(info)}
-    summary["selection"] = spec.frames.model_dump(mode="json", exclude_none=True)
-    if found is not None:
-        summary["focal"] = {"pooled_px": round(found[0].focal_px, 3), "std_px": round(found[0].std_px, 3),
-                            "frames": found[1]}
-    summary.update(extra or {})
+    summary = video_summary(per_frame, fps=info.fps or None, video={"path": str(path), **asdict(info)},
+                            selection=spec.frames, pooled=pooled, pooled_frames=found[1] if found else (),
+                            extra=extra)
     out.mkdir(parents=True, exist_ok=True)
     (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
     if not summary["frames"]["measured"]:

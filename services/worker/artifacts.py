@@ -33,15 +33,12 @@ from __future__ import annotations
 
 import io
 import json
-import mimetypes
 import tempfile
-import time
 from collections import OrderedDict
 from collections.abc import Callable
 from functools import lru_cache, partial
-from typing import Any, BinaryIO
+from typing import Any
 
-import cv2
 import numpy as np
 from prism_common.records import ItemResult
 from prism_common.storage import object_key
@@ -50,25 +47,18 @@ from prismcore import ScanPlan, ScanResult, ScanSpec
 from prismcore.geometry.edges import EdgeFit
 from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
 from prismcore.io.images import load_image
-from prismcore.outputs.overlay_report import given_dimension, overlay_from_report
-from prismcore.outputs.writers import (
-    DEFAULT_OVERLAY_FORMAT,
-    FILE_NAMES,
-    encode_overlay,
-    overlay_name,
-    write_format,
-    write_part,
-    write_ply,
-)
-from prismcore.scan.cloud import decimate
+from prismcore.outputs.overlay_report import given_dimension
+from prismcore.outputs.sink import Writer, write_part_files
+from prismcore.outputs.sink import write_outputs as write_scan_outputs
+from prismcore.outputs.writers import DEFAULT_OVERLAY_FORMAT
 from prismcore.scan.colour_scan import FacePlan, row_tiles
 from prismcore.scan.focal import prepare_images
 from prismcore.scan.measure import Dimensions
-from prismcore.spec import frame_folder, output_files
+from prismcore.spec import frame_folder
 
 from .context import WorkerContext
 
-__all__ = ["Tile", "cached_image", "cached_plan", "cached_prepared",
+__all__ = ["StoreSink", "Tile", "cached_image", "cached_plan", "cached_prepared",
            "dumps_plan", "exif_focal_px", "frame_key", "item_key", "item_result", "job_key", "loads_plan",
            "pack_tile", "plan_from_json", "plan_tiles", "plan_to_json", "put_part_files", "tile_id",
            "tile_key", "unpack_tile", "write_outputs"]
@@ -201,67 +191,49 @@ _SPOOL_BYTES = 64 * 2**20
 # is 1.4 MB, more than a compact LAZ cloud).
 OVERLAY_MAX_SIDE = 800
 OVERLAY_FORMAT = DEFAULT_OVERLAY_FORMAT
-_OVERLAY_TYPE = mimetypes.guess_type(overlay_name("overlay", OVERLAY_FORMAT))[0] or "application/octet-stream"
-_CONTENT_TYPES = {"csv": "text/csv", "ply": "application/octet-stream", "preview": "application/octet-stream",
-                  "report": "application/json", "overlay": _OVERLAY_TYPE, "overlay_side": _OVERLAY_TYPE,
-                  "las": "application/vnd.las", "laz": "application/vnd.laszip", "glb": "model/gltf-binary",
-                  "step": "model/step", "step_meta": "application/json", "drawing_svg": "image/svg+xml",
-                  "drawing_pdf": "application/pdf", "drawing_dxf": "image/vnd.dxf"}
-"""The media type each stored file is served with (IANA's: model/step, image/vnd.dxf)."""
 
 
-def _put(ctx: WorkerContext, key: str, kind: str, write: Callable[[BinaryIO], object]) -> float:
-    """Write a file with `write` and upload it; returns the writing time in ms."""
-    with tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES) as spool:
-        start = time.perf_counter()
-        write(spool)  # type: ignore[arg-type]
-        elapsed = (time.perf_counter() - start) * 1000
-        spool.seek(0)
-        ctx.objects.put_stream(key, spool, _CONTENT_TYPES[kind])  # type: ignore[arg-type]
-    return elapsed
+class StoreSink:
+    """A `prismcore.outputs.sink.Sink` into the object store: each file under `key(name)`.
+
+    A file given by its writer is written to a spooled temporary file (in memory while small,
+    on disk beyond), then streamed, so a large cloud does not sit in memory twice."""
+
+    def __init__(self, ctx: WorkerContext, key: Callable[[str], str]) -> None:
+        self._objects = ctx.objects
+        self._key = key
+
+    def put(self, name: str, data: bytes | Writer, media_type: str) -> None:
+        if isinstance(data, bytes):
+            self._objects.put_bytes(self._key(name), data, media_type)
+            return
+        with tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES) as spool:
+            data(spool)  # type: ignore[arg-type]
+            spool.seek(0)
+            self._objects.put_stream(self._key(name), spool, media_type)  # type: ignore[arg-type]
 
 
 def write_outputs(ctx: WorkerContext, job_id: str, item: int, spec: ScanSpec, result: ScanResult,
                   images: list[np.ndarray], *, frame: int | None = None) -> tuple[ItemResult, dict[str, str]]:
     """Write the formats the spec asks for, the preview, the overlay of the fit on each photo
     (`images`: the front photo, and the side photo in two-photo mode, as decoded), then
-    report.json; returns the item's result and the object key of each file written ({"csv":
-    key, "ply": key, "preview": key, "overlay": key, "report": key}); for a video's `frame`,
-    under that frame's folder."""
-    cloud, report = result.cloud, result.report
-    overlays = {"overlay": "front"} | ({"overlay_side": "side"} if spec.two_photo else {})
-    files = output_files(spec.formats)  # step and drawing write several files each
-    kinds = (*files, "preview", *overlays, "report")
-    names = {kind: overlay_name(kind, OVERLAY_FORMAT) if kind in overlays else FILE_NAMES[kind]
-             for kind in kinds}
-    keys = {kind: item_key(job_id, item, names[kind]) if frame is None
-            else frame_key(job_id, item, frame, names[kind]) for kind in kinds}
-    for kind in files:
-        ms = _put(ctx, keys[kind], kind, partial(write_format, kind, cloud=cloud, spec=spec,
-                                                 report=report, images=images))
-        report["timings_ms"][f"write_{kind}"] = round(ms, 3)
-    preview = decimate(cloud)
-    _put(ctx, keys["preview"], "preview", lambda f: write_ply(f, preview.points, preview.colors))
-    started = time.perf_counter()
-    for overlay, photo in overlays.items():
-        picture = overlay_from_report(images[0 if photo == "front" else 1], report, photo=photo)
-        ctx.objects.put_bytes(keys[overlay], encode_overlay(_display_size(picture), OVERLAY_FORMAT),
-                              _CONTENT_TYPES[overlay])
-    report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
-    text = (json.dumps(report, indent=2) + "\n").encode()
-    ctx.objects.put_bytes(keys["report"], text, _CONTENT_TYPES["report"])
-    return item_result(report), keys
+    report.json (the engine's `write_outputs`); returns the item's result and the object key of
+    each file written ({"csv": key, "ply": key, "preview": key, "overlay": key, "report": key});
+    for a video's `frame`, under that frame's folder."""
+    def key(name: str) -> str:
+        return item_key(job_id, item, name) if frame is None else frame_key(job_id, item, frame, name)
+
+    names = write_scan_outputs(result, StoreSink(ctx, key), spec=spec, images=images, preview=True,
+                               overlay_format=OVERLAY_FORMAT, overlay_max_side=OVERLAY_MAX_SIDE)
+    return item_result(result.report), {kind: key(name) for kind, name in names.items()}
 
 
 def put_part_files(ctx: WorkerContext, job_id: str, item: int, formats: list[str],
                    measured: dict[str, Any]) -> dict[str, str]:
     """Store the part's files of `formats` (step, drawing) written from `measured` (a joint fit's
     report with its quality and scale: it makes no cloud); returns {kind: key}."""
-    keys = {}
-    for kind in output_files(formats):
-        keys[kind] = item_key(job_id, item, FILE_NAMES[kind])
-        _put(ctx, keys[kind], kind, partial(write_part, kind, report=measured))
-    return keys
+    names = write_part_files(measured, formats, StoreSink(ctx, partial(item_key, job_id, item)))
+    return {kind: item_key(job_id, item, name) for kind, name in names.items()}
 
 
 def item_result(report: dict[str, Any]) -> ItemResult:
@@ -287,17 +259,6 @@ def station_check(report: dict[str, Any]) -> dict[str, Any] | None:
     if "verification" not in found:
         return None
     return {"verification": found["verification"], "drift": found["drift"]}
-
-
-def _display_size(picture: np.ndarray, max_side: int = OVERLAY_MAX_SIDE) -> np.ndarray:
-    """`picture` (H, W, 3) uint8 shrunk (area-averaged) to at most `max_side` px along its
-    longer side; as it is when already that small."""
-    h, w = picture.shape[:2]
-    if max(h, w) <= max_side:
-        return picture
-    scale = max_side / max(h, w)
-    return cv2.resize(picture, (max(1, round(w * scale)), max(1, round(h * scale))),
-                      interpolation=cv2.INTER_AREA)
 
 
 # -- per-process caches ------------------------------------------------------------------------

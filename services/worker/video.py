@@ -66,7 +66,7 @@ from prismcore.spec import SUMMARY_NAME, TRACKED_NAME
 from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
 from prismcore.video.point_search import FrameSearch
 from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
-from prismcore.video.summary import frame_info, summarize
+from prismcore.video.summary import frame_info, summarize, video_summary
 from prismcore.video.tracked import (
     Tracking,
     check_points_frame,
@@ -411,29 +411,30 @@ def _finish_video(ctx: WorkerContext, job_id: str, item: int, frames: dict[str, 
         return
     if view.item.state not in FINAL_STATES:  # else a repeat: only complete it
         records = store.get_frames(job_id, item, frames["frames"])
-        summary = summarize({n: {"dimensions": r.result.dimensions} if r.result else {"error": r.error}
-                             for n, r in records.items()}, fps=frames["video"]["fps"] or None)
+        per_frame = {n: {"dimensions": r.result.dimensions} if r.result else {"error": r.error}
+                     for n, r in records.items()}
         measured = [r.result for r in records.values() if r.result is not None]
         if not measured:
-            first = summary["failed"][0]
+            first = summarize(per_frame)["failed"][0]
             lifecycle.fail_item(ctx, job_id, item, f"no frame could be measured (frame {first['frame']}: "
                                            f"{first['error']})")
         else:
-            # The same document as the CLI's summary.json; the video named by its reference.
-            summary["video"] = {"reference": view.item.spec.image, **frames["video"]}
             selection = view.item.spec.frames
             assert selection is not None  # a video item's spec has one
-            summary["selection"] = selection.model_dump(mode="json", exclude_none=True)
-            if (pooled := _pooled(ctx, item_key(job_id, item, FOCAL_NAME))) is not None:
-                summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
-                                    "frames": list(pooled.used)}
+            pooled = _pooled(ctx, item_key(job_id, item, FOCAL_NAME))
             outputs: dict[str, str] = {}
             warnings: list[str] = []
+            extra: dict[str, Any] = {}
             if (points_frame := view.item.spec.points_frame) is not None:
                 outputs["tracked_points"] = tracked = item_key(job_id, item, TRACKED_NAME)
                 tracking = _tracking(ctx, tracked, points_frame)
-                summary["tracking"] = tracking.block()
+                extra["tracking"] = tracking.block()
                 warnings += tracking.warnings()
+            # The same document as the CLI's summary.json; the video named by its reference.
+            summary = video_summary(per_frame, fps=frames["video"]["fps"] or None,
+                                    video={"reference": view.item.spec.image, **frames["video"]},
+                                    selection=selection, pooled=pooled,
+                                    pooled_frames=pooled.used if pooled else (), extra=extra)
             key = item_key(job_id, item, SUMMARY_NAME)
             ctx.objects.put_json(key, summary)
             dims = {k: v["median"] for k, v in summary["dimensions"].items()}

@@ -1,6 +1,7 @@
 """The parts a job spec (`prismcore.spec.ScanSpec`) is made of: reference points and how they are
 parsed, the scales, the CSV options, a video's frame selection, where the zero-click search
-looks, and the output files' names. Pydantic only, like `prismcore.spec` (no numpy, no OpenCV).
+looks, and the output files' names (the format table's, `prismcore.formats`). Pydantic only,
+like `prismcore.spec` (no numpy, no OpenCV).
 """
 
 from __future__ import annotations
@@ -8,7 +9,6 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from collections.abc import Sequence
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -23,6 +23,7 @@ from pydantic import (
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from prismcore.bounds import MmPerPxValue, PositiveMm
+from prismcore.formats import FILE_NAMES, FORMATS, METRIC_FORMATS, PART_FORMATS, OutputFormat, output_files
 
 __all__ = [
     "FILE_NAMES",
@@ -59,14 +60,6 @@ Point = tuple[FiniteFloat, FiniteFloat]
 """An image position (x, y) in pixels: x = column, y = row, origin at the image's top-left
 pixel centre."""
 
-FILE_NAMES = {"csv": "cloud.csv", "ply": "cloud.ply", "report": "report.json", "preview": "preview.ply",
-              "summary": "summary.json", "overlay": "overlay.png", "overlay_side": "overlay_side.png",
-              "las": "cloud.las", "laz": "cloud.laz", "glb": "box.glb", "joint": "joint.json",
-              "tracked_points": "tracked_points.json", "step": "part.step", "step_meta": "part.step.json",
-              "drawing_svg": "drawing.svg", "drawing_pdf": "drawing.pdf", "drawing_dxf": "drawing.dxf"}
-"""The file name of each output kind, the same in the CLI's folders and the service's keys
-(here, not in writers, so the API can use it without loading numpy)."""
-
 SUMMARY_NAME = "summary.json"
 """The file name of a video job's summary across its frames (beside the frames' folders)."""
 
@@ -91,29 +84,6 @@ def frame_folder(index: int) -> str:
     """The folder (CLI) or key prefix (service) of one frame's outputs: ``frame_000123``."""
     return f"frame_{index:06d}"
 
-
-OutputFormat = Literal["csv", "ply", "las", "laz", "glb", "step", "drawing"]
-
-FORMATS: tuple[OutputFormat, ...] = ("csv", "ply", "las", "laz", "glb", "step", "drawing")
-"""The output formats a spec may ask for: the cloud as CSV, PLY, LAS or LAZ (compressed LAS),
-the fitted box as a textured binary glTF model (glb), the part as a STEP solid (step: part.step
-and its sidecar part.step.json) and its dimensioned drawing (drawing: drawing.svg, drawing.pdf
-and drawing.dxf)."""
-
-METRIC_FORMATS: tuple[OutputFormat, ...] = ("las", "laz", "glb", "step", "drawing")
-PART_FORMATS: tuple[OutputFormat, ...] = ("step", "drawing")
-"""The formats written from the measurement alone (the part's STEP solid and drawing): a joint fit
-has them too."""
-"""The formats in millimetres (or metres): a scan without a scale, in pixels, cannot have them."""
-
-_FORMAT_FILES: dict[str, tuple[str, ...]] = {"step": ("step", "step_meta"),
-                                             "drawing": ("drawing_svg", "drawing_pdf", "drawing_dxf")}
-
-
-def output_files(formats: Sequence[str]) -> list[str]:
-    """The file kinds (`FILE_NAMES`' keys) the formats write, in order: a format writes the file
-    of its own name, except step (the solid and its JSON sidecar) and drawing (SVG, PDF, DXF)."""
-    return [kind for f in formats for kind in _FORMAT_FILES.get(f, (f,))]
 
 _POINT_NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
 

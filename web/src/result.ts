@@ -6,6 +6,7 @@
 
 import { call, message } from "./api";
 import type { ColourMode } from "./colours";
+import { LINKS } from "./formats";
 import { jointFocal, jointLine, jointOf, jointTable } from "./joint-result";
 import { pixelsNote } from "./pixels";
 import { ResultsTableView } from "./results-table";
@@ -17,10 +18,6 @@ import { type BoxAnnotation, Viewer } from "./viewer";
 import { DIMENSIONS as DIMS, flag, warningList } from "./warnings";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
-const LINKS: [string, string][] = [["csv", "Cloud (CSV)"], ["ply", "Cloud (PLY)"], ["las", "Cloud (LAS)"],
-  ["laz", "Cloud (LAZ)"], ["glb", "Box model (glTF .glb)"], ["step", "CAD solid (STEP)"],
-  ["step_meta", "CAD solid's dimensions (JSON)"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_svg", "Drawing (SVG)"],
-  ["drawing_dxf", "Drawing (DXF)"], ["report", "Report (JSON)"], ["joint", "Report (JSON)"], ["overlay", "Fit overlay"]];
 // The overlay's picture format, named by its file's suffix: a JPEG (overlay.jpg) since the
 // worker stores one, a PNG (overlay.png) for a job stored before.
 const PICTURES: Record<string, string> = { jpg: "JPEG", jpeg: "JPEG", png: "PNG", webp: "WebP" };

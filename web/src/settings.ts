@@ -1,6 +1,7 @@
 // Step 3 of the page: tolerance, method, cloud kind, outputs, scale and focal length, read into the
 // matching fields of the scan spec; a field left wrong gets a sentence naming it.
 
+import { METRIC } from "./formats";
 import type { Scale, ScanSpec } from "./types";
 
 const $ = <T extends HTMLElement>(id: string) => document.getElementById(id) as T;
@@ -8,9 +9,6 @@ const value = (id: string) => $<HTMLInputElement | HTMLSelectElement>(id).value;
 
 export type Settings = Pick<ScanSpec, "tolerance" | "method" | "cloud" | "scale" | "focal_px" | "side_face"
   | "nominal" | "tolerance_mm" | "formats">;
-
-/** Formats in millimetres: they need a scale (prismcore.spec). */
-const METRIC = ["las", "laz", "glb", "step", "drawing"];
 
 export class SettingsForm {
   /** `joint`: several photos of one part are marked, to be measured as one box (a known edge). */

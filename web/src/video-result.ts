@@ -2,14 +2,13 @@
 // small table) and the list of frames, each with its state, dimensions or error, and downloads.
 
 import type { Dimension, Frame, Item, Summary } from "./types";
+import { FRAME_LINKS } from "./formats";
 import { pixelsNote } from "./pixels";
 import { warningList } from "./warnings";
 
 const DIMENSIONS: Dimension[] = ["width", "height", "depth"];
 // A frame has the formats its item asked for (the service's default: CSV and PLY unless the operator chose others,
-// LAZ, glb, STEP and the drawing only with a scale) and its report.
-const FRAME_LINKS: [string, string][] = [["csv", "CSV"], ["ply", "PLY"], ["las", "LAS"], ["laz", "LAZ"],
-  ["glb", "Box model"], ["step", "STEP"], ["drawing_pdf", "Drawing (PDF)"], ["drawing_dxf", "DXF"], ["report", "Report"]];
+// LAZ, glb, STEP and the drawing only with a scale) and its report: FRAME_LINKS (the format table's) links them.
 
 const el = <K extends keyof HTMLElementTagNameMap>(tag: K, text = "", attrs: Record<string, string> = {}) => {
   const node = document.createElement(tag);

@@ -108,8 +108,8 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
 
 
 def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]:
-    """The item's formats: its own, else the operator's defaults it can have (las, laz, glb, step
-    and drawing need a scale: METRIC_FORMATS), else csv and ply. A joint fit (views, or a video's
+    """The item's formats: its own, else the operator's defaults it can have (the format table's
+    METRIC_FORMATS need a scale), else csv and ply. A joint fit (views, or a video's
     frames fitted as one box) writes no cloud and keeps the spec's own (the spec allows no other)."""
     joint = getattr(spec, "views", None) is not None or getattr(spec, "fit", None) == "joint"
     if "formats" in spec.model_fields_set or joint:

@@ -21,6 +21,8 @@ from prism_common.records import FrameRecord, ItemRecord
 from prism_common.storage import ObjectStore
 from prism_common.store import JobStore
 
+from prismcore.formats import media_type
+
 from ..deps import ObjectsDep, StoreDep, TenantDep
 from ..relay import relay_object
 from .jobs import own_job
@@ -35,7 +37,6 @@ _RESPONSES: dict[int | str, dict[str, Any]] = {
     200: _PLY, 404: {"description": "No such job, item, frame or preview"}
 }
 Index = Annotated[int, Path(ge=0)]
-_MEDIA = {"overlay": "image/jpeg", "glb": "model/gltf-binary", "tracked_points": "application/json"}
 
 
 def _item(store: JobStore, job_id: str, index: int, tenant: str) -> ItemRecord:
@@ -49,9 +50,9 @@ def _relay(objects: ObjectStore, key: str | None, what: str, noun: str, state: s
            kind: str = "preview") -> StreamingResponse:
     if key is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"{what} has no {kind} (the {noun} is {state})")
-    media = _MEDIA.get(kind, "application/octet-stream")
+    media = media_type(kind)  # the format table's
     if kind == "overlay":  # a JPEG (overlay.jpg), or a PNG for a job from before
-        media = _OVERLAY_MEDIA.get(PurePosixPath(key).suffix, media)
+        media = _OVERLAY_MEDIA.get(PurePosixPath(key).suffix, "image/jpeg")
     response = relay_object(objects, key, media, max_age_s=300)
     if response is None:
         raise HTTPException(status.HTTP_404_NOT_FOUND, f"the {kind} of {what} is gone")

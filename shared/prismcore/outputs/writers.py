@@ -33,8 +33,8 @@ import numpy as np
 import polars as pl
 
 from prismcore.errors import InputError
+from prismcore.formats import FILE_NAMES, PART_FORMATS, output_files
 from prismcore.outputs.cloud_check import check_cloud
-from prismcore.spec import FILE_NAMES
 
 if TYPE_CHECKING:
     from prismcore.scan.cloud import Cloud
@@ -236,9 +236,9 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
     return (time.perf_counter() - start) * 1000
 
 
-PART_FILES = ("step", "step_meta", "drawing_svg", "drawing_pdf", "drawing_dxf")
-"""The part's CAD files (formats step and drawing): written from a report alone, so a joint fit,
-which makes no cloud, has them too."""
+PART_FILES = tuple(output_files(PART_FORMATS))
+"""The part's CAD files (the format table's part formats: step and drawing): written from a report
+alone, so a joint fit, which makes no cloud, has them too."""
 
 
 def write_part(kind: str, dest: Dest, report: Mapping[str, Any], when: datetime | None = None) -> float:
@@ -262,7 +262,12 @@ def _cad_file(kind: str, report: Mapping[str, Any], when: datetime) -> bytes:
     """The bytes of one of the part's CAD files (`_CAD_FILES`)."""
     from prismcore.outputs.part import part_from_report
 
-    part = part_from_report(report, "the step format" if kind.startswith("step") else "the drawing")
+    part = part_from_report(report, "the step format" if kind.startswith("step")
+                            else "the stl format" if kind == "stl" else "the drawing")
+    if kind == "stl":
+        from prismcore.outputs.stl import box_stl
+
+        return box_stl(part)
     if kind == "step":
         from prismcore.outputs.step import step_bytes
 

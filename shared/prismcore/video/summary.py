@@ -1,15 +1,20 @@
 """A video job's summary: how repeatable each dimension is across the frames measured.
 
 Pure: report dicts in, a JSON-ready dict out (stdlib only, so any service part can build it).
+`video_summary` is summary.json, the same document from the CLI and the worker.
 """
 
 from __future__ import annotations
 
 import statistics
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["DECIMALS", "DIMENSIONS", "frame_info", "summarize"]
+if TYPE_CHECKING:
+    from prismcore.scan.focal import PooledFocal
+    from prismcore.spec import FrameSelection
+
+__all__ = ["DECIMALS", "DIMENSIONS", "frame_info", "summarize", "video_summary"]
 
 DIMENSIONS = ("width", "height", "depth")
 DECIMALS = 6  # the figures are rounded to this many decimals (the reports' dimensions have 4)
@@ -89,3 +94,35 @@ def summarize(per_frame: Mapping[int, Mapping[str, Any]], *, fps: float | None =
         "per_frame": measured,
         "failed": failed,
     }
+
+
+def video_summary(per_frame: Mapping[int, Mapping[str, Any]], *, fps: float | None,
+                  video: Mapping[str, Any], selection: FrameSelection, pooled: PooledFocal | None = None,
+                  pooled_frames: Sequence[int] = (), extra: Mapping[str, Any] | None = None
+                  ) -> dict[str, Any]:
+    """A video's summary.json: `summarize`'s figures, then the video, the frames selected, the
+    focal length pooled over the frames (when one was) and `extra` blocks, in that order.
+
+    Parameters
+    ----------
+    per_frame, fps
+        As `summarize`.
+    video : mapping
+        What names and describes the video: the CLI's path, the service's reference, with the
+        probe's frame count, fps, size, codec and duration.
+    selection : FrameSelection
+        The spec's `frames`.
+    pooled : PooledFocal, optional
+        The focal length pooled over the frames' own fits; `pooled_frames` the frames it was
+        pooled over.
+    extra : mapping, optional
+        More blocks (the tracking of points marked on one frame: ``{"tracking": ...}``).
+    """
+    summary = summarize(per_frame, fps=fps)
+    summary["video"] = dict(video)
+    summary["selection"] = selection.model_dump(mode="json", exclude_none=True)
+    if pooled is not None:
+        summary["focal"] = {"pooled_px": round(pooled.focal_px, 3), "std_px": round(pooled.std_px, 3),
+                            "frames": list(pooled_frames)}
+    summary.update(extra or {})
+    return summary

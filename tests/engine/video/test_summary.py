@@ -56,3 +56,21 @@ def test_inconsistent_reports_are_refused():
         summarize({0: _report(1, 2, 3, "mm"), 1: _report(1, 2, 3, "px")})
     with pytest.raises(ValueError, match="frame 4: the report has no dimensions and no error"):
         summarize({4: {"points": 10}})
+
+
+def test_summary_json_adds_the_video_the_selection_the_focal_and_extra_blocks_in_order():
+    from prismcore.scan.focal import PooledFocal
+    from prismcore.spec import FrameSelection
+    from prismcore.video.summary import video_summary
+
+    per_frame = {0: _report(10, 20, 30), 10: _report(11, 21, 31), 20: {"error": "no box"}}
+    summary = video_summary(per_frame, fps=10.0, video={"path": "v.mp4", "fps": 10.0},
+                            selection=FrameSelection(every=10), pooled=PooledFocal(1400.04, 2.0004, (0, 1)),
+                            pooled_frames=[0, 10], extra={"tracking": {"frame": 0}})
+    assert summary == {**summarize(per_frame, fps=10.0), "video": {"path": "v.mp4", "fps": 10.0},
+                       "selection": {"every": 10},
+                       "focal": {"pooled_px": 1400.04, "std_px": 2.0, "frames": [0, 10]},
+                       "tracking": {"frame": 0}}
+    assert list(summary)[-4:] == ["video", "selection", "focal", "tracking"]
+    plain = video_summary(per_frame, fps=None, video={}, selection=FrameSelection(every=10))
+    assert "focal" not in plain and list(plain)[-2:] == ["video", "selection"]
