@@ -18,11 +18,10 @@ from typing import Any
 from rich.markup import escape
 
 from prismcore import InputError
-from prismcore.io.images import load_image
-from prismcore.multiview.joint import JointResult, View, fit_views
-from prismcore.multiview.report import joint_report
-from prismcore.outputs.writers import write_part
-from prismcore.quality.verdicts import quality_from_report
+from prismcore.io import load_image
+from prismcore.multiview import JointResult, View, fit_views, joint_report
+from prismcore.outputs import write_part
+from prismcore.quality import quality_from_report
 from prismcore.spec import FILE_NAMES, PART_FORMATS, KnownEdge, ScanSpec, output_files
 
 from .console import rich_console as console

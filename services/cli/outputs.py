@@ -8,15 +8,15 @@ from pathlib import Path
 import numpy as np
 
 from prismcore import ScanResult, ScanSpec
-from prismcore.outputs.overlay_report import overlay_from_report
-from prismcore.outputs.writers import (
+from prismcore.outputs import (
     DEFAULT_OVERLAY_FORMAT,
-    FILE_NAMES,
     encode_overlay,
+    overlay_from_report,
     overlay_name,
     write_format,
 )
 from prismcore.spec import output_files
+from prismcore.spec_fields import FILE_NAMES
 
 __all__ = ["report_path", "write_outputs", "write_overlays"]
 

@@ -47,24 +47,21 @@ from prism_common.records import ItemResult
 from prism_common.storage import object_key
 
 from prismcore import ScanPlan, ScanResult, ScanSpec
-from prismcore.geometry.edges import EdgeFit
-from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
-from prismcore.io.images import load_image
-from prismcore.outputs.overlay_report import given_dimension, overlay_from_report
-from prismcore.outputs.writers import (
+from prismcore.geometry import EdgeFit
+from prismcore.io import EXIF_HEAD_BYTES, exif_focal, load_image
+from prismcore.outputs import (
     DEFAULT_OVERLAY_FORMAT,
-    FILE_NAMES,
     encode_overlay,
+    given_dimension,
+    overlay_from_report,
     overlay_name,
     write_format,
     write_part,
     write_ply,
 )
-from prismcore.scan.cloud import decimate
-from prismcore.scan.colour_scan import FacePlan, row_tiles
-from prismcore.scan.focal import prepare_images
-from prismcore.scan.measure import Dimensions
+from prismcore.scan import Dimensions, FacePlan, decimate, prepare_images, row_tiles
 from prismcore.spec import frame_folder, output_files
+from prismcore.spec_fields import FILE_NAMES
 
 from .context import WorkerContext
 
