@@ -17,7 +17,7 @@ import os
 import zlib
 from typing import Any
 
-from prismcore.io.containers import HEAD_BYTES, video_container
+from prismcore.io import HEAD_BYTES, video_container
 
 __all__ = ["ImageEnd", "Unsupported", "detect_type", "is_video_head", "probe_image_head",
            "probe_video_file"]
@@ -343,11 +343,11 @@ def probe_image_head(head: bytes, *, complete: bool, name: str) -> dict[str, Any
         Not one of the engine's photo formats, and not a video.
     """
     from prismcore.errors import InputError
-    from prismcore.io.images import _sniff, probe_image
+    from prismcore.io import probe_image, sniff_format
 
     label = repr(name)
     try:
-        fmt = _sniff(head, label)
+        fmt = sniff_format(head, label)
     except InputError:
         raise Unsupported(detect_type(head)) from None
     try:
@@ -368,7 +368,7 @@ def probe_video_file(path: str | os.PathLike, *, head: bytes, name: str) -> dict
     still hold frames a worker measures, so it is recorded, not refused).
     """
     from prismcore.errors import InputError
-    from prismcore.io.video_decode import probe_video
+    from prismcore.io import probe_video
 
     container = (video_container(head[:HEAD_BYTES]) or "video").upper()
     try:

@@ -30,7 +30,7 @@ from prismcore.spec import (
     search_area_problem,
     view_spec,
 )
-from prismcore.video.span import points_frame_problem, span_problem
+from prismcore.video import points_frame_problem, span_problem
 
 from .schemas import JobCreate
 
@@ -46,37 +46,20 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
     """Why the engine would refuse `points` on photos of `front` and `side` size (height, width
     px, as the engine sees them), and the point at fault (None: the points as a whole); or None.
 
-    The checks `prismcore.scan.pipeline.plan_scan` makes before it looks at a pixel: every point in
-    its photo, each face's corners in order, convex and apart.
+    The checks `prismcore.scan.plan_scan` makes before it looks at a pixel (`prismcore.scan.check_points`
+    and `marked_quads`): every point in its photo, each face's corners in order, convex and apart.
     """
     # The engine (numpy) is imported on the first job whose photos have known sizes.
     from prismcore.errors import InputError
-    from prismcore.geometry.faces import (
-        clicked_quads,
-        paper_rectangles,
-        quad_labels,
-        resolve_side_face,
-        validate_points,
-        validate_quad,
-    )
-    from prismcore.scan.pipeline import _side_height_guess
+    from prismcore.scan import check_points, marked_quads
 
     try:
-        validate_points(points, front, side)
+        this = spec.model_copy(update={"points": points})
+        face = check_points(this, front, side)
         camera = spec.camera
         if camera is not None and camera.has_distortion:
             return None  # the engine checks the quads on undistorted points, after decoding
-        face = resolve_side_face(points, spec.side_face, two_photo=spec.two_photo)
-        labels: tuple[tuple[str | None, ...] | None, tuple[str | None, ...] | None]  # None: unnamed corners
-        if spec.method == "paper":
-            quads, labels = paper_rectangles(points, two_photo=spec.two_photo, side_face=face), (None, None)
-        else:
-            this = spec.model_copy(update={"points": points})
-            quads = clicked_quads(points, two_photo=spec.two_photo, side_height_px=_side_height_guess(this),
-                                  side_face=face)
-            labels = quad_labels(quads)
-        validate_quad(quads.front, "front face", front, labels=labels[0])
-        validate_quad(quads.side, "side face", side, labels=labels[1])
+        marked_quads(this, face, front, side)
     except InputError as exc:
         named = _POINT.search(str(exc))
         return (named.group(1) if named else None), str(exc)
@@ -128,8 +111,8 @@ def _selected(selection: FrameSelection, probe: dict[str, Any]) -> list[int] | N
     if selection.sharpest is not None:
         return None
     # Only for an item marked on one frame: the API loads no engine otherwise.
-    from prismcore.io.video_decode import VideoInfo
-    from prismcore.video.frames import select_frames
+    from prismcore.io import VideoInfo
+    from prismcore.video import select_frames
 
     fps = probe.get("fps")
     rate = float(fps) if isinstance(fps, int | float) else 0.0

@@ -72,7 +72,7 @@ def _photo_paths(images: list[Path]) -> list[Path]:
 
 
 def _photos(paths: list[Path], max_pixels: int) -> Iterator[tuple[str, np.ndarray]]:
-    from prismcore.io.images import load_image
+    from prismcore.io import load_image
 
     for path in paths:  # one decoded photo in memory at a time
         yield str(path), load_image(path, max_pixels=max_pixels)
@@ -97,7 +97,7 @@ def calibrate(
     """Calibrate a camera from photos of a printed chessboard; write its model for `prism scan --camera`."""
     import numpy as np
 
-    from prismcore.geometry.calibration import calibrate_images
+    from prismcore.geometry import calibrate_images
 
     cols_rows = parse_board(board)
     square = _positive_mm(square_mm)

@@ -17,12 +17,10 @@ from typing import Any
 
 from rich.markup import escape
 
-from prismcore import InputError
-from prismcore.io.images import load_image
-from prismcore.multiview.joint import JointResult, View, fit_views
-from prismcore.multiview.report import joint_report
-from prismcore.outputs import sink as output_sink
-from prismcore.quality.verdicts import quality_from_report
+from prismcore import InputError, outputs
+from prismcore.io import load_image
+from prismcore.multiview import JointResult, View, fit_views, joint_report
+from prismcore.quality import quality_from_report
 from prismcore.spec import PART_FORMATS, KnownEdge, ScanSpec
 
 from .console import rich_console as console
@@ -86,7 +84,7 @@ def write_part_files(report: dict[str, Any], scale: KnownEdge, formats: Sequence
     from a joint fit's report, with its verdicts against `nominal` and its scale; {kind: path}."""
     measured = {**report, "quality": quality_from_report(report, nominal, tolerance_mm),
                 "inputs": {"scale": scale.model_dump()}}
-    names = output_sink.write_part_files(measured, [f for f in formats if f in PART_FORMATS], FolderSink(out))
+    names = outputs.write_part_files(measured, [f for f in formats if f in PART_FORMATS], FolderSink(out))
     return {kind: out / name for kind, name in names.items()}
 
 

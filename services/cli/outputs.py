@@ -9,8 +9,7 @@ import numpy as np
 
 from prismcore import ScanResult, ScanSpec
 from prismcore.formats import FILE_NAMES
-from prismcore.outputs.sink import Writer, report_bytes, write_outputs
-from prismcore.outputs.writers import DEFAULT_OVERLAY_FORMAT
+from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, report_bytes, write_outputs
 
 __all__ = ["FolderSink", "write_report", "write_scan"]
 

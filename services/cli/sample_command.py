@@ -125,7 +125,7 @@ def _station_sample(folder: Path) -> None:
     import cv2
     import numpy as np
 
-    from prismcore.station.board import default_board
+    from prismcore.station import default_board
     from prismsynth.station import calibration_views, station_scene, station_setup
 
     def save(name: str, rgb: np.ndarray) -> None:

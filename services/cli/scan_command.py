@@ -209,7 +209,7 @@ def summary_line(report: dict) -> str:
     """'640,268 points  120.00 ± 0.14 x 79.99 ± 0.09 x 59.99 ± 0.51 mm  focal 1400 px (fitted)
     point loss 0.1%'; a known edge's dimension as '120.00 (given)'; points the search found
     as '  points found (confidence 0.99)' at the end."""
-    from prismcore.outputs.overlay_report import given_dimension, points_found
+    from prismcore.outputs import given_dimension, points_found
 
     dims, sigma = report["dimensions"], report.get("uncertainty") or {}
     given = given_dimension(report)
@@ -249,7 +249,7 @@ def quality_lines(quality: Mapping[str, Any] | None) -> list[str]:
 
 
 def _head(path: Path) -> bytes:
-    from prismcore.io.exif import EXIF_HEAD_BYTES
+    from prismcore.io import EXIF_HEAD_BYTES
 
     with path.open("rb") as fh:
         return fh.read(EXIF_HEAD_BYTES)
@@ -410,7 +410,7 @@ def scan(
                                                          depth_mm))) from None
         return
     one: Path | None = images[0] if images else None
-    from prismcore.io.video_decode import is_video
+    from prismcore.io import is_video
 
     try:
         selection = selection_from_flags(every, start, end, frame_list, sharpest)
@@ -473,9 +473,8 @@ def scan(
 
             scan_video(spec, base, out, tiles=tiles, max_frames=max_frames, overlay_format=overlay_format)
             return
-        from prismcore.io.exif import exif_focal
-        from prismcore.io.images import load_image
-        from prismcore.locate.auto_points import scan_found
+        from prismcore.io import exif_focal, load_image
+        from prismcore.locate import scan_found
 
         from .outputs import write_report, write_scan
 
@@ -487,7 +486,7 @@ def scan(
         load_ms = (time.perf_counter() - load_start) * 1000
         auto = None
         if spec.auto_points is not None:
-            from prismcore.locate.search import resolve_points
+            from prismcore.locate import resolve_points
 
             spec, auto = resolve_points(spec, front)
         result = scan_found(spec, auto.report() if auto else None, front, side_img, tiles=tiles,

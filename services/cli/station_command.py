@@ -18,8 +18,7 @@ if TYPE_CHECKING:
     import numpy as np
     from rich.console import Console
 
-    from prismcore.station.board import BoardSpec
-    from prismcore.station.calibrate import Station
+    from prismcore.station import BoardSpec, Station
 
 __all__ = ["board", "load_board", "load_station", "station_app"]
 
@@ -47,7 +46,7 @@ def load_board(path: Path) -> BoardSpec:
     """board.json as a BoardSpec; a bad file exits 2 naming the field."""
     from pydantic import ValidationError
 
-    from prismcore.station.board import BoardSpec
+    from prismcore.station import BoardSpec
 
     try:
         return BoardSpec.model_validate(json.loads(path.read_text()))
@@ -62,7 +61,7 @@ def load_board(path: Path) -> BoardSpec:
 def load_station(path: Path) -> Station:
     from pydantic import ValidationError
 
-    from prismcore.station.calibrate import Station
+    from prismcore.station import Station
 
     try:
         return Station.model_validate_json(path.read_text())
@@ -77,7 +76,7 @@ def _pdf(board_png: np.ndarray, spec: BoardSpec, paper: str, path: Path) -> None
     import numpy as np
     from PIL import Image, ImageDraw
 
-    from prismcore.station.board import PAPER_MM
+    from prismcore.station import PAPER_MM
 
     h_mm, w_mm = PAPER_MM[paper]
     px = _PDF_DPI / 25.4
@@ -113,7 +112,7 @@ def board(
     with a 100 mm check ruler) and board.json (what prism station calibrate reads)."""
     import cv2
 
-    from prismcore.station.board import board_image, default_board
+    from prismcore.station import board_image, default_board
 
     spec = default_board(paper, _squares(squares))
     spec = spec.model_copy(update={"png_px_per_mm": px_per_mm})
@@ -167,8 +166,8 @@ def calibrate(
     from pydantic import ValidationError
 
     from prismcore.camera import CameraModel
-    from prismcore.io.images import load_image
-    from prismcore.station.calibrate import calibrate_station
+    from prismcore.io import load_image
+    from prismcore.station import calibrate_station
 
     spec = load_board(board_file)
     cam = None
@@ -207,7 +206,7 @@ def calibrate(
         f"plane: {station.plane.corners} corners, RMS {station.plane.rms_px:.3f} px; camera "
         f"{-centre[2]:.0f} mm above the support"
     )
-    from prismcore.station.capability import capability_lines
+    from prismcore.station import capability_lines
 
     for line in capability_lines(station):
         console().print(line, markup=False)
@@ -227,8 +226,7 @@ def show(
     """What a station.json holds: its camera, support plane and plate, its capability (mm per pixel
     at the support's near and far edge, the smallest part and tolerance it can hold) and its
     verification (verified on DATE with each dimension's bias and repeatability, or not verified)."""
-    from prismcore.station.capability import capability_lines
-    from prismcore.station.certify import verification_status
+    from prismcore.station import capability_lines, verification_status
 
     station = load_station(station_file)
     c, info = station.camera, station.calibration

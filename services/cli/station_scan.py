@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from prismcore.camera import CameraModel
-    from prismcore.station.scan import StationScan
+    from prismcore.station import StationScan
 
 __all__ = ["certification_line", "scan_on_board_photo", "scan_on_station"]
 
@@ -32,8 +32,8 @@ def scan_on_station(
 ) -> dict[str, Any]:
     """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report.
     tolerance_mm (--tolerance-mm) is what the camera's drift is judged against."""
-    from prismcore.io.images import load_image
-    from prismcore.station.scan import scan_on_station as scan
+    from prismcore.io import load_image
+    from prismcore.station import scan_on_station as scan
 
     from .station_command import load_station
 
@@ -49,8 +49,8 @@ def scan_on_board_photo(
     max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
 ) -> dict[str, Any]:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
-    from prismcore.io.images import load_image
-    from prismcore.station.scan import scan_on_board
+    from prismcore.io import load_image
+    from prismcore.station import scan_on_board
 
     from .station_command import load_board
 

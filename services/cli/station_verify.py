@@ -19,13 +19,13 @@ from .station_command import console, load_station
 if TYPE_CHECKING:
     from prism_common.stations import VerificationPublic
 
-    from prismcore.station.verify import Verification
+    from prismcore.station import Verification
 
 __all__ = ["parse_reference", "verify"]
 
 def parse_reference(text: str) -> tuple[float, float, float]:
     """--reference W,D,H (mm) as three numbers; anything else exits 2 quoting it."""
-    from prismcore.station.certify import parse_reference as parse
+    from prismcore.station import parse_reference as parse
 
     return parse(text)
 
@@ -83,9 +83,8 @@ def verify(
     10 % of 2T, its %GRR is at most 30 %, and every placement lies within its 3 sigma. Exit 0
     verified, 1 not verified, 2 bad input (fewer than 5 placements, or placements not spread over
     the support, refused with the reason)."""
-    from prismcore.io.images import load_image
-    from prismcore.station.certify import verify_station
-    from prismcore.station.verify import check_count
+    from prismcore.io import load_image
+    from prismcore.station import check_count, verify_station
 
     size = parse_reference(reference)
     check_count(len(photos))

@@ -18,16 +18,16 @@ from typing import Any
 
 from rich.markup import escape
 
-from prismcore.io.video_decode import iter_frames, probe_video
-from prismcore.multiview.report import joint_report
+from prismcore.io import iter_frames, probe_video
+from prismcore.multiview import joint_report
 from prismcore.spec import JOINT_NAME, TRACKED_NAME, KnownEdge, ScanSpec
-from prismcore.video.frame_select import select_frames
-from prismcore.video.tracked import (
+from prismcore.video import (
     Tracking,
     check_points_frame,
     fit_tracked,
     joint_frames,
     per_frame_spec,
+    select_frames,
     track_video,
     tracked_json,
 )

@@ -19,12 +19,21 @@ import numpy as np
 from rich.table import Table
 
 from prismcore import InputError, ScanSpec
-from prismcore.locate.auto_points import scan_found
+from prismcore.io import VideoInfo, iter_frames
+from prismcore.locate import scan_found
 from prismcore.spec import SUMMARY_NAME, frame_folder
-from prismcore.video.frames import VideoInfo, frame_spec, iter_frames, probe_video, select_frames
-from prismcore.video.point_search import FrameSearch
-from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
-from prismcore.video.summary import DIMENSIONS, frame_info, video_summary
+from prismcore.video import (
+    DIMENSIONS,
+    FrameSearch,
+    PooledFocal,
+    focal_estimate,
+    frame_info,
+    frame_spec,
+    pool_focal,
+    probe_video,
+    select_frames,
+    video_summary,
+)
 
 from .console import rich_console as console
 from .outputs import write_scan

@@ -149,7 +149,7 @@ def summary_key(tenant: str, station_id: str) -> str:
 
 def station_summary(station: Station, station_id: str, *, name: str | None, created_at: datetime,
                     size: int) -> StationPublic:
-    from prismcore.station.capability import capability
+    from prismcore.station import capability
 
     camera = station.camera
     calibration = {k: v for k, v in station.calibration.items() if k != "views_left_out"}
@@ -165,7 +165,7 @@ def station_summary(station: Station, station_id: str, *, name: str | None, crea
 
 
 def _status(station: Station) -> StationStatusPublic:
-    from prismcore.station.certify import verification_status
+    from prismcore.station import verification_status
 
     found = verification_status(station.verification, moved=False)
     return StationStatusPublic.model_validate({k: found[k] for k in StationStatusPublic.model_fields})

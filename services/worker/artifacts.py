@@ -44,16 +44,11 @@ from prism_common.records import ItemResult
 from prism_common.storage import object_key
 
 from prismcore import ScanPlan, ScanResult, ScanSpec
-from prismcore.geometry.edges import EdgeFit
-from prismcore.io.exif import EXIF_HEAD_BYTES, exif_focal
-from prismcore.io.images import load_image
-from prismcore.outputs.overlay_report import given_dimension
-from prismcore.outputs.sink import Writer, write_part_files
-from prismcore.outputs.sink import write_outputs as write_scan_outputs
-from prismcore.outputs.writers import DEFAULT_OVERLAY_FORMAT
-from prismcore.scan.colour_scan import FacePlan, row_tiles
-from prismcore.scan.focal import prepare_images
-from prismcore.scan.measure import Dimensions
+from prismcore.geometry import EdgeFit
+from prismcore.io import EXIF_HEAD_BYTES, exif_focal, load_image
+from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, given_dimension, write_part_files
+from prismcore.outputs import write_outputs as write_scan_outputs
+from prismcore.scan import Dimensions, FacePlan, prepare_images, row_tiles
 from prismcore.spec import frame_folder
 
 from .context import WorkerContext

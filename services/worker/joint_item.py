@@ -30,14 +30,18 @@ from typing import Any
 from prism_common.records import ItemResult, ItemView
 
 from prismcore import InputError
-from prismcore.io.images import load_image
-from prismcore.io.video_decode import VideoInfo
-from prismcore.multiview.joint import View, fit_views
-from prismcore.multiview.report import joint_report
-from prismcore.quality.verdicts import quality_from_report
+from prismcore.io import VideoInfo, iter_frames, load_image
+from prismcore.multiview import View, fit_views, joint_report
+from prismcore.quality import quality_from_report
 from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, TRACKED_NAME, KnownEdge, ScanSpec
-from prismcore.video.frames import iter_frames, probe_video, select_frames
-from prismcore.video.tracked import Tracking, check_points_frame, joint_frames, tracked_views
+from prismcore.video import (
+    Tracking,
+    check_points_frame,
+    joint_frames,
+    probe_video,
+    select_frames,
+    tracked_views,
+)
 
 from .artifacts import item_key, put_part_files
 from .context import WorkerContext

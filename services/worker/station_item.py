@@ -22,8 +22,8 @@ from prism_common.stations import station_key
 from prism_common.storage import is_missing
 
 from prismcore import InputError, ScanSpec
-from prismcore.io.images import load_image
-from prismcore.quality.verdicts import quality_from_report
+from prismcore.io import load_image
+from prismcore.quality import quality_from_report
 
 from .artifacts import item_key, item_result, write_outputs
 from .context import WorkerContext
@@ -81,7 +81,7 @@ def measure_station(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dic
     ReferenceError, FetchError
         An input that may not or could not be read.
     """
-    from prismcore.station.scan import scan_on_station
+    from prismcore.station import scan_on_station
 
     spec = view.item.spec
     assert spec.station is not None

@@ -31,11 +31,9 @@ from prism_common.records import ItemResult, ItemView
 from prism_common.storage import ObjectStore, is_missing
 
 from prismcore import ScanPlan, ScanSpec, finish_scan, plan_scan
-from prismcore.io.exif import exif_focal
-from prismcore.io.images import load_image
-from prismcore.locate.auto_points import found_box_guard, record_found, scan_found
-from prismcore.locate.search import resolve_points
-from prismcore.scan.colour_scan import merge_bands, scan_band
+from prismcore.io import exif_focal, load_image
+from prismcore.locate import found_box_guard, record_found, resolve_points, scan_found
+from prismcore.scan import merge_bands, scan_band
 
 from .artifacts import (
     Tile,

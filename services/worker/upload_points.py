@@ -28,8 +28,8 @@ from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, points_key, video_info_key
 
 from prismcore import InputError
-from prismcore.io.images import load_image
-from prismcore.locate.search import Found, find_points
+from prismcore.io import load_image
+from prismcore.locate import Found, find_points
 
 from . import video
 from .context import WorkerContext

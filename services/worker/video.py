@@ -59,22 +59,27 @@ from prism_common.storage import is_missing
 from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_key
 
 from prismcore import InputError, ReferencePoints, ScanSpec
-from prismcore.io.containers import HEAD_BYTES, video_container
-from prismcore.io.images import load_image
-from prismcore.locate.auto_points import scan_found
+from prismcore.io import HEAD_BYTES, iter_frames, load_image, video_container
+from prismcore.locate import scan_found
 from prismcore.spec import SUMMARY_NAME, TRACKED_NAME
-from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
-from prismcore.video.point_search import FrameSearch
-from prismcore.video.pooling import PooledFocal, focal_estimate, pool_focal
-from prismcore.video.summary import frame_info, summarize, video_summary
-from prismcore.video.tracked import (
+from prismcore.video import (
+    FrameSearch,
+    PooledFocal,
     Tracking,
     check_points_frame,
     check_points_frame_span,
+    focal_estimate,
+    frame_info,
+    frame_spec,
+    pool_focal,
+    probe_video,
+    select_frames,
+    summarize,
     track_video,
     tracked_frame_spec,
     tracked_json,
     tracked_span,
+    video_summary,
 )
 
 from . import lifecycle

@@ -41,7 +41,7 @@ def _resolve(name: str, modules: dict[str, Path]) -> str:
 def imports_of(path: Path, modules: dict[str, Path]) -> list[Import]:
     """Every import in the file at `path`, each resolved to the module it loads."""
     source = module_name(path)
-    is_package = path.name == "__init__.py"
+    is_package = path.stem == "__init__"
     found: list[Import] = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
         if isinstance(node, ast.Import):
@@ -68,8 +68,11 @@ def imports_of(path: Path, modules: dict[str, Path]) -> list[Import]:
 
 
 def engine_imports() -> list[Import]:
+    """Every import of the engine, its packages' faces (``__init__.pyi``, which name the modules
+    each public name is imported from on first use) included."""
     modules = engine_modules()
-    return [i for path in modules.values() for i in imports_of(path, modules)]
+    faces = [p.with_suffix(".pyi") for p in modules.values() if p.with_suffix(".pyi").exists()]
+    return [i for path in [*modules.values(), *faces] for i in imports_of(path, modules)]
 
 
 def module_graph() -> dict[str, set[str]]:

@@ -5,7 +5,9 @@ packages (docs/explanation/architecture.md) drawing exactly the imports there ar
 
 from __future__ import annotations
 
+import ast
 import importlib
+from pathlib import Path
 
 import pytest
 from import_graph import (
@@ -15,6 +17,7 @@ from import_graph import (
     engine_imports,
     engine_modules,
     module_graph,
+    module_name,
     package_graph,
     unit,
 )
@@ -22,7 +25,7 @@ from import_graph import (
 # Bottom to top: a unit may import only units of the layers below its own (not its siblings).
 # The contract callers hand the engine comes first, then the stages in the order a scan uses them.
 LAYERS: list[set[str]] = [
-    {"_lazy", "_version", "errors", "formats"},
+    {"_version", "errors", "formats"},
     {"bounds"},
     {"camera"},
     {"spec_fields"},
@@ -102,7 +105,7 @@ def test_public_names_import():
 
 
 ARCHITECTURE = SHARED.parent / "docs" / "explanation" / "architecture.md"
-CONTRACT = {"errors", "bounds", "camera", "formats", "spec_fields", "spec", "_lazy", "_version"}
+CONTRACT = {"errors", "bounds", "camera", "formats", "spec_fields", "spec", "_version"}
 
 
 def _drawn() -> tuple[dict[str, set[str]], list[str]]:
@@ -134,6 +137,72 @@ def test_the_architecture_page_draws_the_real_imports():
         assert all(order.index(t) > order.index(name) for t in targets), f"{name} imports one drawn above it"
     # the contract's modules each import only those drawn after them
     graph = package_graph()
-    assert set(contract) == CONTRACT - {"_lazy", "_version"}
+    assert set(contract) == CONTRACT - {"_version"}
     for i, name in enumerate(contract):
-        assert graph.get(name, set()) - {"_lazy", "_version"} <= set(contract[i + 1:]), name
+        assert graph.get(name, set()) - {"_version"} <= set(contract[i + 1:]), name
+
+
+# The engine's faces: each package's ``__init__`` (its names listed once, in ``__init__.pyi``) is
+# its interface, and the contract's top-level modules are the engine's; a service reads only those.
+SERVICES = SHARED.parent / "services"
+SERVICE_PACKAGES = {"api": "prism_api", "worker": "prism_worker", "cli": "prism_cli",
+                    "common": "prism_common"}
+
+
+def _imported_names(path: Path, source: str) -> list[tuple[str, str, int]]:
+    """(module, name, line) of every ``from module import name`` in the file, relative ones resolved."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                package = source if path.stem == "__init__" else source.rsplit(".", 1)[0]
+                for _ in range(node.level - 1):
+                    package = package.rsplit(".", 1)[0]
+                base = f"{package}.{base}" if base else package
+            found += [(base, alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.Import):
+            found += [(alias.name, "", node.lineno) for alias in node.names]
+    return found
+
+
+def _service_files() -> dict[str, Path]:
+    return {
+        ".".join([SERVICE_PACKAGES[p.relative_to(SERVICES).parts[0]],
+                  *p.relative_to(SERVICES).with_suffix("").parts[1:]]).removesuffix(".__init__"): p
+        for p in sorted(SERVICES.rglob("*.py"))
+        if p.relative_to(SERVICES).parts[0] in SERVICE_PACKAGES
+    }
+
+
+def _package(module: str) -> str:
+    """A private name's owner: the engine's subpackage, the contract (its top-level modules, one
+    unit of meaning), or the service's package."""
+    if module.split(".")[0] != "prismcore":
+        return module.split(".")[0]
+    name = unit(module)
+    return "contract" if name in CONTRACT else name
+
+
+def test_no_private_name_crosses_a_package():
+    files = {module_name(p): p for p in engine_modules().values()} | _service_files()
+    crossing = [
+        f"{source} (line {line}) imports {target}.{name}"
+        for source, path in files.items()
+        for target, name, line in _imported_names(path, source)
+        if target.startswith("prismcore") and name.startswith("_") and not name.startswith("__")
+        and _package(target) != _package(source)
+    ]
+    assert crossing == [], "make the name public (and put it in the package's face) or keep it home"
+
+
+def test_services_import_only_the_engines_faces():
+    subpackages = {unit(m) for m in engine_modules()} - CONTRACT - {"prismcore"}
+    faces = {"prismcore"} | {f"prismcore.{name}" for name in subpackages | CONTRACT - {"_version"}}
+    behind = [
+        f"{source} (line {line}) imports {target}"
+        for source, path in _service_files().items()
+        for target, _, line in _imported_names(path, source)
+        if target.split(".")[0] == "prismcore" and target not in faces
+    ]
+    assert behind == [], "import from the package's face (add the name to its __init__.pyi)"

@@ -2,7 +2,7 @@
 // the face outlines, and each point as a crosshair with its label (P1...P7) on a dark tab so it
 // reads on any photo.
 
-import type { MarkerHost } from "./marker";
+import type { MarkerHost } from "./marker-host";
 import type { Point, PointName } from "./types";
 import type { View } from "./view";
 

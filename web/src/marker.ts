@@ -3,20 +3,9 @@
 
 import { drawLoupe } from "./loupe";
 import { drawMarker } from "./marker-draw";
+import type { MarkerHost } from "./marker-host";
 import type { Point, PointName } from "./types";
 import { inside, rounded, View } from "./view";
-
-export interface MarkerHost {
-  image(): ImageBitmap | null;
-  marks(): [PointName, Point][]; // the points on the photo shown
-  outlines(): Point[][];
-  found(): Point[][]; // the faces the service's search found, drawn dashed under the outlines
-  place(p: Point): void; // the next point goes here
-  snapshot(): void; // before a drag or nudge, so undo can take it back
-  move(name: PointName, p: Point): void;
-  undo(): void;
-  pointer(p: Point | null): void;
-}
 
 const HIT_PX = 9; // a press this close to a point grabs it
 const CLICK_SLOP_PX = 4; // a press that moves further than this pans instead of clicking

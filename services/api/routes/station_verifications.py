@@ -106,9 +106,8 @@ def _verify(document: bytes, photos: list[tuple[str, bytes]], reference: str, to
             max_pixels: int) -> tuple[Any, Any]:
     """(the station with its new verification, the verification): the engine, in a thread."""
     from prismcore import InputError
-    from prismcore.io.images import load_image
-    from prismcore.station import Station
-    from prismcore.station.certify import parse_reference, verify_station
+    from prismcore.io import load_image
+    from prismcore.station import Station, parse_reference, verify_station
 
     try:
         size = parse_reference(reference, "reference")

@@ -174,7 +174,7 @@ async def _calibrated(request: Request, max_pixels: int, limiter: anyio.Capacity
 def _calibrate(files: dict[str, list[tuple[str, bytes]]], max_pixels: int) -> Station:
     from prismcore import InputError
     from prismcore.camera import CameraModel
-    from prismcore.io.images import load_image
+    from prismcore.io import load_image
     from prismcore.station import BoardSpec, calibrate_station
 
     def model(field: str, cls: type[BoardSpec] | type[CameraModel]) -> Any:

@@ -7,8 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from prismcore.geometry.box_model import SECOND_FACES
 from prismcore.geometry.lens import RadialDistortion, tls_line
-from prismcore.geometry.perspective import _SECOND, FaceEvidence
+from prismcore.geometry.perspective import (
+    FaceEvidence,
+)
 
 __all__ = ["box_edge_samples", "undistort_evidence"]
 
@@ -40,5 +43,5 @@ def box_edge_samples(front: FaceEvidence, side: FaceEvidence, side_face: str = "
     is the front's)."""
     out = [e for e in front.samples if e is not None]
     if side.samples:
-        out += [e for e in (side.samples[s] for s in _SECOND[side_face].sides) if e is not None]
+        out += [e for e in (side.samples[s] for s in SECOND_FACES[side_face].sides) if e is not None]
     return out

@@ -8,15 +8,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from prismcore.geometry.box_model import FRONT_IDX, SECOND_FACES, camera_matrix
 from prismcore.geometry.perspective import (
-    _FRONT_IDX,
-    _SECOND,
     SIGMA_CLICK_PX,
     SIGMA_LINE_PX,
     BoxFit,
     FaceEvidence,
     FaceTerms,
-    _camera,
     line_terms,
     project,
 )
@@ -53,9 +51,9 @@ def model_error_cov(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, *, sid
     """
     if fit.influence is None or fit.principal is None:
         return np.zeros((4, 4))
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    K = _camera(fit.focal_px, fit.principal)
+    second = SECOND_FACES[side_face]
+    faces: FaceTerms = [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    K = camera_matrix(fit.focal_px, fit.principal)
     model = second.corners(np.array([fit.width, fit.depth]))
     image = project(K, fit.rvec, fit.tvec, model)
     rows = line_terms(faces)
@@ -101,9 +99,9 @@ def rounding_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence, radius
     n = 0 if fit.influence is None else fit.influence.shape[1]
     if fit.principal is None or n == 0:
         return np.zeros(n), []
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    K = _camera(fit.focal_px, fit.principal)
+    second = SECOND_FACES[side_face]
+    faces: FaceTerms = [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    K = camera_matrix(fit.focal_px, fit.principal)
     model = second.corners(np.array([fit.width, fit.depth]))
     image = project(K, fit.rvec, fit.tvec, model)
     R = cv2.Rodrigues(np.asarray(fit.rvec, dtype=np.float64))[0]
@@ -146,8 +144,8 @@ def edge_shifts(fit: BoxFit, front: FaceEvidence, side: FaceEvidence,
     ndarray, shape (n_residuals,)
     """
     n = 0 if fit.influence is None else fit.influence.shape[1]
-    second = _SECOND[side_face]
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    second = SECOND_FACES[side_face]
+    faces: FaceTerms = [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
     model = second.corners(np.array([fit.width, fit.depth]))
     dr = np.zeros(n)
     for k, (f, s, line, _) in enumerate(line_terms(faces)):

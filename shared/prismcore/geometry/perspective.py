@@ -32,18 +32,28 @@ import cv2
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
+from prismcore.geometry.box_model import FRONT_IDX, SECOND_FACES, camera_matrix
 from prismcore.geometry.lens import RadialDistortion
 
 __all__ = [
+    "F_SCALE",
     "NOISE_CLICK_PX",
     "NOISE_LINE_PX",
+    "SIGMA_CLICK_PX",
+    "SIGMA_LINE_PX",
     "BoxFit",
     "FaceEvidence",
+    "FaceTerms",
+    "cauchy_weights",
     "centre_depth",
     "fit_box",
     "fit_rectangle",
     "focal_from_vanishing_points",
+    "line_terms",
+    "n_line_terms",
     "project",
+    "rectangle_pose",
+    "residual_and_jacobian",
 ]
 
 SIGMA_LINE_PX = 0.3
@@ -53,7 +63,8 @@ NOISE_CLICK_PX = 1.5
 NOISE_LINE_PX = 0.5
 """Assumed 1-sigma error of a fitted edge line at a model corner (px), for the covariance."""
 _UNIT_SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
-_F_SCALE = 3.0
+F_SCALE = 3.0
+"""The Cauchy loss's scale (whitened residuals): beyond it a residual counts less and less."""
 # Multi-start focal candidates, as multiples of the image's larger side (phones: ~0.7-1.0).
 _FOCAL_STARTS = (0.6, 0.9, 1.3, 2.0, 3.5)
 _FOCAL_BOUNDS = (0.05, 50.0)  # plausible focal range, multiples of the larger side
@@ -145,7 +156,7 @@ def centre_depth(rvec: np.ndarray, tvec: np.ndarray, width: float) -> float:
     return float((R @ np.array([width / 2, 0.5, 0.0]) + tvec)[2])
 
 
-def _closed_form(K: np.ndarray, quad: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def rectangle_pose(K: np.ndarray, quad: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Aspect and pose (height 1) of a rectangle imaged as `quad`, from its homography."""
     H = cv2.getPerspectiveTransform(_UNIT_SQUARE, quad.astype(np.float32))
     M = np.linalg.solve(K, H)
@@ -156,10 +167,6 @@ def _closed_form(K: np.ndarray, quad: np.ndarray) -> tuple[float, np.ndarray, np
     r1, r2 = a1 / np.linalg.norm(a1), a2 / lam
     U, _, Vt = np.linalg.svd(np.stack([r1, r2, np.cross(r1, r2)], axis=1))
     return float(np.linalg.norm(a1) / lam), cv2.Rodrigues(U @ Vt)[0].ravel(), a3 / lam
-
-
-def _camera(focal: float, principal: np.ndarray) -> np.ndarray:
-    return np.array([[focal, 0, principal[0]], [0, focal, principal[1]], [0, 0, 1.0]])
 
 
 FaceTerms = list[tuple[FaceEvidence, tuple[int, ...], tuple[int, ...]]]
@@ -176,15 +183,16 @@ def line_terms(faces: FaceTerms) -> list[tuple[int, int, np.ndarray, int]]:
 
 
 def cauchy_weights(fun: np.ndarray) -> np.ndarray:
-    """The Cauchy loss's IRLS weights 1 / (1 + (r / _F_SCALE)^2) of whitened residuals `fun`
+    """The Cauchy loss's IRLS weights 1 / (1 + (r / F_SCALE)^2) of whitened residuals `fun`
     (n,): how much each residual counts at a robust fit's solution."""
-    w: np.ndarray = 1.0 / (1.0 + (np.asarray(fun) / _F_SCALE) ** 2)
+    w: np.ndarray = 1.0 / (1.0 + (np.asarray(fun) / F_SCALE) ** 2)
     return w
 
 
-def _residual_jac_fn(K_of: Callable[[np.ndarray], np.ndarray], corners_of: Callable[[np.ndarray], np.ndarray],
-                     n_shape: int, faces: FaceTerms, *, log_focal: bool = False
-                     ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
+def residual_and_jacobian(K_of: Callable[[np.ndarray], np.ndarray],
+                          corners_of: Callable[[np.ndarray], np.ndarray],
+                          n_shape: int, faces: FaceTerms, *, log_focal: bool = False
+                          ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
     """Whitened residuals, line terms (sigma SIGMA_LINE_PX) then click terms (SIGMA_CLICK_PX),
     vectorised, and their Jacobian in closed form: the solver's finite differences took ten
     residual evaluations per step, most of a free-focal box fit's time. faces: (evidence, model
@@ -260,7 +268,8 @@ def _expected_cost(faces: FaceTerms, n_lines: int) -> float:
                   + n_clicks * (NOISE_CLICK_PX / SIGMA_CLICK_PX) ** 2)
 
 
-def _n_line_terms(faces: FaceTerms) -> int:
+def n_line_terms(faces: FaceTerms) -> int:
+    """How many line residuals `faces` give (`line_terms`)."""
     return len(line_terms(faces))
 
 
@@ -273,7 +282,7 @@ def _solve(residual: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
     if jac is not None:
         kw["jac"] = jac
     return least_squares(residual, x0, method="trf", x_scale="jac", loss="cauchy",
-                         f_scale=_F_SCALE, max_nfev=_MAX_NFEV, **kw)
+                         f_scale=F_SCALE, max_nfev=_MAX_NFEV, **kw)
 
 
 def _covariance(res: OptimizeResult, n_lines: int) -> np.ndarray:
@@ -335,69 +344,14 @@ def fit_rectangle(K: np.ndarray, face: FaceEvidence) -> tuple[float, np.ndarray,
     quad : ndarray, shape (4, 2)
         The fitted rectangle's projected corners.
     """
-    aspect, rvec, tvec = _closed_form(K, face.corners)
+    aspect, rvec, tvec = rectangle_pose(K, face.corners)
 
     def corners_of(p: np.ndarray) -> np.ndarray:
         return np.array([[0, 0, 0], [p[0], 0, 0], [p[0], 1, 0], [0, 1, 0]], dtype=np.float64)
 
-    residual, _ = _residual_jac_fn(lambda _: K, corners_of, 1, [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
+    residual, _ = residual_and_jacobian(lambda _: K, corners_of, 1, [(face, (0, 1, 2, 3), (0, 1, 2, 3))])
     x = _solve(residual, np.concatenate([rvec, tvec, [aspect]])).x
     return float(x[6]), x[:3], x[3:6], project(K, x[:3], x[3:6], corners_of(x[6:]))
-
-
-def _box_corners(p: np.ndarray) -> np.ndarray:
-    W, D = p[0], p[1]
-    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [W, 0, D], [W, 1, D]],
-                    dtype=np.float64)
-
-
-def _left_corners(p: np.ndarray) -> np.ndarray:
-    W, D = p[0], p[1]
-    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [0, 0, D], [0, 1, D]],
-                    dtype=np.float64)
-
-
-def _top_corners(p: np.ndarray) -> np.ndarray:
-    W, D = p[0], p[1]
-    return np.array([[0, 0, 0], [W, 0, 0], [W, 1, 0], [0, 1, 0], [0, 0, D], [W, 0, D]],
-                    dtype=np.float64)
-
-
-_FRONT_IDX, _SIDE_IDX = (0, 1, 2, 3), (1, 4, 5, 2)
-# World (X, Y, Z) -> the side rectangle's own frame (u along Z, v along Y, w = W - X).
-_SIDE_AXES = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-
-
-@dataclass(frozen=True)
-class _Second:
-    """Where a second face lies on the box model.
-
-    corners : the model's six corners (P1, P2, P3, P6, P5, P7) of (W, D), height 1
-    idx : the model corners of the side quad's TL, TR, BR, BL as photographed
-    sides : the side quad's edges fitted (all but the one shared with the front)
-    axes : world -> the side rectangle's frame (rows: its u, v and u x v directions)
-    origin : its TL corner in the world, as a function of (W, D)
-    v_is_depth : its TL -> BL edge is the depth D (else the height, 1)
-    """
-
-    corners: Callable[[np.ndarray], np.ndarray]
-    idx: tuple[int, ...]
-    sides: tuple[int, ...]
-    axes: np.ndarray
-    origin: Callable[[float, float], np.ndarray]
-    v_is_depth: bool
-
-
-_SECOND = {
-    "right": _Second(_box_corners, _SIDE_IDX, (0, 1, 2), _SIDE_AXES,
-                     lambda w, d: np.array([w, 0.0, 0.0]), False),
-    "left": _Second(_left_corners, (4, 0, 3, 5), (0, 2, 3),
-                    np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
-                    lambda w, d: np.array([0.0, 0.0, d]), False),
-    "top": _Second(_top_corners, (4, 5, 1, 0), (0, 1, 3),
-                   np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
-                   lambda w, d: np.array([0.0, 0.0, d]), True),
-}
 
 
 def _vanishing_point(segments: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
@@ -459,9 +413,9 @@ def focal_from_vanishing_points(front: np.ndarray, side: np.ndarray, principal: 
 def _box_starts(K: np.ndarray, front: FaceEvidence, side: FaceEvidence,
                 side_face: str = "right") -> list[np.ndarray]:
     """Initial [rvec, tvec, W, D] from the front's homography and from the side's."""
-    width, rvec, tvec = _closed_form(K, front.corners)
-    depth, rvec_s, tvec_s = _closed_form(K, side.corners)
-    second = _SECOND[side_face]
+    width, rvec, tvec = rectangle_pose(K, front.corners)
+    depth, rvec_s, tvec_s = rectangle_pose(K, side.corners)
+    second = SECOND_FACES[side_face]
     if second.v_is_depth:  # the side rectangle's aspect is W / D, its unit length D
         depth = width / depth if depth > 0 else float("nan")
     starts = [np.concatenate([rvec, tvec, [width, depth]])]
@@ -501,12 +455,12 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     -------
     BoxFit
     """
-    if side_face not in _SECOND:
+    if side_face not in SECOND_FACES:
         raise ValueError(f"side_face must be right, left or top, got {side_face!r}")
-    second = _SECOND[side_face]
+    second = SECOND_FACES[side_face]
     box_corners = second.corners
-    faces: FaceTerms = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    n_lines = _n_line_terms(faces)
+    faces: FaceTerms = [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    n_lines = n_line_terms(faces)
     principal = K[:2, 2].astype(np.float64)
     best: OptimizeResult | None = None
     nfev = 0
@@ -516,8 +470,8 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
         size = max(size, 2 * float(principal.max()) + 1)
         lo, hi = (b * size for b in _FOCAL_BOUNDS)
         closed = focal_from_vanishing_points(front.corners, side.corners, principal, hi, side_face)
-        residual, jac = _residual_jac_fn(lambda x: _camera(float(np.exp(x[8])), principal), box_corners,
-                                         2, faces, log_focal=True)
+        residual, jac = residual_and_jacobian(lambda x: camera_matrix(float(np.exp(x[8])), principal),
+                                              box_corners, 2, faces, log_focal=True)
         bounds = (np.r_[np.full(8, -np.inf), np.log(lo)], np.r_[np.full(8, np.inf), np.log(hi)])
         # The vanishing points' focal first; the spread of typical focal lengths only when that
         # start is missing or its fit is worse than the noise explains. Each start costs a full
@@ -537,7 +491,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                 if f in tried:  # one closed form is the first round's start already
                     continue
                 tried.add(f)
-                for x0 in _box_starts(_camera(f, principal), front, side, side_face):
+                for x0 in _box_starts(camera_matrix(f, principal), front, side, side_face):
                     if not np.isfinite(x0).all() or nfev >= _NFEV_BUDGET:
                         continue
                     res = _solve(residual, np.r_[x0, np.log(np.clip(f, lo * 1.001, hi * 0.999))],
@@ -548,7 +502,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
                 if guesses is not first and best is not None and best.cost <= accept:
                     break
     else:
-        residual, jac = _residual_jac_fn(lambda _: K, box_corners, 2, faces)
+        residual, jac = residual_and_jacobian(lambda _: K, box_corners, 2, faces)
         for x0 in _box_starts(K, front, side, side_face):
             if not np.isfinite(x0).all():
                 continue
@@ -560,7 +514,7 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
         raise ValueError("no finite start for the box fit")
     x = best.x
     focal = float(np.exp(x[8])) if free_focal else float(K[0, 0])
-    Kx = _camera(focal, principal) if free_focal else K
+    Kx = camera_matrix(focal, principal) if free_focal else K
     pts = project(Kx, x[:3], x[3:6], box_corners(x[6:8]))
     cov = _covariance(best, n_lines)
     # (W, D, z, f) as functions of x: gradient by central differences (z is nonlinear in rvec).
@@ -577,5 +531,5 @@ def fit_box(K: np.ndarray, front: FaceEvidence, side: FaceEvidence, *,
     shape_cov = G @ cov @ G.T
     focal_std = float(np.sqrt(max(shape_cov[3, 3], 0.0))) if free_focal else None
     return BoxFit(float(x[6]), float(x[7]), x[:3].copy(), x[3:6].copy(), focal, focal_std,
-                  pts[list(_FRONT_IDX)], pts[list(second.idx)], shape_cov, _line_rms(best, n_lines),
+                  pts[list(FRONT_IDX)], pts[list(second.idx)], shape_cov, _line_rms(best, n_lines),
                   G @ _influence(best), principal.copy(), nfev=nfev)

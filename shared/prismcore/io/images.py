@@ -93,7 +93,7 @@ from prismcore.io.image_structure import (
 )
 
 __all__ = ["DEFAULT_MAX_PIXELS", "FORMATS", "PIL_ERRORS", "ImageInfo", "load_image",
-           "probe_image"]
+           "probe_image", "sniff_format"]
 
 DEFAULT_MAX_PIXELS = 50_000_000
 """Largest image (width * height) :func:`load_image` decodes unless told otherwise."""
@@ -393,7 +393,9 @@ def _mapped(source: Source, name: str | None) -> Iterator[tuple[bytes | mmap.mma
 # header inspection
 
 
-def _sniff(buf: bytes | mmap.mmap, label: str) -> str:
+def sniff_format(buf: bytes | mmap.mmap, label: str) -> str:
+    """The photo format (one of FORMATS) a file's first bytes show; InputError naming `label` when
+    they show none of them."""
     head = bytes(buf[:16])
     if head.startswith(b"\x89PNG\r\n\x1a\n"):
         return "PNG"
@@ -467,7 +469,7 @@ def _inspect(
     ``fp`` reads the same bytes as ``buf``; ``whole`` says the Pillow image will be decoded, so
     a JPEG must be handed over complete rather than up to its first scan.
     """
-    fmt = _sniff(buf, label)
+    fmt = sniff_format(buf, label)
     tags: dict[int, np.ndarray] = {}
     orientation = 1
     if fmt == "WEBP":

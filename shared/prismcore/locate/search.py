@@ -149,7 +149,7 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
     the faces' aspects from their homographies, then a PnP pose for a few focal lengths.
     """
     from prismcore.geometry.faces import clicked_quads
-    from prismcore.geometry.perspective import _closed_form
+    from prismcore.geometry.perspective import rectangle_pose
 
     h, w = shape[:2]
     ref = ReferencePoints.model_validate({k: (float(v[0]), float(v[1])) for k, v in points.items()})
@@ -161,8 +161,8 @@ def _box_likeness(points: dict[str, np.ndarray], side_face: SideFace, shape: tup
     for f in (0.8 * w, 1.2 * w, 2.0 * w, 4.0 * w):
         K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
         try:
-            width = _closed_form(K, quads.front)[0]
-            aspect = _closed_form(K, quads.side)[0]
+            width = rectangle_pose(K, quads.front)[0]
+            aspect = rectangle_pose(K, quads.side)[0]
         except (np.linalg.LinAlgError, cv2.error):
             continue
         depth = width / aspect if side_face == "top" else aspect

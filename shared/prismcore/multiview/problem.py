@@ -12,12 +12,11 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
+from prismcore.geometry.box_model import FRONT_IDX, SECOND_FACES, camera_matrix
 from prismcore.geometry.evidence import undistort_evidence
 from prismcore.geometry.lens import RadialDistortion
 from prismcore.geometry.perspective import (
-    _F_SCALE,
-    _FRONT_IDX,
-    _SECOND,
+    F_SCALE,
     NOISE_CLICK_PX,
     NOISE_LINE_PX,
     SIGMA_CLICK_PX,
@@ -25,11 +24,10 @@ from prismcore.geometry.perspective import (
     BoxFit,
     FaceEvidence,
     FaceTerms,
-    _camera,
-    _n_line_terms,
-    _residual_jac_fn,
     cauchy_weights,
     fit_box,
+    n_line_terms,
+    residual_and_jacobian,
 )
 from prismcore.multiview.views import _Prepared
 from prismcore.spec import KnownEdge
@@ -54,16 +52,16 @@ def _terms(view: _Prepared, lens: RadialDistortion) -> FaceTerms:
     front, side = view.front, view.side
     if lens.kappa != 0.0:
         front, side = _undistorted(view, front, lens), _undistorted(view, side, lens)
-    second = _SECOND[view.side_face]
-    return [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    second = SECOND_FACES[view.side_face]
+    return [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
 
 
 class _Problem:
     """The joint least-squares problem over some views.
 
     x = (W, D[, log focal]) then per view (rvec, tvec): whitened residuals per view, its line terms
-    then its click terms (as `perspective._residual_jac_fn` lays them out). Each view's residuals and
-    their Jacobian are `perspective._residual_jac_fn`'s (closed form: the forward differences it
+    then its click terms (as `perspective.residual_and_jacobian` lays them out). Each view's residuals and
+    their Jacobian are `perspective.residual_and_jacobian`'s (closed form: the forward differences it
     replaces took nine residual evaluations per view and step, half of a 10-view fit's time).
     """
 
@@ -75,16 +73,17 @@ class _Problem:
         self.free_focal = focal_px is None
         self.n_shared = 3 if self.free_focal else 2
         self.terms = [_terms(v, lens) for v in views]
-        fixed = _camera(focal_px or 1.0, principal)
+        fixed = camera_matrix(focal_px or 1.0, principal)
 
         def intrinsics(x: np.ndarray) -> np.ndarray:
-            return _camera(float(np.exp(x[8])), principal) if self.free_focal else fixed
+            return camera_matrix(float(np.exp(x[8])), principal) if self.free_focal else fixed
 
-        pairs = [_residual_jac_fn(intrinsics, _SECOND[v.side_face].corners, 2, t, log_focal=self.free_focal)
+        pairs = [residual_and_jacobian(intrinsics, SECOND_FACES[v.side_face].corners, 2, t,
+                                       log_focal=self.free_focal)
                  for v, t in zip(views, self.terms, strict=True)]
         self.fns: list[Callable[[np.ndarray], np.ndarray]] = [fn for fn, _ in pairs]
         self.jacs: list[Callable[[np.ndarray], np.ndarray]] = [jac for _, jac in pairs]
-        self.n_lines = [_n_line_terms(t) for t in self.terms]
+        self.n_lines = [n_line_terms(t) for t in self.terms]
         self.sizes = [n + 8 * len(t) for n, t in zip(self.n_lines, self.terms, strict=True)]  # lines, clicks
         # Each view's residuals reweighted from the solver's sigmas to the view's own measured
         # noise (`_measured_noise`; 1 until measured).
@@ -157,11 +156,11 @@ class _Problem:
 
     def solve(self, x0: np.ndarray) -> OptimizeResult:
         return least_squares(self.residual, x0, jac=self.jacobian, method="trf", x_scale="jac",
-                             loss="cauchy", f_scale=_F_SCALE, max_nfev=_MAX_NFEV)
+                             loss="cauchy", f_scale=F_SCALE, max_nfev=_MAX_NFEV)
 
     def chi_square(self, res: OptimizeResult) -> float:
         """The robust cost in units of the assumed noise (chi-square-like)."""
-        rho = _F_SCALE**2 * np.log1p((res.fun / _F_SCALE) ** 2)
+        rho = F_SCALE**2 * np.log1p((res.fun / F_SCALE) ** 2)
         return float(np.sum(rho / self.noise()))
 
     def blocks(self, fun: np.ndarray) -> list[np.ndarray]:
@@ -171,7 +170,7 @@ class _Problem:
 def _start(views: list[_Prepared], lens: RadialDistortion, principal: np.ndarray,
            focal: float, free: bool) -> np.ndarray:
     """Each view's own box fitted at the shared start focal: its pose, and the median shape."""
-    K = _camera(focal, principal)
+    K = camera_matrix(focal, principal)
     poses, shapes = [], []
     for v in views:
         terms = _terms(v, lens)

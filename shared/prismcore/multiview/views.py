@@ -11,8 +11,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from prismcore.errors import InputError
+from prismcore.geometry.box_model import SECOND_FACES
 from prismcore.geometry.faces import clicked_quads
-from prismcore.geometry.perspective import _SECOND, SIGMA_CLICK_PX, SIGMA_LINE_PX, FaceEvidence
+from prismcore.geometry.perspective import (
+    SIGMA_CLICK_PX,
+    SIGMA_LINE_PX,
+    FaceEvidence,
+)
 from prismcore.scan.measure import Dimensions
 from prismcore.spec import KnownEdge, ReferencePoints, ScanSpec
 
@@ -102,7 +107,7 @@ def _agreeing(view: _Prepared, limit_px: float) -> _Prepared:
     """The view without the refined edge lines its clicks disagree with: a side's line is dropped
     when the two clicked corners at its ends lie farther than `limit_px` from it (mean distance)."""
     drop: dict[str, set[int]] = {}
-    for name, sides in (("front", (0, 1, 2, 3)), ("side", _SECOND[view.side_face].sides)):
+    for name, sides in (("front", (0, 1, 2, 3)), ("side", SECOND_FACES[view.side_face].sides)):
         face: FaceEvidence = getattr(view, name)
         for s in sides:
             line = face.lines[s]

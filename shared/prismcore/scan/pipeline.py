@@ -19,24 +19,16 @@ import numpy as np
 from prismcore._version import __version__
 from prismcore.errors import InputError
 from prismcore.geometry.edges import EdgeFit
-from prismcore.geometry.faces import (
-    Labels,
-    SideFace,
-    clicked_quads,
-    paper_rectangles,
-    quad_labels,
-    resolve_side_face,
-    validate_points,
-    validate_quad,
-)
+from prismcore.geometry.faces import SideFace, resolve_side_face
 from prismcore.quality.verdicts import quality_from_report
 from prismcore.scan.cloud import Cloud, assemble, face_points
 from prismcore.scan.colour_scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
 from prismcore.scan.fit import EdgeUses, edge_use_json, fit_guard, measure_faces, refine_faces, unless_snapped
 from prismcore.scan.focal import PooledFocal, camera_models, prepare_images, resolve_focal, undistorted_points
 from prismcore.scan.measure import Dimensions
+from prismcore.scan.point_checks import check_points, marked_quads, side_height_guess
 from prismcore.scan.spacing import thin_to_spacing
-from prismcore.spec import MmPerPx, Pinhole, ScanSpec
+from prismcore.spec import Pinhole, ScanSpec
 
 __all__ = ["ScanPlan", "ScanResult", "build_report", "finish_scan", "plan_scan", "run_scan", "scan_face"]
 
@@ -101,22 +93,6 @@ def _check_image(image: np.ndarray, name: str) -> None:
         raise InputError(f"{name} image must be RGB of shape (H, W, 3), got {image.shape}")
 
 
-def _side_height_guess(spec: ScanSpec) -> float | None:
-    """Two photos without p7: the front's height in side-photo pixels, when the scales tell it."""
-    if not spec.two_photo:
-        return None
-    assert spec.points is not None  # a photo spec carries its clicks
-    if spec.points.p7 is not None:
-        return None
-    front_px = float(np.hypot(*np.subtract(spec.points.p3, spec.points.p2)))
-    scale = spec.scale
-    if isinstance(scale, MmPerPx) and scale.side:
-        return front_px * scale.front / scale.side
-    if isinstance(scale, Pinhole) and scale.side_distance_mm:
-        return front_px * scale.distance_mm / scale.side_distance_mm
-    return None
-
-
 def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,
               exif_focal_px: float | None = None, pooled_focal: PooledFocal | None = None,
               rough_points: bool = False, click_noise_rules: bool = True) -> ScanPlan:
@@ -154,15 +130,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     timings: dict[str, float] = {}
     warnings: list[str] = []
     side_index = 1 if spec.two_photo else 0
-    validate_points(spec.points, front.shape, images[side_index].shape)
-    # The front alone first: a bad front says so, rather than that no second face can be read.
-    if spec.method == "paper":
-        validate_quad(paper_rectangles(spec.points).front, "front face", front.shape)
-    else:
-        front_only = clicked_quads(spec.points, two_photo=spec.two_photo)
-        validate_quad(front_only.front, "front face", front.shape, labels=quad_labels(front_only)[0])
     # Read from the points as clicked (before undistortion), as ScanPlan.side_face reads it.
-    side_face = resolve_side_face(spec.points, spec.side_face, two_photo=spec.two_photo)
+    side_face = check_points(spec, front.shape, images[side_index].shape)
     if exif_focal_px is not None and not (math.isfinite(exif_focal_px) and exif_focal_px > 0):
         raise InputError(f"the EXIF focal length must be a positive number of pixels, got {exif_focal_px!r}")
     cameras = camera_models(spec, images)
@@ -175,17 +144,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         points = undistorted_points(spec, cameras)
     work = spec.model_copy(update={"points": points})
     with _timed(timings, "refine"):
-        if spec.method == "paper":
-            quads = paper_rectangles(points, two_photo=spec.two_photo, side_face=side_face)
-            marked = quads
-            labels: tuple[Labels | None, Labels | None] = (None, None)
-        else:
-            marked = clicked_quads(points, two_photo=spec.two_photo,
-                                   side_height_px=_side_height_guess(work), side_face=side_face)
-            labels = quad_labels(marked)
-        validate_quad(marked.front, "front face", front.shape, labels=labels[0])
-        validate_quad(marked.side, "top face" if side_face == "top" else "side face",
-                      images[side_index].shape, labels=labels[1])
+        marked, _ = marked_quads(work, side_face, front.shape, images[side_index].shape)
+        quads = marked
         fits: dict[str, list[EdgeFit]] = {}
         uses: EdgeUses = {}
         if spec.method == "default":
@@ -206,7 +166,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         fit = fit_guard(spec, marked, quads, dims.perspective, warnings)
         if uses:  # per side, the refined edge or the click, and why (report.json, the overlay)
             fit["edges"] = edge_use_json(uses)
-    if spec.two_photo and spec.points.p7 is None and _side_height_guess(spec) is None:
+    if spec.two_photo and spec.points.p7 is None and side_height_guess(spec) is None:
         # Nothing ties the side photo's scale to the front's: it is assumed, and said so
         # (instead of the note that the height carried it across, which would read as measured).
         dims = replace(dims, notes=tuple(n for n in dims.notes if "shared height" not in n))

@@ -18,7 +18,7 @@ from prismcore.station.edges import bilinear, refine_outline
 from prismcore.station.fit_starts import starting_boxes
 from prismcore.station.influence import jackknife_cov, soft_l1_weights
 
-__all__ = ["BoxFit", "box_corners", "fit_box", "project", "visible_faces"]
+__all__ = ["OutlineFit", "box_corners", "fit_outline_box", "project", "visible_faces"]
 
 _CORRELATION = 4.0  # outline pixels within this many share their error (the JPEG block, the blur)
 _MIN_SIGMA_PX = 0.35  # an outline is not known better than this, however smooth it looks
@@ -116,7 +116,7 @@ def _nearest(points: np.ndarray, poly: np.ndarray) -> _Nearest:
 
 
 @dataclass(frozen=True)
-class BoxFit:
+class OutlineFit:
     """The fitted box.
 
     params : (6,) x mm, y mm, yaw rad, log length, log width, log height. cov : (6, 6).
@@ -390,7 +390,7 @@ def _weak_fraction(corners_px: np.ndarray, difference: np.ndarray) -> float:
     return float(np.mean(step < _WEAK_STEP))
 
 
-def fit_box(
+def fit_outline_box(
     outline: np.ndarray,
     K: np.ndarray,
     R: np.ndarray,
@@ -399,7 +399,7 @@ def fit_box(
     difference: np.ndarray | None = None,
     origin: tuple[int, int] = (0, 0),
     radius_mm: float = 0.0,
-) -> BoxFit:
+) -> OutlineFit:
     """The box resting on the plane z = 0 whose silhouette (and folds) best match the photo.
 
     Parameters
@@ -431,7 +431,7 @@ def _radius_px(radius_mm: float, params: np.ndarray, K: np.ndarray, R: np.ndarra
     return radius_mm * float(K[0, 0]) / max(depth, 1.0)
 
 
-def _outer(inner: BoxFit, radius_mm: float) -> BoxFit:
+def _outer(inner: OutlineFit, radius_mm: float) -> OutlineFit:
     """The box whose edges, rounded by `radius_mm`, enclose `inner` grown by that radius."""
     params = inner.params.copy()
     size = np.exp(params[3:]) + 2 * radius_mm
@@ -492,7 +492,7 @@ def _rivals(best: Any, starts: list[np.ndarray], p: _Problem) -> tuple[float, fl
 
 
 def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_dt: np.ndarray | None,
-         difference: np.ndarray | None, origin: tuple[int, int], rounding_mm: float = 0.0) -> BoxFit:
+         difference: np.ndarray | None, origin: tuple[int, int], rounding_mm: float = 0.0) -> OutlineFit:
     centre = -R.T @ t
     maps_o = np.asarray(origin, np.float64)
     lo = np.floor(outline.min(axis=0)) - 20
@@ -572,7 +572,7 @@ def _fit(outline: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray, fold_
     ambiguity = _rivals(best, [f.x for f in sorted(fits, key=lambda f: f.cost)] + unfitted, dense)
     weak = 0.0 if difference is None else _weak_fraction(project(box_corners(best.x), K, R, t) - maps_o,
                                                          difference)
-    return BoxFit(
+    return OutlineFit(
         missing_fraction=missing,
         weak_fraction=weak,
         params=params,

@@ -16,7 +16,7 @@ import numpy as np
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
 from prismcore.geometry.rounding import RESOLVED_PX
-from prismcore.station.boxfit import _FACES, BoxFit, fit_box, project, visible_faces
+from prismcore.station.boxfit import _FACES, OutlineFit, fit_outline_box, project, visible_faces
 from prismcore.station.calibrate import Station
 from prismcore.station.edges import fold_distance
 from prismcore.station.rounding import edge_radius
@@ -97,7 +97,7 @@ class StationMeasurement:
     residual_px: float
     contrast: float
     registration: Registration
-    fit: BoxFit
+    fit: OutlineFit
     points: np.ndarray
     side_face: str
     warnings: list[str] = field(default_factory=list)
@@ -219,7 +219,7 @@ _REGION_REFUSAL = ("the part's outline reaches past the board in the photo (only
                    "higher up or use a larger board")
 
 
-def _apart(others: list[tuple[float, ...]], fit: BoxFit, K: np.ndarray, R: np.ndarray,
+def _apart(others: list[tuple[float, ...]], fit: OutlineFit, K: np.ndarray, R: np.ndarray,
            t: np.ndarray) -> list[str]:
     """The smaller blobs segmentation found beside the part (`Silhouette.others`: bounding boxes
     x, y, width, height px) that lie outside the fitted box's outline, sized on the support plane
@@ -273,11 +273,12 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     # the folds and the outline's steps looked for in the part's window only
     gray = cv2.cvtColor(photo_u[sil.window], cv2.COLOR_RGB2GRAY)
     folds = fold_distance(gray, sil.mask[sil.window])
-    fit = fit_box(sil.contour, K, R, t, folds, sil.difference, sil.origin)
+    fit = fit_outline_box(sil.contour, K, R, t, folds, sil.difference, sil.origin)
     radius = edge_radius(photo_u, fit, K, R, t)
     if radius is not None:
         # rounded edges pull the silhouette in: the box refitted as its inner box grown by them
-        fit = fit_box(sil.contour, K, R, t, folds, sil.difference, sil.origin, radius_mm=radius.radius_mm)
+        fit = fit_outline_box(sil.contour, K, R, t, folds, sil.difference, sil.origin,
+                              radius_mm=radius.radius_mm)
     t4, c4 = time.perf_counter(), time.thread_time()
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)

@@ -5,7 +5,7 @@ sharp edge: by 0.41 radii across an edge seen at 45 degrees), so a sharp box fit
 is short by about a radius on every side (a 2.3 mm rounding: -1.0, -1.5, -1.0 mm on a 22 mm
 carton, in path-traced renders). The radius is read where two faces the camera sees meet (the
 engine's `geometry.rounding`, the click mode's reading) and the box refitted with it
-(`boxfit.fit_box(radius_mm=...)`).
+(`boxfit.fit_outline_box(radius_mm=...)`).
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from __future__ import annotations
 import numpy as np
 
 from prismcore.geometry.rounding import RadiusEstimate, estimate_edge_radius
-from prismcore.station.boxfit import BoxFit, project
+from prismcore.station.boxfit import OutlineFit, project
 
 __all__ = ["edge_radius"]
 
 
-def edge_radius(photo_u: np.ndarray, fit: BoxFit, K: np.ndarray, R: np.ndarray, t: np.ndarray
+def edge_radius(photo_u: np.ndarray, fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray
                 ) -> RadiusEstimate | None:
     """The radius of the fitted box's rounded edges from the undistorted photo `photo_u`
     (H, W, 3), or None where its folds show no rounding (too few, too small, or sharp).

@@ -8,12 +8,10 @@ import cv2
 import numpy as np
 import pytest
 
+from prismcore.geometry.box_model import FRONT_IDX, SECOND_FACES, camera_matrix
 from prismcore.geometry.perspective import (
-    _FRONT_IDX,
-    _SECOND,
     FaceEvidence,
-    _camera,
-    _residual_jac_fn,
+    residual_and_jacobian,
 )
 
 
@@ -36,7 +34,7 @@ def _evidence(rng: np.random.Generator, quad: np.ndarray) -> FaceEvidence:
 def test_closed_form_jacobian_matches_central_differences(side_face, free_focal, seed):
     rng = np.random.default_rng([seed, 7])
     principal = np.array([640.0, 512.0])
-    second = _SECOND[side_face]
+    second = SECOND_FACES[side_face]
     shape = rng.uniform(0.4, 2.0, 2)
     x = np.r_[rng.normal(0, 0.25, 3), rng.uniform(-0.4, 0.4, 2), rng.uniform(3, 6), shape]
     f = rng.uniform(800, 2000)
@@ -44,15 +42,15 @@ def test_closed_form_jacobian_matches_central_differences(side_face, free_focal,
         x = np.r_[x, np.log(f)]
 
     def intrinsics(v: np.ndarray) -> np.ndarray:
-        return _camera(float(np.exp(v[8])) if free_focal else f, principal)
+        return camera_matrix(float(np.exp(v[8])) if free_focal else f, principal)
 
     # evidence drawn near the box as projected, so every term is of a typical size
     corners = second.corners(shape)
     pts = cv2.projectPoints(corners, x[:3], x[3:6], intrinsics(x), None)[0].reshape(-1, 2)
-    front = _evidence(rng, pts[list(_FRONT_IDX)])
+    front = _evidence(rng, pts[list(FRONT_IDX)])
     side = _evidence(rng, pts[list(second.idx)])
-    faces = [(front, _FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
-    residual, jac = _residual_jac_fn(intrinsics, second.corners, 2, faces, log_focal=free_focal)
+    faces = [(front, FRONT_IDX, (0, 1, 2, 3)), (side, second.idx, second.sides)]
+    residual, jac = residual_and_jacobian(intrinsics, second.corners, 2, faces, log_focal=free_focal)
 
     J = jac(x)
     numeric = np.empty_like(J)

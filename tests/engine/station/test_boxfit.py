@@ -14,7 +14,7 @@ from prismcore.station.boxfit import (
     _Problem,
     _residuals,
     box_corners,
-    fit_box,
+    fit_outline_box,
     project,
     visible_faces,
 )
@@ -111,8 +111,8 @@ def test_a_fit_that_leaves_much_of_the_outline_out_widens_its_sigma(seed: int) -
     middle = np.r_[3:22, 53:72]  # 25 points a side: the middle of the first side and the third
     inward = centre - dented[middle]
     dented[middle] += 10 * inward / np.linalg.norm(inward, axis=1, keepdims=True)
-    whole = fit_box(clean, p.K, p.R, p.t)
-    dent = fit_box(dented, p.K, p.R, p.t)
+    whole = fit_outline_box(clean, p.K, p.R, p.t)
+    dent = fit_outline_box(dented, p.K, p.R, p.t)
     assert min(np.array(dent.sigma_mm()) / np.array(whole.sigma_mm())) > 3
     # and the stretch left out is still said (by the robust sigma, not the widened one)
     assert dent.missing_fraction > 0.08 > whole.missing_fraction
@@ -127,12 +127,12 @@ def test_a_fit_whose_sides_disagree_widens_its_sigma_and_a_clean_one_does_not(se
     rng = np.random.default_rng(100 + seed)
     _, p = _problem(rng, noise_px=0.3)
     clean = p.outline
-    whole = fit_box(clean, p.K, p.R, p.t)
+    whole = fit_outline_box(clean, p.K, p.R, p.t)
     pushed = clean.copy()
     side = np.r_[0:25]
     outward = pushed[side] - clean.mean(axis=0)
     pushed[side] += 6 * outward / np.linalg.norm(outward, axis=1, keepdims=True)
-    off = fit_box(pushed, p.K, p.R, p.t)
+    off = fit_outline_box(pushed, p.K, p.R, p.t)
     err = np.abs(np.exp(off.params[3:]) - np.exp(whole.params[3:]))
     # the error the push made is within 3 sigma of the pushed fit, in every size
     assert np.all(err <= 3 * np.array(off.sigma_mm()) + 0.05 * np.exp(whole.params[3:]).min())
