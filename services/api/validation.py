@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from fastapi.exceptions import RequestValidationError
 from prism_common.outbound import check_webhook_url
@@ -25,6 +25,7 @@ from prismcore.errors import InputError
 from prismcore.spec import (
     JOINT_MAX_PIXELS,
     FrameSelection,
+    ItemKind,
     ReferencePoints,
     ScanSpec,
     search_area_problem,
@@ -34,7 +35,7 @@ from prismcore.video import points_frame_problem, span_problem
 
 from .schemas import JobCreate
 
-__all__ = ["check_job", "point_problem"]
+__all__ = ["KINDS", "check_job", "point_problem"]
 
 _POINT = re.compile(r"\bpoint (p[1-7])\b")
 
@@ -168,6 +169,62 @@ def _check_station(station_id: str, station: StationPublic | None, i: int, size:
              f"camera {sw}x{sh} px: a station measures photos of its own camera at its image size")
 
 
+Fail = Callable[[tuple, str], None]
+Shapes = dict[str, tuple[int, int] | None]
+
+
+def _check_points(item: ScanSpec, i: int, shapes: Shapes, fail: Fail,
+                  station_of: Callable[[str], StationPublic | None]) -> None:
+    """An item with points (clicked, per frame, or "auto") whose photo's size is known: the
+    points as the engine checks them, and the search area of "auto" inside the photo."""
+    front = shapes.get("image")
+    side = shapes.get("side_image") if item.two_photo else front
+    if front is None or side is None:
+        return  # a URL, or an upload whose size is not known: the worker checks
+    marks = [(("points",), item.points)] if item.points is not None else \
+        [(("frame_points", str(n)), p) for n, p in (item.frame_points or {}).items()]
+    for where, points in marks:
+        if (found := point_problem(item, points, front, side)) is not None:
+            name, message = found
+            fail(("items", i, *where, *([name] if name else [])), f"item {i}: {message}")
+            break
+    auto = item.auto_points
+    if auto is not None and (found := search_area_problem(auto.hint, auto.roi, front[1], front[0])):
+        fail(("items", i, "auto_points", found[0]), f"item {i}: auto_points.{found[1]}")
+
+
+def _check_station_item(item: ScanSpec, i: int, shapes: Shapes, fail: Fail,
+                        station_of: Callable[[str], StationPublic | None]) -> None:
+    assert item.station is not None
+    _check_station(item.station, station_of(item.station), i, shapes.get("image"), fail)
+
+
+def _check_views_item(item: ScanSpec, i: int, shapes: Shapes, fail: Fail,
+                      station_of: Callable[[str], StationPublic | None]) -> None:
+    _check_views(item, i, shapes, fail)
+
+
+class Kind(NamedTuple):
+    """What the API does with an item of one kind."""
+
+    check: Callable[[ScanSpec, int, Shapes, Fail, Callable[[str], StationPublic | None]], None]
+    """Its checks beyond the schema, once its inputs' sizes are known."""
+    own_formats: bool
+    """Whether it keeps the spec's formats whatever the operator's defaults: a joint fit writes
+    no cloud, and its spec allows no other."""
+
+
+_POINTS, _JOINT = Kind(_check_points, own_formats=False), Kind(_check_points, own_formats=True)
+
+KINDS: dict[ItemKind, Kind] = {
+    "photo": _POINTS, "found": _POINTS, "video": _POINTS, "tracked": _POINTS,
+    "tracked_joint": _JOINT, "frames_joint": _JOINT,
+    "views": Kind(_check_views_item, own_formats=True),
+    "station": Kind(_check_station_item, own_formats=False),
+}
+"""The API's table of item kinds: the one place it tells them apart."""
+
+
 def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
               raw: bytes | None = None,
               stations: Callable[[str], StationPublic | None] | None = None) -> set[str]:
@@ -195,6 +252,12 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
     sizes: dict[str, tuple[int, int] | None] = {}
     probes: dict[str, dict[str, Any] | None] = {}
     known_stations: dict[str, StationPublic | None] = {}  # a batch names one station: read it once
+
+    def station_of(station_id: str) -> StationPublic | None:
+        if station_id not in known_stations:
+            known_stations[station_id] = stations(station_id) if stations else None
+        return known_stations[station_id]
+
     for i, item in enumerate(job.items):
         if len(errors) >= _MAX_REPORTED:
             break
@@ -226,28 +289,7 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
             except ReferenceError as exc:
                 fail(("items", i, *where), f"item {i} {'.'.join(map(str, where))}: {exc}")
                 shapes[key] = None
-        if item.views is not None:
-            _check_views(item, i, shapes, fail)
-            continue
-        if item.station is not None:
-            if item.station not in known_stations:
-                known_stations[item.station] = stations(item.station) if stations else None
-            _check_station(item.station, known_stations[item.station], i, shapes.get("image"), fail)
-            continue
-        front = shapes.get("image")
-        side = shapes.get("side_image") if item.two_photo else front
-        if front is None or side is None:
-            continue  # a URL, or an upload whose size is not known: the worker checks
-        marks = [(("points",), item.points)] if item.points is not None else \
-            [(("frame_points", str(n)), p) for n, p in (item.frame_points or {}).items()]
-        for where, points in marks:
-            if (found := point_problem(item, points, front, side)) is not None:
-                name, message = found
-                fail(("items", i, *where, *([name] if name else [])), f"item {i}: {message}")
-                break
-        auto = item.auto_points
-        if auto is not None and (found := search_area_problem(auto.hint, auto.roi, front[1], front[0])):
-            fail(("items", i, "auto_points", found[0]), f"item {i}: auto_points.{found[1]}")
+        KINDS[item.kind].check(item, i, shapes, fail, station_of)
     if errors:
         body: Any = None
         if raw is not None:

@@ -14,7 +14,7 @@ import typer
 from prismcore.errors import InputError
 from prismcore.formats import FORMATS
 
-from .console import rich_console as console
+from .scan_runners import RUNNERS, RunOptions
 
 if TYPE_CHECKING:
     from pydantic import ValidationError
@@ -29,8 +29,7 @@ if TYPE_CHECKING:
 # tests/cli/test_cli_imports.py checks the two agree.
 DEFAULT_MAX_FRAMES = 500
 
-__all__ = ["one_line", "quality_flags", "quality_lines", "scale_options", "scan", "selection_from_flags",
-           "spec_from_flags", "summary_line"]
+__all__ = ["one_line", "quality_flags", "scale_options", "scan", "selection_from_flags", "spec_from_flags"]
 
 
 
@@ -205,56 +204,6 @@ def selection_from_flags(every: int | None, start: float | None, end: float | No
     return given or None
 
 
-def summary_line(report: dict) -> str:
-    """'640,268 points  120.00 ± 0.14 x 79.99 ± 0.09 x 59.99 ± 0.51 mm  focal 1400 px (fitted)
-    point loss 0.1%'; a known edge's dimension as '120.00 (given)'; points the search found
-    as '  points found (confidence 0.99)' at the end."""
-    from prismcore.outputs import given_dimension, points_found
-
-    dims, sigma = report["dimensions"], report.get("uncertainty") or {}
-    given = given_dimension(report)
-    sizes = " x ".join(f"{dims[k]:.2f}" + (" (given)" if k == given else
-                                           f" ± {sigma[k]:.2f}" if k in sigma else "")
-                       for k in ("width", "height", "depth"))
-    camera = report.get("camera") or {}
-    focal = (f"  focal {camera['focal_px']:.0f} px ({camera['focal_source']})"
-             if camera.get("focal_px") else "")
-    found = points_found(report)
-    return (f"[bold]{report['points']:,} points[/]  {sizes} {dims['unit']}{focal}"
-            f"  point loss {report['point_loss']:.1%}" + (f"  {found}" if found else ""))
-
-
-
-
-_VERDICT_STYLE = {"pass": "green", "fail": "red", "uncertain": "yellow"}
-
-
-def quality_lines(quality: Mapping[str, Any] | None) -> list[str]:
-    """One line per dimension and the part's verdict (rich markup), or none without a nominal:
-    'width   120.05 mm  nominal 120.00 ± 0.10  deviation +0.05 (± 0.04 at k=2)  pass'."""
-    if not quality:
-        return []
-    lines = []
-    for name, row in quality["dimensions"].items():
-        sigma = ("" if row["sigma_mm"] is None
-                 else f" (± {quality['k'] * row['sigma_mm']:.2f} at k={quality['k']:g})")
-        style = _VERDICT_STYLE[row["verdict"]]
-        lines.append(f"{name:<6} {row['measured_mm']:9.2f} mm  nominal {row['nominal_mm']:.2f} "
-                     f"± {row['tolerance_mm']:.2f}  deviation {row['deviation_mm']:+.2f}{sigma}  "
-                     f"[{style}]{row['verdict']}[/]")
-    verdict = quality["verdict"]
-    lines.append(f"[bold {_VERDICT_STYLE[verdict]}]{verdict.upper()}[/]  " + ", ".join(
-        f"{n} {c}" for c, n in ((quality["counts"][v], v) for v in ("pass", "fail", "uncertain"))))
-    return lines
-
-
-def _head(path: Path) -> bytes:
-    from prismcore.io import EXIF_HEAD_BYTES
-
-    with path.open("rb") as fh:
-        return fh.read(EXIF_HEAD_BYTES)
-
-
 def _camera_file(path: Path) -> CameraModel:
     from pydantic import ValidationError
 
@@ -410,8 +359,8 @@ def scan(
                                                          depth_mm))) from None
         return
     one: Path | None = images[0] if images else None
-    from prismcore.io import is_video
-
+    run = RunOptions(out=out, camera=(lambda: _camera_file(camera)) if camera is not None else None,
+                     tiles=tiles, max_frames=max_frames, overlay_format=overlay_format, started=started)
     try:
         selection = selection_from_flags(every, start, end, frame_list, sharpest)
         if spec_file is not None:
@@ -429,11 +378,9 @@ def scan(
                     raise InputError(f"{flag} {value!r} goes with IMAGE and --points; in a spec file, "
                                      f"set {flag[2:].replace('-', '_')}")
             spec, base = _spec_from_file(spec_file)
-            if spec.station is not None:
-                raise InputError(f"the spec names station {spec.station!r}, a station stored in the service: "
-                                 "submit it (prism submit), or here give the station's file: "
-                                 "prism scan PHOTO --station station.json --out DIR")
         else:
+            from prismcore.io import is_video
+
             if selection is None and one is not None and is_video(one):
                 selection = {}  # a video without frame flags: every frame, under --max-frames
             spec, base = spec_from_flags(
@@ -444,65 +391,6 @@ def scan(
                 ply_ascii=ply_ascii, max_pixels=max_pixels, frames=selection,
                 side_face=side_face or "auto", spacing_mm=spacing_mm, nominal=nominal,
                 tolerance_mm=tolerance_mm, hint=hint, roi=roi, points_frame=points_frame, fit=fit), Path(".")
-        if spec.points_frame is not None:
-            if camera is not None and spec.fit == "joint":
-                raise InputError("--camera does not go with a joint fit: it finds one focal length and "
-                                 "lens distortion from the views (give --focal-px if known)")
-            if camera is not None:
-                spec = spec.model_copy(update={"camera": _camera_file(camera)})
-            from .tracked_scan import scan_tracked
-
-            scan_tracked(spec, base, out, tiles=tiles, max_frames=max_frames, overlay_format=overlay_format)
-            return
-        if spec.views is not None or spec.fit == "joint":
-            if camera is not None:
-                raise InputError("--camera does not go with a joint fit: it finds one focal length and "
-                                 "lens distortion from the views (set focal_px in the spec if known)")
-            if spec.views is None:
-                raise InputError("fit \"joint\" (a video's frames as one box) is measured by the "
-                                 "service (prism submit); here, give the frames as photos: prism scan "
-                                 "A.png B.png --points-file points.json")
-            from .joint_scan import scan_spec_views
-
-            scan_spec_views(spec, base, out)
-            return
-        if camera is not None:
-            spec = spec.model_copy(update={"camera": _camera_file(camera)})
-        if spec.is_video or is_video(base / spec.image):
-            from .video_scan import scan_video
-
-            scan_video(spec, base, out, tiles=tiles, max_frames=max_frames, overlay_format=overlay_format)
-            return
-        from prismcore.io import exif_focal, load_image
-        from prismcore.locate import scan_found
-
-        from .outputs import write_report, write_scan
-
-        load_start = time.perf_counter()
-        front = load_image(base / spec.image, max_pixels=spec.max_pixels)
-        side_img = (load_image(base / spec.side_image, max_pixels=spec.max_pixels)
-                    if spec.side_image else None)
-        found = exif_focal(_head(base / spec.image), front.shape[1], front.shape[0])
-        load_ms = (time.perf_counter() - load_start) * 1000
-        auto = None
-        if spec.auto_points is not None:
-            from prismcore.locate import resolve_points
-
-            spec, auto = resolve_points(spec, front)
-        result = scan_found(spec, auto.report() if auto else None, front, side_img, tiles=tiles,
-                            exif_focal_px=found.focal_px if found else None)
+        RUNNERS[spec.kind](spec, base, run)
     except ValidationError as exc:
         raise InputError(one_line(exc)) from None
-    result.report["timings_ms"]["load"] = round(load_ms, 3)
-    paths = write_scan(result, spec, out, [front] + ([side_img] if side_img is not None else []),
-                       overlay_format)
-    result.report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
-    paths["report"] = write_report(result.report, out)
-    console().print(summary_line(result.report), soft_wrap=True)
-    for line in quality_lines(result.report.get("quality")):
-        console().print(line, soft_wrap=True)
-    for warning in result.report["warnings"]:
-        console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
-    wide = max(map(len, paths))
-    for kind, path in paths.items():
-        console().print(f"{kind:>{wide}}: {path}", soft_wrap=True)  # a path must stay one line to be copied

@@ -33,7 +33,7 @@ from prismcore import InputError
 from prismcore.io import VideoInfo, iter_frames, load_image
 from prismcore.multiview import View, fit_views, joint_report
 from prismcore.quality import quality_from_report
-from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, TRACKED_NAME, KnownEdge, ScanSpec
+from prismcore.spec import JOINT_MAX_PIXELS, JOINT_NAME, TRACKED_NAME, KnownEdge
 from prismcore.video import (
     Tracking,
     check_points_frame,
@@ -49,12 +49,7 @@ from .inputs import read_reference, save_input
 from .steps import max_pixels
 from .video import client_message, track_item
 
-__all__ = ["is_joint", "measure_joint"]
-
-
-def is_joint(spec: ScanSpec) -> bool:
-    """Is the item measured as one box from several views (views, or a video's fit "joint")?"""
-    return spec.views is not None or spec.fit == "joint"
+__all__ = ["measure_joint"]
 
 
 def measure_joint(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dict[str, str]]:

@@ -21,7 +21,7 @@ from prism_common.records import ItemResult, ItemView
 from prism_common.stations import station_key
 from prism_common.storage import is_missing
 
-from prismcore import InputError, ScanSpec
+from prismcore import InputError
 from prismcore.io import load_image
 from prismcore.quality import quality_from_report
 
@@ -32,16 +32,12 @@ from .inputs import read_input
 if TYPE_CHECKING:
     from prismcore.station import Station
 
-__all__ = ["is_station", "load_station", "measure_station"]
+__all__ = ["load_station", "measure_station"]
 
 # The cloud's options a station item passes on to the scan of its derived points.
 _CLOUD_FIELDS = ("formats", "tolerance", "cloud", "csv", "ply_ascii", "max_points", "spacing_mm")
 _CACHED = 4  # a station.json is a few MB (its plate): a worker serves few stations at a time
 _stations: OrderedDict[tuple[str, str], tuple[str, Station]] = OrderedDict()
-
-
-def is_station(spec: ScanSpec) -> bool:
-    return spec.station is not None
 
 
 def load_station(ctx: WorkerContext, tenant: str, station_id: str) -> Station:

@@ -58,6 +58,7 @@ from prism_common.records import ItemResult, ItemView, State
 from prism_common.references import ReferenceError
 
 from prismcore import InputError
+from prismcore.spec import ItemKind
 
 from . import joint_item, lifecycle, station_item, steps, upload_points, video, webhooks
 from .app import app, worker_context
@@ -182,16 +183,24 @@ def plan_item(self: AnyTask, job_id: str, item: int) -> None:
     if view is None:
         return
     lifecycle.mark_running(ctx, view, repeat=repeat)
-    if joint_item.is_joint(view.item.spec):
-        _scan_whole(ctx, view, repeat, joint_item.measure_joint)
-    elif station_item.is_station(view.item.spec):
-        _scan_whole(ctx, view, repeat, station_item.measure_station)
-    elif view.item.spec.is_video:
-        _split_video(ctx, view, repeat)
-    elif steps.tiles_per_face(ctx, view.n_items) == 1:
+    PLANS[view.item.spec.kind](ctx, view, repeat)
+
+
+def _plan_photo(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    """A photo: scanned whole in this task when the job's items have one tile per face (a
+    batch), else planned into tiles."""
+    if steps.tiles_per_face(ctx, view.n_items) == 1:
         _scan_whole(ctx, view, repeat)
     else:
         _plan_tiles(ctx, view, repeat)
+
+
+def _plan_joint(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    _scan_whole(ctx, view, repeat, joint_item.measure_joint)
+
+
+def _plan_station(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
+    _scan_whole(ctx, view, repeat, station_item.measure_station)
 
 
 def _plan_tiles(ctx: WorkerContext, view: ItemView, repeat: bool) -> None:
@@ -213,6 +222,17 @@ def _split_video(ctx: WorkerContext, view: ItemView, repeat: bool, part: int = 0
         video.split_video(ctx, view, part)
     except INPUT_ERRORS as exc:
         lifecycle.fail_and_complete(ctx, view.job_id, view.item.index, str(exc), maybe_repeat=repeat)
+
+
+Plan = Callable[[WorkerContext, ItemView, bool], None]
+
+PLANS: dict[ItemKind, Plan] = {
+    "photo": _plan_photo, "found": _plan_photo,  # the search runs in the item's plan
+    "video": _split_video, "tracked": _split_video,  # a scan_frame task per frame
+    "tracked_joint": _plan_joint, "frames_joint": _plan_joint, "views": _plan_joint,  # one box
+    "station": _plan_station,
+}
+"""What plan_item does with an item of each kind: the one place the worker tells the kinds apart."""
 
 
 @app.task(name=TASK_SPLIT_VIDEO, base=ItemTask, bind=True, autoretry_for=RETRYABLE, max_retries=RETRIES,

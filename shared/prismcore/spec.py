@@ -37,6 +37,7 @@ from prismcore.spec_fields import (
     AutoPoints,
     CsvOptions,
     FrameSelection,
+    ItemKind,
     KnownEdge,
     MmPerPx,
     OutputFormat,
@@ -49,6 +50,7 @@ from prismcore.spec_fields import (
     _Strict,
     error_message,
     frame_folder,
+    item_kind,
     output_files,
     parse_points,
     scan_spec_rules,
@@ -67,6 +69,7 @@ __all__ = [
     "TRACKED_NAME",
     "AutoPoints",
     "FrameSelection",
+    "ItemKind",
     "KnownEdge",
     "MmPerPx",
     "OutputFormat",
@@ -535,6 +538,11 @@ class ScanSpec(_Strict):
         """True when `image` names a video (the spec has a frame selection)."""
         return self.frames is not None
 
+    @property
+    def kind(self) -> ItemKind:
+        """What the item is, read from its fields: `prismcore.spec_fields.item_kind`."""
+        return item_kind(self)
+
 
 _STATION_ID = re.compile(r"^[0-9a-f]{32}$")
 _STATION_FOUND = "the station finds the part and fits the box itself"
@@ -557,7 +565,6 @@ _CLOUD_ONLY = ("tolerance", "csv", "ply_ascii", "max_points")
 """Options of the cloud a photo's scan makes, which a joint fit (no cloud) would silently ignore."""
 
 _NO_CLOUD = "a joint fit writes its report (joint.json), no cloud"
-
 
 _JOINT_ASIDE = {
     "auto_points": "it says where points \"auto\" looks, and each view carries its own seven points",

@@ -9,7 +9,8 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from typing import Annotated, Any, Literal
+from collections.abc import Sequence
+from typing import Annotated, Any, Literal, Protocol, get_args
 
 from pydantic import (
     BaseModel,
@@ -28,6 +29,7 @@ from prismcore.formats import FILE_NAMES, FORMATS, METRIC_FORMATS, PART_FORMATS,
 __all__ = [
     "FILE_NAMES",
     "FORMATS",
+    "ITEM_KINDS",
     "JOINT_MAX_PIXELS",
     "JOINT_MAX_VIEWS",
     "JOINT_NAME",
@@ -38,6 +40,7 @@ __all__ = [
     "AutoPoints",
     "CsvOptions",
     "FrameSelection",
+    "ItemKind",
     "KnownEdge",
     "MmPerPx",
     "OutputFormat",
@@ -49,6 +52,7 @@ __all__ = [
     "SideFace",
     "error_message",
     "frame_folder",
+    "item_kind",
     "output_files",
     "parse_points",
     "scan_spec_rules",
@@ -392,3 +396,50 @@ def scan_spec_rules() -> list[dict[str, Any]]:
         _rule(auto, _unset("side_image", points=_any({"const": "auto"}, {"type": "null"}),
                            side_face={"const": "auto"})),
     ]
+
+
+ItemKind = Literal["photo", "found", "video", "tracked", "tracked_joint", "frames_joint", "views",
+                   "station"]
+"""What a job item is, which decides what measures it (`ScanSpec.kind`): one photo (or a front and
+a side photo) with clicked points; one photo whose points are found (points "auto"); a video's
+frames, each measured as a photo (`frames`, clicked points, frame_points or "auto"); a video's
+frames with points tracked from `points_frame`; those tracked frames measured as one box (fit
+"joint"); a video's frames of `frame_points` measured as one box (fit "joint"); several photos
+measured as one box (`views`); a photo measured on a stored station (`station`)."""
+
+ITEM_KINDS: tuple[ItemKind, ...] = get_args(ItemKind)
+"""Every item kind: each caller's table of kinds names them all (tests check it)."""
+
+
+class _KindFields(Protocol):
+    """The fields of a spec that its kind is read from."""
+
+    @property
+    def views(self) -> Sequence[object] | None: ...
+    @property
+    def station(self) -> str | None: ...
+    @property
+    def fit(self) -> str | None: ...
+    @property
+    def points_frame(self) -> int | None: ...
+    @property
+    def frames(self) -> object | None: ...
+    @property
+    def auto_points(self) -> object | None: ...
+
+
+def item_kind(spec: _KindFields) -> ItemKind:
+    """The kind of a valid spec's item. The spec's rules leave one kind to each valid spec (a
+    station or views go with no frames, points or fit "frames"; points_frame needs frames), and
+    the tests are made in this order so that every caller's earlier order gives the same."""
+    if spec.views is not None:
+        return "views"
+    if spec.station is not None:
+        return "station"
+    if spec.fit == "joint":
+        return "tracked_joint" if spec.points_frame is not None else "frames_joint"
+    if spec.points_frame is not None:
+        return "tracked"
+    if spec.frames is not None:
+        return "video"
+    return "found" if spec.auto_points is not None else "photo"

@@ -29,7 +29,7 @@ from ..backpressure import check_queue_depth
 from ..deps import CeleryDep, ObjectsDep, PresignerDep, RedisDep, SettingsDep, StoreDep, TenantDep
 from ..presign import Presigner
 from ..schemas import JobCreate, JobList, JobPublic
-from ..validation import check_job
+from ..validation import KINDS, check_job
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 log = logging.getLogger(__name__)
@@ -111,8 +111,7 @@ def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]
     """The item's formats: its own, else the operator's defaults it can have (the format table's
     METRIC_FORMATS need a scale), else csv and ply. A joint fit (views, or a video's
     frames fitted as one box) writes no cloud and keeps the spec's own (the spec allows no other)."""
-    joint = getattr(spec, "views", None) is not None or getattr(spec, "fit", None) == "joint"
-    if "formats" in spec.model_fields_set or joint:
+    if "formats" in spec.model_fields_set or KINDS[spec.kind].own_formats:
         return spec.formats
     scaled = spec.scale is not None or spec.station is not None  # a station's plane gives the mm
     usable = [f for f in defaults if scaled or f not in METRIC_FORMATS]
