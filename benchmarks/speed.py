@@ -670,6 +670,15 @@ def worker_parts(ctx: Ctx) -> dict[str, Any]:
         from prismcore.scan.cloud import decimate
         single_thread()
         draw, fmt = _overlay_drawer(), getattr(artifacts, "OVERLAY_FORMAT", "png")
+        # The overlay shrunk as the worker stores it: prismcore.outputs.sink's since the output sink,
+        # the worker's own in older checkouts (--before).
+        try:
+            from prismcore.outputs.sink import display_size
+
+            def _display_size(picture: np.ndarray) -> np.ndarray:
+                return display_size(picture, artifacts.OVERLAY_MAX_SIDE)
+        except ImportError:
+            _display_size = artifacts._display_size
         rounds: list[dict[str, float]] = []
         for _ in range(3 if ctx.quick else 4):
             for data, item in _photos(4):
@@ -686,7 +695,7 @@ def worker_parts(ctx: Ctx) -> dict[str, Any]:
                 preview = decimate(result.cloud)
                 writers.write_ply(io.BytesIO(), preview.points, preview.colors)
                 marks.append(("preview", time.process_time()))
-                picture = artifacts._display_size(draw(image, result.report, photo="front"))
+                picture = _display_size(draw(image, result.report, photo="front"))
                 writers.encode_overlay(picture, fmt) if fmt != "png" else writers.encode_png(picture)
                 marks.append(("overlay", time.process_time()))
                 json.dumps(result.report, indent=2).encode()

@@ -52,15 +52,16 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
     """
     # The engine (numpy) is imported on the first job whose photos have known sizes.
     from prismcore.errors import InputError
+    from prismcore.geometry import validate_points
     from prismcore.scan import check_points, marked_quads
 
     try:
-        this = spec.model_copy(update={"points": points})
-        face = check_points(this, front, side)
+        validate_points(points, front, side)
         camera = spec.camera
         if camera is not None and camera.has_distortion:
-            return None  # the engine checks the quads on undistorted points, after decoding
-        marked_quads(this, face, front, side)
+            return None  # the engine checks the faces on undistorted points, after decoding
+        this = spec.model_copy(update={"points": points})
+        marked_quads(this, check_points(this, front, side), front, side)
     except InputError as exc:
         named = _POINT.search(str(exc))
         return (named.group(1) if named else None), str(exc)

@@ -80,7 +80,7 @@ def result_json(result: JointResult) -> dict[str, Any]:
 
 def write_part_files(report: dict[str, Any], scale: KnownEdge, formats: Sequence[str], out: Path,
                      nominal: Any = None, tolerance_mm: Any = None) -> dict[str, Path]:
-    """The part's files of `formats` (step, drawing: the others make no sense without a cloud)
+    """The part's files of `formats` (step, drawing, stl: the others make no sense without a cloud)
     from a joint fit's report, with its verdicts against `nominal` and its scale; {kind: path}."""
     measured = {**report, "quality": quality_from_report(report, nominal, tolerance_mm),
                 "inputs": {"scale": scale.model_dump()}}
@@ -91,11 +91,12 @@ def write_part_files(report: dict[str, Any], scale: KnownEdge, formats: Sequence
 def scan_views(images: list[Path], points_file: Path, out: Path, scale: dict[str, Any] | None,
                focal_px: float | None, max_pixels: int, formats: list[str] | None = None) -> None:
     """Measure the photos as one box; print the result and write ``out/joint.json`` (and the
-    part's step and drawing files when `formats` asks for them: a joint fit makes no cloud)."""
+    part's step, drawing and stl files when `formats` asks for them: a joint fit makes no cloud)."""
     asked = [f for f in formats or [] if f not in ("csv", "ply")]
     if any(f not in PART_FORMATS for f in asked):
         raise InputError(f"--format {','.join(formats or [])!r}: several photos measured as one box make "
-                         "no cloud; --format takes step and drawing (the part's solid and drawing)")
+                         "no cloud; --format takes step and drawing (the part's solid and drawing) "
+                         "and stl (its mesh)")
     if scale is None or scale.get("kind") != "edge":
         raise InputError("several photos are measured with one known edge: give --width-mm, "
                          "--height-mm or --depth-mm")

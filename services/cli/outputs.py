@@ -26,11 +26,15 @@ class FolderSink:
         if isinstance(data, bytes):
             path.write_bytes(data)
             return
+        # Written beside it and moved into place whole: a writer that refuses (a format that needs
+        # a scale, say) leaves the folder as it was, a file of an earlier run included.
+        part = path.with_name(f".{name}.part")
         try:
-            with open(path, "wb") as f:
+            with open(part, "wb") as f:
                 data(f)
+            part.replace(path)
         except BaseException:
-            path.unlink(missing_ok=True)  # a writer that refused leaves no file, as before the sink
+            part.unlink(missing_ok=True)
             raise
 
 

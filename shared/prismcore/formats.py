@@ -64,7 +64,8 @@ FILES: dict[str, OutputFile] = {
     "report": OutputFile("report.json", "application/json", "Report (JSON)", "Report"),
     "joint": OutputFile("joint.json", "application/json", "Report (JSON)"),
     # The overlay's name is its base: it is stored with its picture format's suffix
-    # (`prismcore.outputs.writers.overlay_name`), and served with that format's type.
+    # (`prismcore.outputs.writers.overlay_name`), and served with that format's type: PNG here
+    # is `prism scan`'s default; the worker stores JPEG (`prismcore.outputs.overlay_media_type`).
     "overlay": OutputFile("overlay.png", "image/png", "Fit overlay"),
     "overlay_side": OutputFile("overlay_side.png", "image/png"),
     "preview": OutputFile("preview.ply", "application/octet-stream"),

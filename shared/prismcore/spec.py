@@ -267,9 +267,9 @@ class ScanSpec(_Strict):
     cloud: Literal["surface", "volume"] = "surface"
     formats: list[OutputFormat] = Field(
         default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1, description="The outputs: the "
-        "cloud as csv, ply, las or laz (compressed LAS), glb (the fitted box, a textured glTF "
-        "model), step (the part as a STEP solid, part.step, with part.step.json) and drawing (its "
-        "dimensioned drawing: drawing.svg, drawing.pdf, drawing.dxf); las, laz, glb, step and drawing "
+        "cloud as csv, ply, las or laz (compressed LAS), glb (the fitted box, a textured glTF model), "
+        "stl (the box as a mesh), step (the part as a STEP solid, part.step and part.step.json) and "
+        "drawing (its dimensioned drawing: drawing.svg, .pdf, .dxf); all but csv and ply "
         "are in mm and need a scale. Not given: the service's default (PRISM_DEFAULT_FORMATS: csv "
         "and ply unless the operator set others; the ones in mm only for an item with a scale); "
         "prism scan and the engine write csv and ply.")
@@ -508,13 +508,13 @@ class ScanSpec(_Strict):
         return bool(self.formats) and set(self.formats) != set(_DEFAULT_FORMATS)
 
     def _cloud_formats_asked(self) -> bool:
-        """Does the spec ask for formats other than the default and the part's (step, drawing),
+        """Does the spec ask for formats other than the default and the part's (step, drawing, stl),
         which a joint fit (no cloud) writes from its report?"""
         return self._formats_asked() and not set(self.formats) <= set(PART_FORMATS)
 
     @property
     def part_formats(self) -> list[OutputFormat]:
-        """The formats asked for that a joint fit writes: step and drawing."""
+        """The formats asked for that a joint fit writes: step, drawing and stl."""
         return [f for f in self.formats if f in PART_FORMATS] if self._formats_asked() else []
 
     def _focal_fittable(self) -> bool:
@@ -580,7 +580,7 @@ _JOINT_ASIDE = {
               "(give focal_px if it is known)",
     "principal_point": "the joint fit takes the image centre as the optical centre",
     "spacing_mm": _NO_CLOUD,
-    "formats": _NO_CLOUD + "; formats may ask for the part's step and drawing only",
+    "formats": _NO_CLOUD + "; formats may ask for the part's step, drawing and stl only",
     "cloud": _NO_CLOUD,
     "method": "the joint fit is the default method's perspective fit",
 }

@@ -19,6 +19,7 @@ from prismcore.station.board import BoardSpec, BoardView, board_image, find_boar
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
 from prismcore.station.segment import SHADOW_RANGE, Registration, norm2, planes, shadow_ratio, undistorter
+from prismcore.station.sheet import ink_strokes, sheet_margins
 
 __all__ = ["board_camera", "expected_board", "measure_on_board", "shadow_floor"]
 
@@ -31,6 +32,7 @@ _MAX_FLOOR = 0.9  # the least scale a pixel's shadow is held to, at most
 _LIT = 0.85  # a square this much darker than the board's light nearby is in a shadow
 _LIT_PASSES = 3  # the light found again without the shadowed squares (each pass nearer the lit)
 _BLACK_LIT = 1.5  # a black square's pixel brighter than this against the plate's black is not lit so
+_INK_MM = 1.5  # the print on the sheet's margin (ruler, text) is strokes thinner than this
 
 
 def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
@@ -105,23 +107,33 @@ def board_camera(
     )
 
 
-def _corners(board: BoardSpec, pose_h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The board's four corners (4, 2), in mm on the board and in px in the undistorted photo
-    (through the homography `pose_h`), in order round it."""
+Margins = tuple[float, float, float, float]
+"""The sheet's paper past the board's (left, top, right, bottom) sides, mm (:func:`sheet_margins`)."""
+_NO_MARGIN: Margins = (0.0, 0.0, 0.0, 0.0)
+
+
+def _corners(board: BoardSpec, pose_h: np.ndarray, margins: Margins = _NO_MARGIN
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The four corners (4, 2) of the board with `margins` of its sheet, in mm on the board and in
+    px in the undistorted photo (through the homography `pose_h`), in order round it."""
     bw, bh = board.size_mm
-    corners_mm = np.array([[0, 0], [bw, 0], [bw, bh], [0, bh]], np.float64)
+    left, top, right, bottom = margins
+    x0, y0, x1, y1 = -left, -top, bw + right, bh + bottom
+    corners_mm = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], np.float64)
     return corners_mm, cv2.perspectiveTransform(corners_mm.reshape(-1, 1, 2), pose_h).reshape(-1, 2)
 
 
 def expected_board(
     photo_u: np.ndarray, board: BoardSpec, camera: CameraModel, pose_h: np.ndarray,
-    notes: list[str] | None = None,
+    notes: list[str] | None = None, margins: Margins = _NO_MARGIN,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The support as it would look without the part: the board's pattern drawn where the board
     lies (homography `pose_h`: board mm -> undistorted photo px), its white and black lit as the
-    photo's own white and black squares are lit nearby; elsewhere the photo itself (no part is
-    looked for there). Returns (plate (H, W, 3) uint8, board region (H, W) bool); a fallback
-    that may change the outline is said in `notes`.
+    photo's own white and black squares are lit nearby, and the sheet's white paper `margins`
+    (mm) round it lit as the white squares, its print (ruler, text: strokes under _INK_MM) taken
+    as the photo shows it; elsewhere the photo itself (no part is looked for there). Returns
+    (plate (H, W, 3) uint8, the board's and the sheet's region (H, W) bool); a fallback that may
+    change the outline is said in `notes`.
 
     The light is found without what differs from the board (a part), a dark part over white
     squares told from a shadow by the black squares nearby (:func:`shadow_floor`), and without the
@@ -136,9 +148,11 @@ def expected_board(
         np.linalg.norm(corners_px[1] - corners_px[0]), np.linalg.norm(corners_px[2] - corners_px[1])
     )
     ppm = float(np.clip(_PATTERN_PX * span_px / max(board.size_mm), 1.0, 20.0))
-    art = board_image(board, ppm).astype(np.float32) / 255.0
-    # pattern pixel centres at (i + 0.5) / ppm mm
-    S = np.array([[1 / ppm, 0, 0.5 / ppm], [0, 1 / ppm, 0.5 / ppm], [0, 0, 1]])
+    left, top, right, bottom = (round(m * ppm) for m in margins)
+    art = cv2.copyMakeBorder(board_image(board, ppm), top, bottom, left, right, cv2.BORDER_CONSTANT,
+                             value=255).astype(np.float32) / 255.0
+    # pattern pixel centres at (i + 0.5) / ppm mm, from the sheet's corner (-left, -top) px
+    S = np.array([[1 / ppm, 0, (0.5 - left) / ppm], [0, 1 / ppm, (0.5 - top) / ppm], [0, 0, 1]])
     to_photo = pose_h @ S
     pattern = cv2.warpPerspective(art, to_photo, (w, h), flags=cv2.INTER_LINEAR)
     region = cv2.warpPerspective(np.ones_like(art), to_photo, (w, h), flags=cv2.INTER_NEAREST) > 0.5
@@ -186,6 +200,10 @@ def expected_board(
         plate = black + (white - black) * pat[..., None]
         lit = shadow_ratio(planes(P), planes(plate)) >= _LIT
     plate_u[win] = np.where(reg[..., None], np.clip(plate, 0, 255), P).astype(np.uint8)
+    if any(margins):
+        margin = region & (board_cover(corners_px, (h, w), 0.0) < 0.5)
+        ink = ink_strokes(photo_u, margin, float(_INK_MM * span_px / max(board.size_mm)))
+        plate_u[ink] = photo_u[ink]
     return plate_u, region
 
 
@@ -262,17 +280,21 @@ def measure_on_board(
     pose_h = K @ np.column_stack([R[:, 0], R[:, 1], t])
     t1 = time.perf_counter()
     notes: list[str] = []
-    plate_u, region = expected_board(photo_u, board, cam, pose_h, notes)
-    # The table round the board from the photo itself: a part rising past the board's edge in
+    # The sheet the board is printed on, as far as its paper shows round the board: modelled as
+    # paper (a part may stand on it), not as the table.
+    margins = sheet_margins(photo_u, board, pose_h)
+    plate_u, region = expected_board(photo_u, board, cam, pose_h, notes, margins)
+    # The table round the sheet from the photo itself: a part rising past the sheet's edge in
     # the photo is outlined against the table there.
-    corners_mm, corners_px = _corners(board, pose_h)
+    corners_mm, corners_px = _corners(board, pose_h, margins)
     tall = background.TABLE_HEIGHT * max(board.size_mm)
     zone = table_zone(corners_mm, K, R, t, tall)
     cover = board_cover(corners_px, (h, w))
     plate_u, region, table_notes = with_table(photo_u, plate_u, cover, zone)
     # The part rests on the board (or over its edge): what differs only away from it is the table's
     # (a printed cloth's pattern the median missed) or another object's, not the part.
-    reach = int(2 * np.linalg.norm(corners_px[1] - corners_px[0]) / board.squares_x) | 1
+    board_px = _corners(board, pose_h)[1]
+    reach = int(2 * np.linalg.norm(board_px[1] - board_px[0]) / board.squares_x) | 1
     rests_on = cv2.dilate((cover > 0.5).astype(np.uint8), np.ones((reach, reach), np.uint8)) > 0
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {

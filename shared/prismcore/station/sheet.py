@@ -1,0 +1,161 @@
+"""The printed sheet round a hand-held board: how far its white paper reaches past the board on
+each side, and the ink printed on it.
+
+`prism board` prints the board on a page with a margin, a check ruler and a line of text; other
+printers, "fit to page" and trimmed sheets change that margin, so it is read from the photo, not
+taken from the layout. Without it the paper round the board was modelled as the table (a median
+of the photo round the board): the sheet's edge, its ruler and its text then differed from that
+model and were found as parts, and a part standing on the margin was refused as reaching past
+the board.
+"""
+
+from __future__ import annotations
+
+from typing import cast
+
+import cv2
+import numpy as np
+
+from prismcore.station.board import BoardSpec, board_image
+
+__all__ = ["MAX_MARGIN_MM", "ink_strokes", "sheet_margins"]
+
+MAX_MARGIN_MM = 60.0
+"""The widest margin looked for on a side (an A3 page round a small board leaves more: the rest is
+modelled as the table)."""
+_PX_PER_MM = 2.0  # the sheet is read from the photo rectified onto the board's plane at this scale
+_STEP_MM = 0.5
+_FIRST_MM = 1.0  # the board's edge blurred in the photo: the paper is looked for from here out
+_LEAST_MM = 2.0  # a margin narrower than this is none (the board's own edge, blurred)
+_INK_MM = 1.5  # strokes thinner than this on the paper are its print: a ruler, its ticks, text
+_PAPER_LIGHT = 0.88  # paper: within this share of the white squares' light near that side, or its
+# inverse (a metal table mirroring a lamp is brighter than paper, a grey one darker)...
+_PAPER_HUE = 0.06  # ...and its colour's direction within this of theirs (a table is seldom as grey)
+_STARTS = 0.3  # a side shows paper where this share of its positions do next to the board
+_GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
+
+
+def _hue(rgb: np.ndarray) -> np.ndarray:
+    return cast("np.ndarray", rgb / (np.linalg.norm(rgb, axis=-1, keepdims=True) + 1.0))
+
+
+def sheet_margins(
+    photo_u: np.ndarray, board: BoardSpec, pose_h: np.ndarray
+) -> tuple[float, float, float, float]:
+    """How far the white paper reaches past each side of the board, mm: (left, top, right, bottom)
+    in the board's own frame (x along its squares_x, y along squares_y).
+
+    Parameters
+    ----------
+    photo_u : (H, W, 3) uint8
+        The undistorted photo.
+    board : BoardSpec
+    pose_h : (3, 3) float64
+        Board mm -> undistorted photo px.
+
+    Returns
+    -------
+    tuple of 4 float
+        Each side's margin, mm: 0 where no paper shows past the board (a board cut to its squares,
+        or that side out of view), at most `MAX_MARGIN_MM` (a white table reads as paper: it is
+        then modelled as paper that far).
+
+    Notes
+    -----
+    The photo is rectified onto the board's plane; a line along a side, a given distance out, is
+    paper where most of its seen pixels are as light as the white squares near that side and of
+    their colour, once strokes under `_INK_MM` (the ruler, the text) are closed over. The paper
+    ends where that fails for `_GONE_MM` in a row; a part standing on the margin hides less than
+    half a side's lines.
+    """
+    bw, bh = board.size_mm
+    m = MAX_MARGIN_MM
+    q = _PX_PER_MM
+    size = (round((bw + 2 * m) * q), round((bh + 2 * m) * q))
+    # rectified pixel (i, j) centre -> board mm ((i + 0.5) / q - m, ...)
+    to_board = np.array([[1 / q, 0, 0.5 / q - m], [0, 1 / q, 0.5 / q - m], [0, 0, 1.0]])
+    to_photo = pose_h @ to_board
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    rect = cv2.warpPerspective(photo_u, to_photo, size, flags=flags).astype(np.float32)
+    seen = cv2.warpPerspective(np.ones(photo_u.shape[:2], np.uint8), to_photo, size, flags=flags) > 0
+    k = max(3, round(_INK_MM * q) | 1)
+    closed = cv2.morphologyEx(rect, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    closed = cv2.GaussianBlur(closed, (0, 0), 1.0)  # a photo's noise, over half a millimetre
+    art = board_image(board, q) > 127
+    o = round(m * q)
+    inner = rect[o : o + art.shape[0], o : o + art.shape[1]]
+    inner_seen = seen[o : o + art.shape[0], o : o + art.shape[1]]
+    square = max(1, round(board.square_mm * q))
+    step = max(1, round(_STEP_MM * q))
+    first, least, gone = (max(1, round(v * q)) for v in (_FIRST_MM, _LEAST_MM, _GONE_MM))
+    out = []
+    # (the board's pixels within a square of the side, the lines out from it: index d -> a 1-D band)
+    for side in ("left", "top", "right", "bottom"):
+        if side in ("left", "right"):
+            cols = slice(0, square) if side == "left" else slice(art.shape[1] - square, art.shape[1])
+            near, near_seen, white = inner[:, cols], inner_seen[:, cols], art[:, cols]
+        else:
+            rows = slice(0, square) if side == "top" else slice(art.shape[0] - square, art.shape[0])
+            near, near_seen, white = inner[rows], inner_seen[rows], art[rows]
+        sel = white & near_seen
+        if sel.sum() < 20:
+            out.append(0.0)
+            continue
+        # The white's light: its lighter half (the white round a ChArUco square's marker is a few
+        # mm, and its pixels next to the black are blurred darker).
+        whites = near[sel]
+        norms = np.linalg.norm(whites, axis=1)
+        level = np.median(whites[norms >= np.median(norms)], axis=0)
+        light, hue = float(np.linalg.norm(level)), _hue(level)
+        ds = np.arange(first, o, step)
+        if side == "left":
+            lines, ok = closed[o : o + art.shape[0], o - ds], seen[o : o + art.shape[0], o - ds]
+        elif side == "right":
+            c = o + art.shape[1] - 1 + ds
+            lines, ok = closed[o : o + art.shape[0], c], seen[o : o + art.shape[0], c]
+        elif side == "top":
+            lines, ok = closed[o - ds, o : o + art.shape[1]], seen[o - ds, o : o + art.shape[1]]
+            lines, ok = lines.transpose(1, 0, 2), ok.T
+        else:
+            r = o + art.shape[0] - 1 + ds
+            lines, ok = closed[r, o : o + art.shape[1]], seen[r, o : o + art.shape[1]]
+            lines, ok = lines.transpose(1, 0, 2), ok.T
+        # lines: (position along the side, distance out, 3); each position's paper ends where
+        # `gone` of it in a row is not paper (or not seen)
+        ratio = np.linalg.norm(lines, axis=2) / light
+        paper = ok & (ratio >= _PAPER_LIGHT) & (ratio <= 1 / _PAPER_LIGHT) & (
+            np.linalg.norm(_hue(lines) - hue, axis=2) <= _PAPER_HUE)
+        run = max(1, gone // step)
+        window = np.asarray(np.lib.stride_tricks.sliding_window_view(
+            np.pad(~paper, ((0, 0), (0, run - 1)), constant_values=True), run, axis=1).all(axis=2))
+        ends = np.where(window.any(axis=1), window.argmax(axis=1), len(ds))
+        # positions whose paper starts at the board: the others are hidden by the part (or its
+        # shadow) or show no paper; a side shows paper if enough do
+        starts = ends > 0
+        if starts.sum() < _STARTS * max(1, int(ok[:, 0].sum())):
+            out.append(0.0)
+            continue
+        # The paper's edge is straight: most positions end at it. A part on the margin or its
+        # shadow ends some early, a table alike the paper some later (or never, within the
+        # window: those count only as most of the side); the commonest end, to a millimetre.
+        counts = np.bincount(ends[starts], minlength=len(ds) + 1).astype(np.float64)
+        if counts[-1] < 0.5 * starts.sum():
+            counts[-1] = 0
+        per_mm = np.convolve(counts, np.ones(max(1, round(1.0 / _STEP_MM))), mode="same")
+        margin = int(ds[np.clip(int(np.argmax(per_mm)) - 1, 0, len(ds) - 1)])
+        out.append(margin / q if margin >= least else 0.0)
+    left, top, right, bottom = out
+    return left, top, right, bottom
+
+
+def ink_strokes(photo_u: np.ndarray, paper: np.ndarray, stroke_px: float) -> np.ndarray:
+    """The print on the paper: pixels of `photo_u` (H, W, 3) within `paper` (H, W) bool darker than
+    the paper round them by a stroke under `stroke_px` wide (a grey closing's black-hat), dilated
+    by a pixel for their blurred edge: (H, W) bool. A part is wider than that everywhere (its
+    outline is convex), so none of it is ink."""
+    grey = cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY)
+    k = max(3, round(stroke_px) | 1)
+    hat = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    closed = cv2.morphologyEx(grey, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    ink = (hat.astype(np.float32) > 0.15 * np.maximum(closed.astype(np.float32), 1.0)) & paper
+    return cast("np.ndarray", cv2.dilate(ink.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
