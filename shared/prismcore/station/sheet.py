@@ -33,6 +33,7 @@ _PAPER_LIGHT = 0.88  # paper: within this share of the white squares' light near
 _PAPER_HUE = 0.06  # ...and its colour's direction within this of theirs (a table is seldom as grey)
 _STARTS = 0.3  # a side shows paper where this share of its positions do next to the board
 _GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
+_EDGE_STEP = 0.04  # ... and its colour steps by this share of the white's light across that end
 
 
 def _hue(rgb: np.ndarray) -> np.ndarray:
@@ -57,8 +58,8 @@ def sheet_margins(
     -------
     tuple of 4 float
         Each side's margin, mm: 0 where no paper shows past the board (a board cut to its squares,
-        or that side out of view), at most `MAX_MARGIN_MM` (a white table reads as paper: it is
-        then modelled as paper that far).
+        or that side out of view) or where what looks like paper does not end within
+        `MAX_MARGIN_MM` (a light table, a large sheet: modelled as the table).
 
     Notes
     -----
@@ -121,14 +122,16 @@ def sheet_margins(
             lines, ok = closed[r, o : o + art.shape[1]], seen[r, o : o + art.shape[1]]
             lines, ok = lines.transpose(1, 0, 2), ok.T
         # lines: (position along the side, distance out, 3); each position's paper ends where
-        # `gone` of it in a row is not paper (or not seen)
+        # `gone` of it in a row is seen and is not paper
         ratio = np.linalg.norm(lines, axis=2) / light
         paper = ok & (ratio >= _PAPER_LIGHT) & (ratio <= 1 / _PAPER_LIGHT) & (
             np.linalg.norm(_hue(lines) - hue, axis=2) <= _PAPER_HUE)
         run = max(1, gone // step)
+        # (out of the photo is no end: the photo's edge near a side would read as the sheet's)
         window = np.asarray(np.lib.stride_tricks.sliding_window_view(
-            np.pad(~paper, ((0, 0), (0, run - 1)), constant_values=True), run, axis=1).all(axis=2))
+            np.pad(~paper & ok, ((0, 0), (0, run - 1)), constant_values=False), run, axis=1).all(axis=2))
         ends = np.where(window.any(axis=1), window.argmax(axis=1), len(ds))
+        ends[~paper[:, 0]] = 0
         # positions whose paper starts at the board: the others are hidden by the part (or its
         # shadow) or show no paper; a side shows paper if enough do
         starts = ends > 0
@@ -139,10 +142,22 @@ def sheet_margins(
         # shadow ends some early, a table alike the paper some later (or never, within the
         # window: those count only as most of the side); the commonest end, to a millimetre.
         counts = np.bincount(ends[starts], minlength=len(ds) + 1).astype(np.float64)
-        if counts[-1] < 0.5 * starts.sum():
-            counts[-1] = 0
+        if counts[-1] >= 0.5 * starts.sum():
+            # most of the side's "paper" does not end within MAX_MARGIN_MM: a light table, or a
+            # sheet larger than that, is modelled as the table, as before the sheet was read
+            out.append(0.0)
+            continue
+        counts[-1] = 0
         per_mm = np.convolve(counts, np.ones(max(1, round(1.0 / _STEP_MM))), mode="same")
         margin = int(ds[np.clip(int(np.argmax(per_mm)) - 1, 0, len(ds) - 1)])
+        # and the paper's edge is a step in colour: a faint stripe of a light table is not one
+        k_end = min(int(np.argmax(per_mm)), len(ds) - 1)
+        w = max(1, round(_GONE_MM / _STEP_MM))
+        inside = np.median(lines[starts][:, max(0, k_end - w) : k_end].reshape(-1, 3), axis=0)
+        beyond = lines[starts][:, k_end + 1 : k_end + 1 + w].reshape(-1, 3)
+        if len(beyond) == 0 or np.linalg.norm(inside - np.median(beyond, axis=0)) < _EDGE_STEP * light:
+            out.append(0.0)
+            continue
         out.append(margin / q if margin >= least else 0.0)
     left, top, right, bottom = out
     return left, top, right, bottom
