@@ -51,11 +51,12 @@ def sheets(tmp_path_factory):
 
 
 def test_a_margin_is_read_within_2_mm_or_left_out(sheets) -> None:
-    """Sides' margins are the printed ones within 2 mm, or 0 (one wrong at most). A side read 0 (hidden by the part or its shadow, out of view, a table as light and
-    grey as the paper, or a paper edge that is no clear step in colour) has its paper modelled as
-    table, as before the sheet was read. The count read is what the engine holds on these small,
-    noisy renders today (9 of 16), with room for their noise, to keep; the figures that count
-    are benchmarks/station_sets.py's."""
+    """Sides' margins are the printed ones within 2 mm, or 0 (one wrong at most). A side read 0
+    (hidden by the part or its shadow, out of view, a table as light and grey as the paper, or a
+    paper edge that is no clear step in colour) has its paper modelled as table, as before the
+    sheet was read. The count read is what the engine holds on these small, noisy renders today
+    (9 of 16), with room for their noise, to keep; the figures that count are
+    benchmarks/station_sets.py's."""
     read, wrong = 0, []
     for seed, true, got in sheets:
         for side, t, g in zip(("left", "top", "right", "bottom"), true, got, strict=True):
