@@ -47,21 +47,24 @@ def point_problem(spec: ScanSpec, points: ReferencePoints, front: tuple[int, int
     """Why the engine would refuse `points` on photos of `front` and `side` size (height, width
     px, as the engine sees them), and the point at fault (None: the points as a whole); or None.
 
-    The checks `prismcore.scan.plan_scan` makes before it looks at a pixel (`prismcore.scan.check_points`
-    and `marked_quads`): every point in its photo, each face's corners in order, convex and apart.
+    The checks `prismcore.scan.plan_scan` makes before it looks at a pixel (`prismcore.scan.marked_quads`
+    builds and checks the faces for both): every point in its photo, each face's corners in order,
+    convex and apart.
     """
     # The engine (numpy) is imported on the first job whose photos have known sizes.
     from prismcore.errors import InputError
-    from prismcore.geometry import validate_points
-    from prismcore.scan import check_points, marked_quads
+    from prismcore.geometry import resolve_side_face, validate_points
+    from prismcore.scan import marked_quads
 
     try:
         validate_points(points, front, side)
         camera = spec.camera
         if camera is not None and camera.has_distortion:
             return None  # the engine checks the faces on undistorted points, after decoding
-        this = spec.model_copy(update={"points": points})
-        marked_quads(this, check_points(this, front, side), front, side)
+        # The second face read first, as this check always did: a front in a line is said as
+        # points that "do not span a face" (the engine's plan_scan checks the front alone first)
+        face = resolve_side_face(points, spec.side_face, two_photo=spec.two_photo)
+        marked_quads(spec.model_copy(update={"points": points}), face, front, side)
     except InputError as exc:
         named = _POINT.search(str(exc))
         return (named.group(1) if named else None), str(exc)

@@ -13,6 +13,7 @@ from .edges import EdgeFit as EdgeFit
 from .edges import refine_quad as refine_quad
 from .faces import FaceQuads as FaceQuads
 from .faces import clicked_quads as clicked_quads
+from .faces import resolve_side_face as resolve_side_face
 from .faces import validate_points as validate_points
 from .perspective import BoxFit as BoxFit
 from .perspective import fit_box as fit_box
