@@ -8,7 +8,7 @@ Columns (`COLUMNS`; the JSON rows have the same keys, with numbers as numbers an
 empty): the job and its client reference, the item and frame (empty on an item's row), the
 input (the item's image reference), state and error; width, height, depth, their unit and one
 standard deviation each; the cloud's point count, the point loss, where the reference points
-came from (clicked or auto), the search's confidence (auto) and the points p1..p7 (x, y px;
+came from (clicked, auto, station), the search's confidence (auto) and the points p1..p7 (x, y px;
 those of the spec when the scan did not record its own); the part's verdict and each
 dimension's verdict and deviation (mm) against the nominal size (empty without one); on a station,
 its verification as the item stands (verified, not verified, verified before the camera moved)
@@ -91,7 +91,10 @@ def _row(job: JobRecord, item: ItemRecord, frame: int | None, state: State, erro
     for name, xy in (points or {}).items():
         if name in _POINTS and xy is not None:
             row[f"{name}_x"], row[f"{name}_y"] = xy[0], xy[1]
+    # Without a result (a failed item), where its points would have come from, by its kind: a
+    # station's are found against its support, never clicked.
     row["points_source"] = (result.points_source if result and result.points_source
+                            else "station" if spec.kind == "station"
                             else "auto" if spec.auto_points is not None else "clicked")
     if result is None:
         return row

@@ -22,6 +22,7 @@ POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
 PHOTO = ScanSpec.model_validate({"image": "upload:" + "a" * 32, "points": POINTS})
 VIDEO = ScanSpec.model_validate({"image": "upload:" + "b" * 32, "points": POINTS,
                                  "frames": {"indices": [3, 7]}})
+STATION = ScanSpec.model_validate({"image": "upload:" + "c" * 32, "station": "d" * 32})
 
 
 def _quality(verdict: str, deviations: tuple[float, float, float]) -> dict:
@@ -101,6 +102,17 @@ def test_rows_of_items_and_frames_agree_in_csv_and_json(store):
     for as_csv, as_json in zip(rows, doc["rows"], strict=True):
         assert as_csv == {k: "" if v is None else str(v) for k, v in as_json.items()}
     assert doc["rows"][0]["width"] == 100.5 and doc["rows"][1]["width"] is None
+
+
+@pytest.mark.parametrize(("spec", "source"), [(PHOTO, "clicked"), (STATION, "station")])
+def test_a_failed_item_s_points_source_is_its_kind_s(store, spec, source):
+    """A failed item has no result to say where its points came from: a station's row says
+    station (it read "clicked" for a station photo that failed), a clicked photo's clicked."""
+    job = _make(store, [ItemRecord(index=0, spec=spec)])
+    store.put_item(job.id, ItemRecord(index=0, spec=spec, state=State.failed, error="no part found"))
+    text, doc, _ = _table(store, job.id)
+    [row] = list(csv.DictReader(io.StringIO(text)))
+    assert row["points_source"] == doc["rows"][0]["points_source"] == source
 
 
 def test_a_10000_item_job_is_read_a_page_at_a_time(store):
