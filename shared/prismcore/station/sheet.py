@@ -63,11 +63,12 @@ def sheet_margins(
 
     Notes
     -----
-    The photo is rectified onto the board's plane; a line along a side, a given distance out, is
-    paper where most of its seen pixels are as light as the white squares near that side and of
-    their colour, once strokes under `_INK_MM` (the ruler, the text) are closed over. The paper
-    ends where that fails for `_GONE_MM` in a row; a part standing on the margin hides less than
-    half a side's lines.
+    The photo is rectified onto the board's plane, strokes under `_INK_MM` (the ruler, the text)
+    closed over. Along each side, a pixel is paper where it is as light as the white squares near
+    that side and of their colour; each position's paper ends where `_GONE_MM` in a row is seen
+    and not paper (the photo's edge is no end). The side's margin is the commonest end (a part or
+    its shadow ends some positions early), kept where the colour steps by `_EDGE_STEP` of the
+    white's light across it and most positions' paper ends within `MAX_MARGIN_MM`.
     """
     bw, bh = board.size_mm
     m = MAX_MARGIN_MM
@@ -83,22 +84,19 @@ def sheet_margins(
     closed = cv2.morphologyEx(rect, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
     closed = cv2.GaussianBlur(closed, (0, 0), 1.0)  # a photo's noise, over half a millimetre
     art = board_image(board, q) > 127
-    o = round(m * q)
-    inner = rect[o : o + art.shape[0], o : o + art.shape[1]]
-    inner_seen = seen[o : o + art.shape[0], o : o + art.shape[1]]
+    o = round(m * q)  # the board's corner in the rectified photo: `o` px in from each side
     square = max(1, round(board.square_mm * q))
     step = max(1, round(_STEP_MM * q))
     first, least, gone = (max(1, round(v * q)) for v in (_FIRST_MM, _LEAST_MM, _GONE_MM))
+    ds = np.arange(first, o, step)
     out = []
-    # (the board's pixels within a square of the side, the lines out from it: index d -> a 1-D band)
-    for side in ("left", "top", "right", "bottom"):
-        if side in ("left", "right"):
-            cols = slice(0, square) if side == "left" else slice(art.shape[1] - square, art.shape[1])
-            near, near_seen, white = inner[:, cols], inner_seen[:, cols], art[:, cols]
-        else:
-            rows = slice(0, square) if side == "top" else slice(art.shape[0] - square, art.shape[0])
-            near, near_seen, white = inner[rows], inner_seen[rows], art[rows]
-        sel = white & near_seen
+    # Each side read alike, turned to the top (np.rot90 turns counterclockwise): its board's first
+    # square of rows, and the lines above it, d px out, row o - d.
+    for turns in (-1, 0, 1, 2):  # left, top, right, bottom
+        rect_t, closed_t = np.rot90(rect, turns), np.rot90(closed, turns)
+        seen_t, art_t = np.rot90(seen, turns), np.rot90(art, turns)
+        near = rect_t[o : o + square, o : o + art_t.shape[1]]
+        sel = art_t[:square] & seen_t[o : o + square, o : o + art_t.shape[1]]
         if sel.sum() < 20:
             out.append(0.0)
             continue
@@ -108,19 +106,8 @@ def sheet_margins(
         norms = np.linalg.norm(whites, axis=1)
         level = np.median(whites[norms >= np.median(norms)], axis=0)
         light, hue = float(np.linalg.norm(level)), _hue(level)
-        ds = np.arange(first, o, step)
-        if side == "left":
-            lines, ok = closed[o : o + art.shape[0], o - ds], seen[o : o + art.shape[0], o - ds]
-        elif side == "right":
-            c = o + art.shape[1] - 1 + ds
-            lines, ok = closed[o : o + art.shape[0], c], seen[o : o + art.shape[0], c]
-        elif side == "top":
-            lines, ok = closed[o - ds, o : o + art.shape[1]], seen[o - ds, o : o + art.shape[1]]
-            lines, ok = lines.transpose(1, 0, 2), ok.T
-        else:
-            r = o + art.shape[0] - 1 + ds
-            lines, ok = closed[r, o : o + art.shape[1]], seen[r, o : o + art.shape[1]]
-            lines, ok = lines.transpose(1, 0, 2), ok.T
+        lines = closed_t[o - ds, o : o + art_t.shape[1]].transpose(1, 0, 2)
+        ok = seen_t[o - ds, o : o + art_t.shape[1]].T
         # lines: (position along the side, distance out, 3); each position's paper ends where
         # `gone` of it in a row is seen and is not paper
         ratio = np.linalg.norm(lines, axis=2) / light
