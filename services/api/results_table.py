@@ -11,8 +11,10 @@ standard deviation each; the cloud's point count, the point loss, where the refe
 came from (clicked, auto, station), the search's confidence (auto) and the points p1..p7 (x, y px;
 those of the spec when the scan did not record its own); the part's verdict and each
 dimension's verdict and deviation (mm) against the nominal size (empty without one); on a station,
-its verification as the item stands (verified, not verified, verified before the camera moved)
-and how far the camera moved since calibration (px, and mm on the support).
+its verification as the item stands (verified, not verified, verified before the camera moved),
+the date of the verification that status comes from (empty when the station has none), how far
+the camera moved since calibration (px, and mm on the support) and whether that move asks for
+the station's re-verification.
 
 In the CSV, a text cell a spreadsheet would take for a formula (starting with =, +, -, @, a tab
 or a carriage return: a client_reference of ``=1+2``, say) is written with a single quote before
@@ -45,7 +47,8 @@ COLUMNS: tuple[str, ...] = (
     "cloud_points", "point_loss", "points_source", "points_confidence",
     *(f"{p}_{c}" for p in _POINTS for c in "xy"),
     "verdict", *(f"{d}_verdict" for d in _DIMS), *(f"{d}_deviation_mm" for d in _DIMS),
-    "station_verification", "camera_shift_px", "camera_shift_mm",
+    "station_verification", "station_verification_date", "camera_shift_px", "camera_shift_mm",
+    "station_reverify",
 )
 
 Row = dict[str, Any]
@@ -105,9 +108,13 @@ def _row(job: JobRecord, item: ItemRecord, frame: int | None, state: State, erro
         row[d] = result.dimensions.get(d)
         row[f"{d}_sigma"] = (result.uncertainty or {}).get(d)
     if result.station:  # measured on a station: its verification as this item stands, the drift
-        row["station_verification"] = result.station["verification"]["status"]
-        row["camera_shift_px"] = result.station["drift"]["shift_px"]
-        row["camera_shift_mm"] = result.station["drift"]["shift_mm"]
+        status, moved = result.station["verification"], result.station["drift"]
+        row["station_verification"] = status["status"]
+        date = status.get("date")  # ISO date and time (UTC); the day is what the status names
+        row["station_verification_date"] = date[:10] if isinstance(date, str) else None
+        row["camera_shift_px"] = moved["shift_px"]
+        row["camera_shift_mm"] = moved["shift_mm"]
+        row["station_reverify"] = moved.get("reverify")
     quality = result.quality or {}
     row["verdict"] = quality.get("verdict")
     for d, judged in (quality.get("dimensions") or {}).items():
