@@ -41,12 +41,13 @@ from typing import Any
 
 import numpy as np
 from prism_common.records import ItemResult
+from prism_common.report_result import item_result
 from prism_common.storage import object_key
 
 from prismcore import ScanPlan, ScanResult, ScanSpec
 from prismcore.geometry import EdgeFit
 from prismcore.io import EXIF_HEAD_BYTES, exif_focal, load_image
-from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, given_dimension, write_part_files
+from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, write_part_files
 from prismcore.outputs import write_outputs as write_scan_outputs
 from prismcore.scan import Dimensions, FacePlan, prepare_images, row_tiles
 from prismcore.spec import frame_folder
@@ -229,31 +230,6 @@ def put_part_files(ctx: WorkerContext, job_id: str, item: int, formats: list[str
     report with its quality and scale: it makes no cloud); returns {kind: key}."""
     names = write_part_files(measured, formats, StoreSink(ctx, partial(item_key, job_id, item)))
     return {kind: item_key(job_id, item, name) for kind, name in names.items()}
-
-
-def item_result(report: dict[str, Any]) -> ItemResult:
-    """What the job record keeps of a report: the figures a client polls for."""
-    camera = report.get("camera") or {}
-    return ItemResult(points=report["points"], dimensions=report["dimensions"],
-                      point_loss=report["point_loss"], warnings=report["warnings"],
-                      uncertainty=report.get("uncertainty"),
-                      focal_px=camera.get("focal_px"), focal_source=camera.get("focal_source"),
-                      fit_rms_px=(report.get("fit") or {}).get("rms_px"),
-                      side_face=report.get("side_face"), quality=report.get("quality"),
-                      points_source=report.get("points_source", "clicked"),
-                      points_confidence=(report.get("auto_points") or {}).get("confidence"),
-                      given_dimension=given_dimension(report),
-                      reference_points=(report.get("inputs") or {}).get("points"),
-                      station=station_check(report))
-
-
-def station_check(report: dict[str, Any]) -> dict[str, Any] | None:
-    """A station measurement's verification status and drift (report.json's ``station``); None for
-    others (a hand-held board's measurement has no station to verify)."""
-    found = report.get("station") or {}
-    if "verification" not in found:
-        return None
-    return {"verification": found["verification"], "drift": found["drift"]}
 
 
 # -- per-process caches ------------------------------------------------------------------------

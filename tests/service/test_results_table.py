@@ -220,3 +220,27 @@ def test_a_station_row_states_its_verification_its_date_and_the_cameras_move(sto
     assert [r["station_verification_date"] for r in doc["rows"]] == [
         "2026-03-04", None, "2026-03-04", "2026-03-04", None]
     assert [r["station_reverify"] for r in doc["rows"]] == [False, False, False, True, None]
+
+
+def test_a_row_names_the_file_sent_the_item_s_reference_its_warnings_and_tracked_points(store):
+    """Issue 38: the upload's file name and the item's reference recorded at submit, the result's
+    warnings in one cell, and a tracked video's frames say tracked (but the frame marked: clicked)."""
+    tracked = ScanSpec.model_validate({"image": "upload:" + "e" * 32, "points_frame": 3,
+                                       "points": [*POINTS, [12, 70], [190, 60]],
+                                       "frames": {"indices": [3, 7]}})
+    assert tracked.kind == "tracked"
+    warned = _result(100.0).model_copy(update={"warnings": ["blurred edge", "no scale"]})
+    named = PHOTO.model_copy(update={"reference": "part 7"})
+    job = _make(store, [ItemRecord(index=0, spec=named, file_name="box 7.jpg"),
+                        ItemRecord(index=1, spec=tracked)])
+    store.put_item(job.id, ItemRecord(index=0, spec=named, file_name="box 7.jpg",
+                                      state=State.succeeded, result=warned))
+    for frame in (3, 7):
+        store.put_frame(job.id, 1, FrameRecord(index=frame, state=State.succeeded, result=_result(99.0)))
+    text, doc, _ = _table(store, job.id)
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert (rows[0]["file_name"], rows[0]["item_reference"], rows[0]["warnings"]) == (
+        "box 7.jpg", "part 7", "blurred edge | no scale")
+    assert [(r["frame"], r["points_source"]) for r in rows[1:]] == [
+        ("", "tracked"), ("3", "clicked"), ("7", "tracked")]
+    assert doc["rows"][1]["file_name"] is None and doc["rows"][1]["warnings"] is None
