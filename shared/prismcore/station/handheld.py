@@ -45,7 +45,8 @@ def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
         found = 0 if view is None else len(view)
         raise InputError(
             f"{found} board corners found, at least {MIN_PLANE_CORNERS} are needed: the board "
-            "must show around the part"
+            "must show around the part (a part as large as the board hides it: print a larger one, "
+            "prism board --paper A3; a board far off shows its markers too small: come closer)"
         )
     return view
 
