@@ -35,7 +35,8 @@ _STARTS = 0.3  # a side shows paper where this share of its positions do next to
 _GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
 _EDGE_STEP = 0.04  # ... and its colour steps by this share of the white's light across that end
 _NO_END = 0.7  # a side whose paper never ends (in view) at this share of its positions is a light
-# table (a part as light as paper standing on the margin hides the paper's end at fewer)
+# table (a part as light as paper standing on the margin hides the paper's end at fewer)...
+_LEAVES = 0.8  # ...unless this share of those positions' paper runs out of the photo: paper to its edge
 
 
 def _hue(rgb: np.ndarray) -> np.ndarray:
@@ -132,9 +133,13 @@ def sheet_margins(
         # window: those count only as most of the side); the commonest end, to a millimetre.
         counts = np.bincount(ends[starts], minlength=len(ds) + 1).astype(np.float64)
         if counts[-1] >= _NO_END * starts.sum():
-            # most of the side's "paper" does not end within MAX_MARGIN_MM: a light table, or a
-            # sheet larger than that, is modelled as the table, as before the sheet was read
-            out.append(0.0)
+            # most of the side's "paper" does not end within MAX_MARGIN_MM: where it mostly runs
+            # out of the photo, paper reaches the photo's edge (the sheet's near side, cut by the
+            # frame); where it goes on in view, a light table, or a sheet larger than that, is
+            # modelled as the table, as before the sheet was read
+            never = starts & (ends == len(ds))
+            leaves = never & ~ok.all(axis=1)
+            out.append(MAX_MARGIN_MM if leaves.sum() >= _LEAVES * never.sum() else 0.0)
             continue
         counts[-1] = 0
         per_mm = np.convolve(counts, np.ones(max(1, round(1.0 / _STEP_MM))), mode="same")
