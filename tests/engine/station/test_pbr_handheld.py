@@ -1,8 +1,9 @@
 """Hand-held on physically based scenes it was never tuned to (`prismpbr`: the board printed on a
 sheet with its margin, ruler and text on a real table, area lights and a window, clutter, auto
 exposure and white balance; kraft, glossy print, aluminium, steel, black and white plastic).
-Small, fast scenes (their parts on boards that show round them): the bounds are what the engine
-holds on them today, to keep; the figures that count are benchmarks/station_sets.py's report sets."""
+Small, fast scenes (parts of 30-120 mm; found is counted where the board shows round the part):
+the bounds are what the engine holds on them today, to keep; the figures that count are
+benchmarks/station_sets.py's report sets."""
 
 from __future__ import annotations
 
@@ -42,11 +43,14 @@ def outcomes(tmp_path_factory):
 def test_parts_on_a_board_that_shows_are_found_and_a_refusal_says_why(outcomes) -> None:
     shown = [(sc, o) for sc, n, o in outcomes if n >= 12]
     found = [o for _, o in shown if not isinstance(o, InputError)]
-    # today 5-7 of the 8-10 whose board shows (Mitsuba's noise differs run to run)
-    assert len(found) >= 0.45 * len(shown), [str(o)[:60] for _, o in shown if isinstance(o, InputError)]
+    # today 6 of the 12 whose board shows (the engine before the sheet's edge, the table's zone and
+    # texture and stray corners were mended: 3); Mitsuba's noise differs run to run
+    assert len(shown) >= 10 and len(found) >= 0.33 * len(shown), [
+        str(o)[:60] for _, o in shown if isinstance(o, InputError)]
     for _, _, o in outcomes:
         if isinstance(o, InputError):
-            assert str(o)[0].islower() and ":" in str(o)  # a sentence saying what to change
+            said = str(o)
+            assert (said[0].islower() or said[0].isdigit()) and ": " in said  # a sentence: what to change
         if isinstance(o, PartRefusedError):
             assert o.photo is not None  # the evidence to show what was taken
 
