@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 from .console import rich_console as console
 
@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from prismcore.camera import CameraModel
+    from prismcore.report import ScanReport, StationBlock
     from prismcore.station import StationScan
 
 __all__ = ["certification_line", "scan_on_board_photo", "scan_on_station"]
@@ -29,7 +30,7 @@ def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
 def scan_on_station(
     image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000,
     overlay_format: str = "jpeg", tolerance_mm: float | tuple[float, float, float] | None = None,
-) -> dict[str, Any]:
+) -> ScanReport:
     """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report.
     tolerance_mm (--tolerance-mm) is what the camera's drift is judged against."""
     from prismcore.io import load_image
@@ -47,7 +48,7 @@ def scan_on_station(
 def scan_on_board_photo(
     image: Path, board_file: Path, out: Path, camera: CameraModel | None = None, formats: str = "csv,ply",
     max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
-) -> dict[str, Any]:
+) -> ScanReport:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
     from prismcore.io import load_image
     from prismcore.station import scan_on_board
@@ -61,16 +62,15 @@ def scan_on_board_photo(
                   out, started, overlay_format)
 
 
-def certification_line(station_report: dict[str, Any]) -> str:
+def certification_line(station: StationBlock) -> str:
     """'station verified on 2026-12-06: bias ...; camera moved 0.1 px (0.0 mm) since calibration'."""
-    status = cast("dict[str, Any]", station_report["verification"])
-    moved = cast("dict[str, Any]", station_report["drift"])
-    return (f"station {status['text']}; camera moved {moved['shift_px']:.1f} px "
-            f"({moved['shift_mm']:.1f} mm on the support) since calibration")
+    assert station.verification is not None and station.drift is not None
+    return (f"station {station.verification.text}; camera moved {station.drift.shift_px:.1f} px "
+            f"({station.drift.shift_mm:.1f} mm on the support) since calibration")
 
 
 def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
-           overlay_format: str = "jpeg") -> dict[str, Any]:
+           overlay_format: str = "jpeg") -> ScanReport:
     """Write the outputs, the overlay in `overlay_format` (jpeg, png or webp) and report.json."""
     from .outputs import write_report, write_scan
 
@@ -79,19 +79,20 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
     report = done.report
     if done.result is not None and done.spec is not None:
         paths = write_scan(done.result, done.spec, out, [photo], overlay_format)
-    station_report = report["station"]
-    report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
+    station = report.station
+    assert station is not None
+    report.timings_ms["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = write_report(report, out)
-    d, s = report["dimensions"], report["uncertainty"]
-    position = cast("list[float]", station_report["position_mm"])
-    console().print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "
-                  f"{d['height']:.2f} ± {s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  "
+    d, s = report.dimensions, station.uncertainty
+    position = station.position_mm
+    console().print(f"[bold]{report.scale_source}[/]  width {d.width:.2f} ± {s.width:.2f}  height "
+                  f"{d.height:.2f} ± {s.height:.2f}  depth {d.depth:.2f} ± {s.depth:.2f} mm  "
                   f"(position {position[0]:.1f}, {position[1]:.1f} mm, "
-                  f"yaw {station_report['yaw_deg']:.1f} deg; "
-                  f"outline {station_report['silhouette_residual_px']:.2f} px)", soft_wrap=True)
-    if "verification" in station_report:  # a station's (a hand-held board has none)
-        console().print(certification_line(station_report), markup=False, soft_wrap=True)
-    for warning in report["warnings"]:
+                  f"yaw {station.yaw_deg:.1f} deg; "
+                  f"outline {station.silhouette_residual_px:.2f} px)", soft_wrap=True)
+    if station.verification is not None:  # a station's (a hand-held board has none)
+        console().print(certification_line(station), markup=False, soft_wrap=True)
+    for warning in report.warnings:
         console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))
     for kind, path in paths.items():

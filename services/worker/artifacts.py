@@ -48,6 +48,7 @@ from prismcore.geometry import EdgeFit
 from prismcore.io import EXIF_HEAD_BYTES, exif_focal, load_image
 from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, given_dimension, write_part_files
 from prismcore.outputs import write_outputs as write_scan_outputs
+from prismcore.report import ScanReport
 from prismcore.scan import Dimensions, FacePlan, prepare_images, row_tiles
 from prismcore.spec import frame_folder
 
@@ -231,29 +232,32 @@ def put_part_files(ctx: WorkerContext, job_id: str, item: int, formats: list[str
     return {kind: item_key(job_id, item, name) for kind, name in names.items()}
 
 
-def item_result(report: dict[str, Any]) -> ItemResult:
-    """What the job record keeps of a report: the figures a client polls for."""
-    camera = report.get("camera") or {}
-    return ItemResult(points=report["points"], dimensions=report["dimensions"],
-                      point_loss=report["point_loss"], warnings=report["warnings"],
-                      uncertainty=report.get("uncertainty"),
-                      focal_px=camera.get("focal_px"), focal_source=camera.get("focal_source"),
-                      fit_rms_px=(report.get("fit") or {}).get("rms_px"),
-                      side_face=report.get("side_face"), quality=report.get("quality"),
-                      points_source=report.get("points_source", "clicked"),
-                      points_confidence=(report.get("auto_points") or {}).get("confidence"),
+def item_result(report: ScanReport) -> ItemResult:
+    """What the job record keeps of a report: the figures a client polls for (a station's report
+    whose derived points made no cloud: no points, no point loss)."""
+    camera, fit, found = report.camera, report.fit, report.auto_points
+    return ItemResult(points=report.points or 0, dimensions=report.dimensions.model_dump(),
+                      point_loss=report.point_loss or 0.0, warnings=report.warnings,
+                      uncertainty=None if report.uncertainty is None else report.uncertainty.model_dump(),
+                      focal_px=None if camera is None else camera.focal_px,
+                      focal_source=None if camera is None else camera.focal_source,
+                      fit_rms_px=None if fit is None else fit.rms_px,
+                      side_face=report.side_face,
+                      quality=None if report.quality is None else report.quality.model_dump(),
+                      points_source=report.points_source or "clicked",
+                      points_confidence=None if found is None else found.confidence,
                       given_dimension=given_dimension(report),
-                      reference_points=(report.get("inputs") or {}).get("points"),
+                      reference_points=(report.inputs or {}).get("points"),
                       station=station_check(report))
 
 
-def station_check(report: dict[str, Any]) -> dict[str, Any] | None:
+def station_check(report: ScanReport) -> dict[str, Any] | None:
     """A station measurement's verification status and drift (report.json's ``station``); None for
     others (a hand-held board's measurement has no station to verify)."""
-    found = report.get("station") or {}
-    if "verification" not in found:
+    station = report.station
+    if station is None or station.verification is None or station.drift is None:
         return None
-    return {"verification": found["verification"], "drift": found["drift"]}
+    return {"verification": station.verification.model_dump(), "drift": station.drift.model_dump()}
 
 
 # -- per-process caches ------------------------------------------------------------------------
