@@ -14,6 +14,7 @@ Docker engine or cluster), a test file run on its own (the suite runs it), `scri
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -141,6 +142,8 @@ MARKERS = {
     "a test file": "-m pytest ",
     "cluster": "scripts/test-cluster",
     "station": "prism station calibrate --board station-sample/",
+    "station batch": "--station station.json --out out/parts",
+    "points table": "--points-table",
     "station verify": "prism station verify station.json",
     "station upload": "prism station upload station.json",
     "station submit": "prism submit --station",
@@ -279,6 +282,20 @@ def test_several_photos_block_measures_one_box(user_dir: Path):
     assert set(joint) <= _table_fields(OUTPUTS, "joint.json"), set(joint)
 
 
+def test_points_table_block_measures_two_parts_each_alone(user_dir: Path):
+    run = _bash(_block(MARKERS["points table"]), cwd=user_dir, env=dict(os.environ), timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "2 of 2 photos measured" in run.stdout, run.stdout
+    with (user_dir / "out" / "lot" / "measured" / "results.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["item_reference"], r["file_name"], r["state"]) for r in rows] == [
+        ("part-A", "box.jpg", "succeeded"), ("part-B", "box.jpg", "succeeded")]
+    for row, size in zip(rows, (SAMPLE_SIZE, (150.0, 60.0, 40.0)), strict=True):
+        for d, true in zip(("width", "height", "depth"), size, strict=True):
+            assert abs(float(row[d]) - true) <= 2 * float(row[f"{d}_sigma"]) + 0.05, row
+    assert (user_dir / "out" / "lot" / "measured" / "box-2" / "report.json").is_file()
+
+
 def test_tracked_video_block_tracks_and_measures_the_frames(user_dir: Path):
     run = _bash(_block(MARKERS["tracked video"]), cwd=user_dir, env=dict(os.environ), timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
@@ -321,8 +338,6 @@ def test_calibrate_block_calibrates_on_opencvs_photos(user_dir: Path):
 
 def _true_sizes(folder: Path) -> dict[str, dict[str, float]]:
     """`prism sample --station`'s true_sizes.csv: each photo's part, as the station reports it."""
-    import csv
-
     with (folder / "true_sizes.csv").open() as source:
         return {row["photo"]: {k: float(row[f"{k}_mm"]) for k in ("width", "depth", "height")}
                 for row in csv.DictReader(source)}
@@ -332,8 +347,9 @@ def test_station_block_measures_parts_with_no_click(user_dir: Path):
     """The station blocks as a user with no camera runs them: `prism sample --station` renders the
     board's photos (prism board's default board), the calibration, a part and a hand-held photo
     of a part lying on the board, each measured within max(2 %, 1.5 mm) of the size the sample's
-    true_sizes.csv gives; then the verify block on the sample's reference part: verified, as the
-    how-to shows it (and, as it says, not verified against +-1 mm)."""
+    true_sizes.csv gives; the batch block (the parts and the empty support in one command); then
+    the verify block on the sample's reference part: verified, as the how-to shows it (and, as it
+    says, not verified against +-1 mm)."""
     for block in _blocks(MARKERS["station"]):
         run = _bash(block, cwd=user_dir, env=dict(os.environ), timeout=600)
         assert run.returncode == 0, run.stdout + run.stderr
@@ -342,6 +358,19 @@ def test_station_block_measures_parts_with_no_click(user_dir: Path):
             report = json.loads((user_dir / "out" / out / "report.json").read_text())
             for key, true in truth[photo].items():
                 assert abs(report["dimensions"][key] - true) <= max(0.02 * true, 1.5), (out, key, report)
+    # The batch block: every part measured within the same bounds, the empty support named as
+    # failed with its reason (exit 1), and a row each in results.csv.
+    run = _bash(_block(MARKERS["station batch"]), cwd=user_dir, env=dict(os.environ), timeout=600)
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "[7/7] station-sample/empty.jpg  failed: no part found" in run.stdout, run.stdout
+    assert "6 of 7 photos measured" in run.stdout, run.stdout
+    with (user_dir / "out" / "parts" / "results.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["state"] for r in rows] == ["succeeded"] * 6 + ["failed"], rows
+    for row in rows[:6]:
+        for key, true in truth[f"parts/{row['file_name']}"].items():
+            assert abs(float(row[key]) - true) <= max(0.02 * true, 1.5), row
+    assert rows[6]["error"].startswith("no part found on the support"), rows[6]
     env = {**os.environ, "COLUMNS": "300"}
     for block in _blocks(MARKERS["station verify"]):
         run = _bash(block, cwd=user_dir, env=env, timeout=600)

@@ -231,10 +231,11 @@ KINDS: dict[ItemKind, Kind] = {
 
 def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
               raw: bytes | None = None,
-              stations: Callable[[str], StationPublic | None] | None = None) -> set[str]:
+              stations: Callable[[str], StationPublic | None] | None = None) -> dict[str, str | None]:
     """Raise RequestValidationError naming every item (and field) the service will not run;
-    else return the ids of the uploads the job reads. `raw` is the body as sent, for pointers
-    that name its own keys or indices. `stations` looks up the tenant's station of an id."""
+    else return the uploads the job reads, each id with the file name it was sent under. `raw` is
+    the body as sent, for pointers that name its own keys or indices. `stations` looks up the
+    tenant's station of an id."""
     errors: list[dict[str, Any]] = []
 
     def fail(loc: tuple, msg: str) -> None:
@@ -253,6 +254,7 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
         fail(("items",), f"the job's videos name {named} frames, over the cap of "
                          f"{settings.max_frames_per_job} frames per job")
     owners: dict[str, str | None] = {}  # a batch often reuses one upload: look it up once
+    names: dict[str, str | None] = {}
     sizes: dict[str, tuple[int, int] | None] = {}
     probes: dict[str, dict[str, Any] | None] = {}
     known_stations: dict[str, StationPublic | None] = {}  # a batch names one station: read it once
@@ -279,6 +281,7 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
                 if ref.kind == "upload" and ref.upload_id not in owners:
                     upload = store.get_upload(ref.upload_id)
                     owners[ref.upload_id] = upload["tenant"] if upload else None
+                    names[ref.upload_id] = upload.get("name") if upload else None
                     probes[ref.upload_id] = upload_probe(upload)
                     sizes[ref.upload_id] = _size(probes[ref.upload_id])
                 check_reference(ref, settings, tenant=tenant, upload_owner=owners.get(ref.upload_id))
@@ -302,4 +305,4 @@ def check_job(job: JobCreate, settings: Settings, store: JobStore, tenant: str,
             except ValueError:
                 body = None
         raise RequestValidationError(errors[:_MAX_REPORTED], body=body)
-    return set(owners)
+    return names

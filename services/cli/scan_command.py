@@ -241,11 +241,18 @@ def scan(
                                            "(a video: one folder per frame and summary.json).")],
     image: Annotated[list[Path] | None, typer.Argument(
         help="Front photo (or the only photo), or a video; several photos of one part with "
-             "--points-file (measured as one box).")] = None,
+             "--points-file (measured as one box); a batch of parts, one a photo, with --station, "
+             "--board or --points-table.")] = None,
     points_file: Annotated[Path | None, typer.Option(
         help="Several photos of one part: JSON with one entry of seven points per photo (a list in "
              "their order, or keyed by file name; an entry may be {\"points\": [...], \"side_face\": "
              "\"top\"}): the photos are measured as ONE box (one known edge), joint.json in --out.")] = None,
+    points_table: Annotated[Path | None, typer.Option(
+        help="A batch of parts, one a photo, each with its own points: a CSV table with a header, "
+             "columns file and points (\"x1,y1 x2,y2 ...\" or auto), and any of reference, width_mm, "
+             "height_mm, depth_mm, distance_mm, mm_per_px, focal_px, side_face, nominal, tolerance_mm "
+             "(a row's own; else the options'). The photos given (found by path or name), else every "
+             "row's (relative to the table).")] = None,
     points: Annotated[str | None, typer.Option(
         help='"x1,y1 x2,y2 x3,y3 x4,y4 x5,y5 [x6,y6 x7,y7]" in image pixels, or auto (found in '
              'the photo; refused, exit 2, when not sure).')] = None,
@@ -309,13 +316,52 @@ def scan(
              "tracked frames as ONE box, joint.json; needs a known edge).", metavar="frames|joint")] = None,
 ) -> None:
     """Turn a photo (or a front and a side photo, or a video's frames) of a box into measured point clouds;
-    several photos of one part with --points-file: measured as one box."""
+    several photos of one part with --points-file: measured as one box.
+
+    A batch in one process, one part a photo: several photos with --station (or --board), or
+    --points-table. Each photo's outputs go to DIR/NAME/ (NAME: the photo's name without its
+    suffix), one line is printed as each finishes, and DIR/results.csv and results.json hold a row
+    per photo (the service's results columns). A photo that fails is named with its reason and the
+    others are measured; exit 1 if any failed, 2 for bad input (nothing measured).
+    """
     started = time.perf_counter()
     from pydantic import ValidationError
 
     images = image or []
     if overlay_format not in ("jpeg", "png", "webp"):
         raise InputError(f"--overlay-format {overlay_format!r}: expected jpeg, png or webp")
+    if points_table is not None or ((station is not None or board is not None) and len(images) > 1):
+        if points_table is not None and (station is not None or board is not None):
+            raise InputError("--points-table gives each photo its points: not with --station or --board")
+        clash = [flag for flag, value in (
+            ("--points", points if points_table is not None else None), ("--points-file", points_file),
+            ("--spec", spec_file), ("--side", side), ("--points-frame", points_frame), ("--fit", fit),
+            ("--hint", hint), ("--roi", roi)) if value is not None]
+        if clash:
+            raise InputError(f"a batch (one part a photo) does not take {', '.join(clash)}")
+        from .batch_command import board_batch, station_batch, table_batch
+
+        if points_table is not None:
+            failed = table_batch(images, points_table, out, spec_flags=dict(
+                tolerance=tolerance, method=method, mm_per_px=mm_per_px, distance_mm=distance_mm,
+                focal_px=focal_px, width_mm=width_mm, height_mm=height_mm, depth_mm=depth_mm, cloud=cloud,
+                formats=formats, csv_header=csv_header, csv_colors=csv_colors, ply_ascii=ply_ascii,
+                max_pixels=max_pixels, side_face=side_face or "auto", spacing_mm=spacing_mm,
+                nominal=nominal, tolerance_mm=tolerance_mm), run=RunOptions(
+                out=out, camera=(lambda: _camera_file(camera)) if camera is not None else None,
+                tiles=tiles, max_frames=max_frames, overlay_format=overlay_format, started=started))
+        elif station is not None:
+            judged = quality_flags(nominal, tolerance_mm)
+            failed = station_batch(images, station, out, formats=formats, max_pixels=max_pixels,
+                                   overlay_format=overlay_format, tolerance_mm=judged.get("tolerance_mm"),
+                                   nominal=judged.get("nominal"))
+        else:
+            assert board is not None
+            failed = board_batch(images, board, out, camera=_camera_file(camera) if camera else None,
+                                 formats=formats, max_pixels=max_pixels, overlay_format=overlay_format)
+        if failed:
+            raise typer.Exit(1)
+        return
     if station is not None or board is not None:
         flag = "--station" if station is not None else "--board"
         if station is not None and board is not None:
@@ -332,9 +378,10 @@ def scan(
 
         if station is not None:
             # the tolerance judges the camera's drift since calibration (prismcore.station.certify)
-            judged = quality_flags(nominal, tolerance_mm).get("tolerance_mm")
+            judged = quality_flags(nominal, tolerance_mm)
             scan_on_station(images[0], station, out, formats=formats, max_pixels=max_pixels,
-                            overlay_format=overlay_format, tolerance_mm=judged)
+                            overlay_format=overlay_format, tolerance_mm=judged.get("tolerance_mm"),
+                            nominal=judged.get("nominal"))
         else:
             assert board is not None
             scan_on_board_photo(images[0], board, out, camera=_camera_file(camera) if camera else None,

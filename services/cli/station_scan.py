@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from .console import rich_console as console
 
@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
     from prismcore.camera import CameraModel
     from prismcore.report import ScanReport, StationBlock
-    from prismcore.station import StationScan
+    from prismcore.station import Station, StationScan
 
 __all__ = ["certification_line", "scan_on_board_photo", "scan_on_station"]
 
@@ -28,20 +28,27 @@ def _spec_extra(formats: str, max_pixels: int) -> dict[str, Any]:
 
 
 def scan_on_station(
-    image: Path, station_file: Path, out: Path, formats: str = "csv,ply", max_pixels: int = 50_000_000,
-    overlay_format: str = "jpeg", tolerance_mm: float | tuple[float, float, float] | None = None,
+    image: Path, station_file: Path | Station, out: Path, formats: str = "csv,ply",
+    max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
+    tolerance_mm: float | list[float] | None = None, nominal: list[float] | None = None,
 ) -> ScanReport:
-    """Measure `image` on the station; write report.json and the outputs in `out`. Returns the report.
-    tolerance_mm (--tolerance-mm) is what the camera's drift is judged against."""
+    """Measure `image` on the station (its file, or the station a batch loaded once); write
+    report.json and the outputs in `out`. Returns the report. tolerance_mm (--tolerance-mm) is what
+    the camera's drift is judged against, and with `nominal` (--nominal) the dimensions' verdicts."""
     from prismcore.io import load_image
+    from prismcore.quality import report_quality
     from prismcore.station import scan_on_station as scan
 
     from .station_command import load_station
 
     started = time.perf_counter()
-    station = load_station(station_file)
+    station = load_station(station_file) if isinstance(station_file, Path) else station_file
     photo = load_image(image, max_pixels=max_pixels)
-    done = scan(photo, station, str(image), _spec_extra(formats, max_pixels), tolerance_mm)
+    judged = cast("float | tuple[float, float, float] | None",
+                  tuple(tolerance_mm) if isinstance(tolerance_mm, list) else tolerance_mm)
+    done = scan(photo, station, str(image), _spec_extra(formats, max_pixels), judged)
+    if nominal is not None:  # the verdicts judge the station's dimensions, as the service's do
+        done.report.quality = report_quality(done.report, nominal, tolerance_mm)
     return _write(done, photo, out, started, overlay_format)
 
 
@@ -73,6 +80,7 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
            overlay_format: str = "jpeg") -> ScanReport:
     """Write the outputs, the overlay in `overlay_format` (jpeg, png or webp) and report.json."""
     from .outputs import write_report, write_scan
+    from .photo_scan import quality_lines
 
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
@@ -92,6 +100,8 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
                   f"outline {station.silhouette_residual_px:.2f} px)", soft_wrap=True)
     if station.verification is not None:  # a station's (a hand-held board has none)
         console().print(certification_line(station), markup=False, soft_wrap=True)
+    for line in quality_lines(report.quality):
+        console().print(line, soft_wrap=True)
     for warning in report.warnings:
         console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))

@@ -93,6 +93,7 @@ class ItemRecord(BaseModel):
 
     index: int
     spec: ScanSpec
+    file_name: str | None = None  # the name the client sent its image under (an upload's), at submit
     state: State = State.queued
     error: str | None = None
     result: ItemResult | None = None

@@ -41,14 +41,14 @@ from typing import Any
 
 import numpy as np
 from prism_common.records import ItemResult
+from prism_common.report_result import item_result
 from prism_common.storage import object_key
 
 from prismcore import ScanPlan, ScanResult, ScanSpec
 from prismcore.geometry import EdgeFit
 from prismcore.io import EXIF_HEAD_BYTES, exif_focal, load_image
-from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, given_dimension, write_part_files
+from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, write_part_files
 from prismcore.outputs import write_outputs as write_scan_outputs
-from prismcore.report import ScanReport
 from prismcore.scan import Dimensions, FacePlan, prepare_images, row_tiles
 from prismcore.spec import frame_folder
 
@@ -230,34 +230,6 @@ def put_part_files(ctx: WorkerContext, job_id: str, item: int, formats: list[str
     report with its quality and scale: it makes no cloud); returns {kind: key}."""
     names = write_part_files(measured, formats, StoreSink(ctx, partial(item_key, job_id, item)))
     return {kind: item_key(job_id, item, name) for kind, name in names.items()}
-
-
-def item_result(report: ScanReport) -> ItemResult:
-    """What the job record keeps of a report: the figures a client polls for (a station's report
-    whose derived points made no cloud: no points, no point loss)."""
-    camera, fit, found = report.camera, report.fit, report.auto_points
-    return ItemResult(points=report.points or 0, dimensions=report.dimensions.model_dump(),
-                      point_loss=report.point_loss or 0.0, warnings=report.warnings,
-                      uncertainty=None if report.uncertainty is None else report.uncertainty.model_dump(),
-                      focal_px=None if camera is None else camera.focal_px,
-                      focal_source=None if camera is None else camera.focal_source,
-                      fit_rms_px=None if fit is None else fit.rms_px,
-                      side_face=report.side_face,
-                      quality=None if report.quality is None else report.quality.model_dump(),
-                      points_source=report.points_source or "clicked",
-                      points_confidence=None if found is None else found.confidence,
-                      given_dimension=given_dimension(report),
-                      reference_points=(report.inputs or {}).get("points"),
-                      station=station_check(report))
-
-
-def station_check(report: ScanReport) -> dict[str, Any] | None:
-    """A station measurement's verification status and drift (report.json's ``station``); None for
-    others (a hand-held board's measurement has no station to verify)."""
-    station = report.station
-    if station is None or station.verification is None or station.drift is None:
-        return None
-    return {"verification": station.verification.model_dump(), "drift": station.drift.model_dump()}
 
 
 # -- per-process caches ------------------------------------------------------------------------

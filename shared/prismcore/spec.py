@@ -204,8 +204,7 @@ class ScanSpec(_Strict):
     image: str = Field(min_length=1, description="Front photo (single-photo mode: the only one), "
                        "or a video when `frames` is set.")
     side_image: str | None = Field(
-        default=None, description="Side photo; when given, p4, p5 and p7 refer to it."
-    )
+        default=None, description="Side photo; when given, p4, p5 and p7 refer to it.")
     points: ReferencePoints | None = Field(
         default=None, description="Reference points (every frame of a video); required unless "
         "frame_points is given. \"auto\": found in the photo, or in each frame of a video "
@@ -214,8 +213,7 @@ class ScanSpec(_Strict):
     auto_points: AutoPoints | None = Field(
         default=None, description="Set when points is \"auto\": where to look for the box.")
     frames: FrameSelection | None = Field(
-        default=None, description="Set when `image` is a video: the frames to measure."
-    )
+        default=None, description="Set when `image` is a video: the frames to measure.")
     frame_points: dict[FrameIndex, ReferencePoints] | None = Field(
         default=None, min_length=1, description="Video with a moving camera: reference points "
         "per frame index (the keys: frame indices, digits only, 0 = the first frame); exactly "
@@ -251,11 +249,9 @@ class ScanSpec(_Strict):
     method: Literal["default", "paper"] = "default"
     scale: Scale | None = None
     focal_px: FocalPx | None = Field(
-        default=None, description="Focal length in pixels; with p6 and p7 it corrects perspective."
-    )
+        default=None, description="Focal length in pixels; with p6 and p7 it corrects perspective.")
     principal_point: Point | None = Field(
-        default=None, description="Optical centre (x, y) in pixels; the image centre if omitted."
-    )
+        default=None, description="Optical centre (x, y) in pixels; the image centre if omitted.")
     camera: CameraModel | None = Field(
         default=None, description="Calibrated camera; trusted after focal_px, before EXIF and "
         "before the focal length fitted from the box."
@@ -287,6 +283,9 @@ class ScanSpec(_Strict):
     ply_ascii: bool = False
     max_pixels: int = Field(default=50_000_000, gt=0, description="Refuse larger images.")
     max_points: int = Field(default=20_000_000, gt=0, description="Refuse larger clouds.")
+    reference: str | None = Field(
+        default=None, max_length=200, description="Your own id for the item (a part number, a file's "
+        "name): echoed in its results (results.csv's item_reference); the scan does not read it.")
 
     @model_validator(mode="before")
     @classmethod

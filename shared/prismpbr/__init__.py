@@ -14,6 +14,7 @@ from __future__ import annotations
 from .camera import LensCamera, look_at
 from .layout import DEVELOPMENT, REPORT, SETS, Part, Scene, Settings, handheld_scene, station_scenes
 from .render import GENERATOR_VERSION, cache_dir, render_scene
+from .visibility import board_corners_shown
 
 __all__ = [
     "DEVELOPMENT",
@@ -24,6 +25,7 @@ __all__ = [
     "Part",
     "Scene",
     "Settings",
+    "board_corners_shown",
     "cache_dir",
     "handheld_scene",
     "look_at",

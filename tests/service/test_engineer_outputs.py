@@ -175,13 +175,38 @@ def test_results_table_as_csv_and_json(stack, finished):
         assert [float(row["p1_x"]), float(row["p1_y"])] == spec["points"][0]
         assert row["points_source"] == "clicked"
         assert row["verdict"] == ((result["quality"] or {}).get("verdict") or "")
+        assert row["file_name"] == "box.jpg" and row["item_reference"] == "" and row["error"] == ""
+        assert row["warnings"] == " | ".join(result["warnings"])
     assert doc["rows"][1]["width_verdict"] == "fail"
+    assert "in pixels, not mm" in doc["rows"][2]["warnings"]  # no scale: warned, and the table says so
     missing = stack.http.get("/v1/jobs/" + "0" * 32 + "/results.csv")
     assert missing.status_code == 404
     assert missing.headers["content-type"] == "application/problem+json"
     other = stack.http.get(f"/v1/jobs/{job['id']}/results.json",
                            headers={"X-API-Key": API_KEYS["globex"]})
     assert other.status_code == 404
+
+
+def test_results_table_names_the_file_sent_the_item_s_reference_and_a_failure_in_words(stack, scene, photo):
+    """Issue 38: a row joins back to what the client sent (the upload's file name, the item's own
+    reference) and a failed item's row says why in words."""
+    r = stack.http.post("/v1/uploads", files={"file": ("part 7.jpg", photo)})
+    assert r.status_code in (200, 201), r.text
+    ref = r.json()["reference"]
+    too_long = stack.http.post("/v1/jobs", json={"items": [{**_item(ref, scene), "reference": "x" * 201}]})
+    assert too_long.status_code == 422 and "/items/0/reference" in too_long.text, too_long.text
+    job = stack.run([{**_item(ref, scene), "reference": "part-7"},
+                     {**_item(ref, scene, max_points=1000), "reference": "=part-8"}])
+    assert job["state"] == "completed_with_failures", job
+    rows = list(csv.DictReader(io.StringIO(stack.http.get(f"/v1/jobs/{job['id']}/results.csv").text)))
+    doc = stack.http.get(f"/v1/jobs/{job['id']}/results.json").json()
+    assert [(r["file_name"], r["item_reference"], r["input"], r["state"]) for r in rows] == [
+        ("part 7.jpg", "part-7", ref, "succeeded"), ("part 7.jpg", "'=part-8", ref, "failed")]
+    assert doc["rows"][1]["item_reference"] == "=part-8"  # the JSON keeps it as sent
+    failed = doc["rows"][1]
+    assert failed["error"] == job["items"][1]["error"] and "max_points" in failed["error"], failed
+    assert failed["width"] is None and failed["points_source"] == "clicked" and failed["warnings"] is None
+    assert doc["rows"][0]["width"] == job["items"][0]["result"]["dimensions"]["width"]
 
 
 def test_prism_results_and_download(stack, finished, capsys, tmp_path):

@@ -11,12 +11,15 @@ import uuid
 from datetime import UTC, datetime
 
 import fakeredis
+import numpy as np
 import pytest
 from prism_common.records import FrameRecord, ItemRecord, ItemResult, JobRecord, State
 from prism_common.store import JobStore
 
 from prism_api.results_table import COLUMNS, PAGE_ITEMS, csv_chunks, json_chunks, pages
 from prismcore.spec import ScanSpec
+from prismcore.station.certify import verification_status
+from prismcore.station.verify import Verification, verify_placements
 
 POINTS = [[10, 10], [110, 12], [108, 80], [150, 6], [200, 8]]
 PHOTO = ScanSpec.model_validate({"image": "upload:" + "a" * 32, "points": POINTS})
@@ -164,3 +167,80 @@ def test_a_text_cell_a_spreadsheet_would_run_is_written_as_text(store, reference
     assert rows[0]["height_deviation_mm"] == "-0.25"  # a number, not text: left as it is
     assert [r["client_reference"] for r in doc["rows"]] == [reference] * 2
     assert doc["rows"][1]["error"] == reference and doc["rows"][0]["height_deviation_mm"] == -0.25
+
+
+def _verification(reference_width: float) -> Verification:
+    """A verification of a 70 x 45 x 30 mm reference over 6 placements, made on 2026-03-04 (a
+    `reference_width` other than 70 fails it)."""
+    rng = np.random.default_rng(5)
+    measured = np.array([70.0, 45.0, 30.0]) + rng.normal(0.0, 0.05, (6, 3))
+    return verify_placements(measured, np.full((6, 3), 0.3), (reference_width, 45.0, 30.0), 2.0,
+                             positions_mm=[(20, 20), (180, 20), (100, 75), (20, 130), (180, 130), (100, 20)],
+                             yaws_deg=[0, 30, 60, 90, 120, 150], board_size_mm=(210, 150),
+                             photos=[str(i) for i in range(6)],
+                             date=datetime(2026, 3, 4, 5, 6, tzinfo=UTC))
+
+
+def _on_station(status: dict, shift_px: float, reverify: bool) -> ItemResult:
+    drift = {"shift_px": shift_px, "shift_mm": round(shift_px * 0.3, 2), "moved": shift_px > 4,
+             "reverify": reverify, "cost_mm": {}, "allowed_mm": {}, "threshold_px": None,
+             "tolerance_from": "the measurement's tolerance", "moved_over_px": 4.0}
+    return _result(70.1).model_copy(update={"points_source": "station",
+                                            "station": {"verification": status, "drift": drift}})
+
+
+def test_a_station_row_states_its_verification_its_date_and_the_cameras_move(store):
+    """Each station item's row: its verification's status as the engine words it (verified, not
+    verified, verified before the camera moved), the verification's day, the camera's shift and
+    whether that move asks for re-verification; a clicked photo's row leaves them empty."""
+    statuses = [
+        verification_status(_verification(70.0), moved=False),
+        verification_status(None, moved=False),
+        verification_status(_verification(72.0), moved=False),
+        verification_status(_verification(70.0), moved=True, shift_px=10.0, shift_mm=3.0),
+    ]
+    results = [_on_station(statuses[0], 1.5, False), _on_station(statuses[1], 0.5, False),
+               _on_station(statuses[2], 0.5, False), _on_station(statuses[3], 10.0, True)]
+    job = _make(store, [*(ItemRecord(index=i, spec=STATION) for i in range(4)),
+                        ItemRecord(index=4, spec=PHOTO)])
+    for i, result in enumerate(results):
+        store.put_item(job.id, ItemRecord(index=i, spec=STATION, state=State.succeeded, result=result))
+    store.put_item(job.id, ItemRecord(index=4, spec=PHOTO, state=State.succeeded, result=_result(100.0)))
+    text, doc, _ = _table(store, job.id)
+    rows = list(csv.DictReader(io.StringIO(text)))
+    columns = ("station_verification", "station_verification_date", "camera_shift_px", "camera_shift_mm",
+               "station_reverify")
+    assert [tuple(r[c] for c in columns) for r in rows] == [
+        ("verified", "2026-03-04", "1.5", "0.45", "False"),
+        ("not verified", "", "0.5", "0.15", "False"),
+        ("not verified", "2026-03-04", "0.5", "0.15", "False"),  # its verification failed
+        ("verified before the camera moved", "2026-03-04", "10.0", "3.0", "True"),
+        ("", "", "", "", ""),
+    ]
+    assert [r["station_verification_date"] for r in doc["rows"]] == [
+        "2026-03-04", None, "2026-03-04", "2026-03-04", None]
+    assert [r["station_reverify"] for r in doc["rows"]] == [False, False, False, True, None]
+
+
+def test_a_row_names_the_file_sent_the_item_s_reference_its_warnings_and_tracked_points(store):
+    """Issue 38: the upload's file name and the item's reference recorded at submit, the result's
+    warnings in one cell, and a tracked video's frames say tracked (but the frame marked: clicked)."""
+    tracked = ScanSpec.model_validate({"image": "upload:" + "e" * 32, "points_frame": 3,
+                                       "points": [*POINTS, [12, 70], [190, 60]],
+                                       "frames": {"indices": [3, 7]}})
+    assert tracked.kind == "tracked"
+    warned = _result(100.0).model_copy(update={"warnings": ["blurred edge", "no scale"]})
+    named = PHOTO.model_copy(update={"reference": "part 7"})
+    job = _make(store, [ItemRecord(index=0, spec=named, file_name="box 7.jpg"),
+                        ItemRecord(index=1, spec=tracked)])
+    store.put_item(job.id, ItemRecord(index=0, spec=named, file_name="box 7.jpg",
+                                      state=State.succeeded, result=warned))
+    for frame in (3, 7):
+        store.put_frame(job.id, 1, FrameRecord(index=frame, state=State.succeeded, result=_result(99.0)))
+    text, doc, _ = _table(store, job.id)
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert (rows[0]["file_name"], rows[0]["item_reference"], rows[0]["warnings"]) == (
+        "box 7.jpg", "part 7", "blurred edge | no scale")
+    assert [(r["frame"], r["points_source"]) for r in rows[1:]] == [
+        ("", "tracked"), ("3", "clicked"), ("7", "tracked")]
+    assert doc["rows"][1]["file_name"] is None and doc["rows"][1]["warnings"] is None

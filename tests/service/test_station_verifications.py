@@ -29,7 +29,7 @@ from prism_common.settings import get_settings
 
 from prism_api.main import create_app
 from prism_cli.client import ApiClient
-from prism_cli.sample_command import reference_placements
+from prism_cli.sample_command import reference_placements, turned
 from prism_cli.stack import start_api, start_worker
 from prismcore.camera import CameraModel
 from prismcore.station import calibrate_station
@@ -213,22 +213,34 @@ def test_client_cli_remote_and_items_state_the_verification(stack, station_doc, 
         photos[-1].write_bytes(data)
     part = tmp_path / "part.jpg"
     part.write_bytes(_jpeg(station_scene(23, setup, max_size_mm=150).photo))
+    moved = tmp_path / "moved.jpg"  # the reference after the camera turned 10 px, as the sample's moved.jpg
+    moved.write_bytes(_jpeg(station_scene(5003, turned(setup, 10.0), box=reference_placements(setup)[2],
+                                          nudge=False).photo))
     env = {"PRISM_API_URL": stack, "PRISM_API_KEY": API_KEYS["acme"], "PATH": "/usr/bin:/bin",
            "HOME": str(tmp_path), "COLUMNS": "200"}
     with ApiClient(stack, API_KEYS["acme"]) as client:
         made = client.create_station(station_doc)
         done = client.verify_station(made.id, photos, (70, 45, 30), tolerance=2)
         assert done.verified and client.station(made.id).verification.status == "verified"
-        job = client.wait(client.submit({"items": [{"image": client.upload(part)}]}, station=made.id).id,
-                          timeout=300)
+        items = [{"image": client.upload(part)}, {"image": client.upload(moved)}]
+        job = client.wait(client.submit({"items": items}, station=made.id).id, timeout=300)
         result = job.items[0].result
         assert job.state == "succeeded" and result is not None and result.station is not None, job
         assert result.station.verification.status == "verified", result.station
+        assert result.station.verification.text.startswith(f"verified on {done.date:%Y-%m-%d}: bias ")
         assert result.station.drift.moved is False and result.station.drift.shift_px < 4
         assert not any("not verified" in w for w in result.warnings), result.warnings
+        knocked = job.items[1].result
+        assert knocked is not None and knocked.station is not None, job
+        assert knocked.station.verification.status == "verified before the camera moved", knocked.station
+        assert knocked.station.drift.moved is True and 9 <= knocked.station.drift.shift_px <= 11
+        assert any("before the camera moved" in w for w in knocked.warnings), knocked.warnings
         rows = list(csv.DictReader(io.StringIO(httpx.get(f"{stack}/v1/jobs/{job.id}/results.csv",
                                                          headers=ACME).text)))
         assert rows[0]["station_verification"] == "verified" and float(rows[0]["camera_shift_px"]) < 4
+        assert rows[0]["station_verification_date"] == f"{done.date:%Y-%m-%d}", rows[0]
+        assert rows[1]["station_verification"] == "verified before the camera moved", rows[1]
+        assert 9 <= float(rows[1]["camera_shift_px"]) <= 11 and rows[1]["station_verification_date"]
         # --remote: a wrong reference, not verified (exit 1), stored: the items say so
         run = subprocess.run([PRISM, "station", "verify", "--remote", made.id, "--reference", "72,45,30",
                               "--tolerance", "2", *map(str, photos)], env=env, capture_output=True, text=True,
@@ -243,6 +255,9 @@ def test_client_cli_remote_and_items_state_the_verification(stack, station_doc, 
         assert result is not None and result.station is not None
         assert result.station.verification.status == "not verified"
         assert any(w.startswith("the station is not verified: its verification on ") for w in result.warnings)
+        rows = list(csv.DictReader(io.StringIO(httpx.get(f"{stack}/v1/jobs/{job.id}/results.csv",
+                                                         headers=ACME).text)))
+        assert rows[0]["station_verification"] == "not verified" and rows[0]["station_reverify"] == "False"
     run = subprocess.run([PRISM, "station", "verify", "--remote", made.id, "--reference", "70,45,30",
                           "--tolerance", "2", *map(str, photos)], env=env, capture_output=True, text=True,
                          timeout=300)

@@ -3,7 +3,8 @@ verified" and its capability (mm per px over the support, the smallest part and 
 reference part's photos, its size and tolerance sent from "Verify the chosen station" (POST
 /v1/stations/{id}/verifications), the figures shown in a table and the verdict in words, the row
 then "verified on DATE"; a refusal said at the field at fault; and a part measured on the verified
-station, its row of the job's table stating "verified" and the camera's shift. Screenshots go to
+station, its row of the job's table stating "verified on DATE" and the camera's shift (a part
+measured before the verification: "not verified", marked, warned). Screenshots go to
 test-artifacts/web/.
 
 The photos are the example station's (`prism sample --station`'s camera, board and reference
@@ -79,6 +80,18 @@ def test_a_station_verified_from_the_page_and_its_parts_state_it(page, files):
     expect(row.locator("td[data-col=capability]")).to_contain_text(
         re.compile(rf"0\.\d\d{DASH}0\.\d\d mm/px; parts ≥ \d+ mm"))
 
+    # A part measured before the station is verified: its row says "not verified", marked, and the
+    # scan's warning says why.
+    page.locator("#station-files").set_input_files(str(files["part"]))
+    expect(page.locator("#station-photos-summary")).to_contain_text("1 photo")
+    page.get_by_role("button", name=re.compile(r"Measure 1 photo on line 9")).click()
+    expect(page.locator("#job-state")).to_contain_text("Done", timeout=300_000)
+    cell = page.locator("#results-table tbody tr td[data-col=station]").first
+    expect(cell).to_have_text(re.compile(r"^not verified · camera moved \d+\.\d px \(\d+\.\d mm\)$"))
+    expect(cell).to_have_class(re.compile(r"\bwarned\b"))
+    expect(page.locator("#results-table tbody tr td[data-col=warnings]").first).to_contain_text(
+        "the station is not verified: its measurements are not checked against a part of known size")
+
     page.get_by_text("Verify the chosen station with a reference part").click()
     page.get_by_label("Its true size W,D,H in mm").fill("70x45x30")
     page.get_by_label("Tolerance ± T in mm").fill("2")
@@ -123,6 +136,10 @@ def test_a_station_verified_from_the_page_and_its_parts_state_it(page, files):
     page.get_by_role("button", name=re.compile(r"Measure 1 photo on line 9")).click()
     expect(page.locator("#job-state")).to_contain_text("Done", timeout=300_000)
     cell = page.locator("#results-table tbody tr td[data-col=station]").first
-    expect(cell).to_have_text(re.compile(r"^verified · camera moved \d+\.\d px \(\d+\.\d mm\)$"))
+    verified_row = r"^verified on \d{4}-\d\d-\d\d · camera moved \d+\.\d px \(\d+\.\d mm\)$"
+    expect(cell).to_have_text(re.compile(verified_row))
+    expect(cell).not_to_have_class(re.compile(r"\bwarned\b"))
+    expect(page.locator("#results-table tbody tr td[data-col=warnings]").first).not_to_contain_text(
+        "not verified")
     stored = json.loads(files["station"].read_text())  # type: ignore[union-attr]
     assert stored.get("verification") is None  # the service stored it, not the file

@@ -77,14 +77,17 @@ const COLUMNS: Column[] = [
     cell: (r) => { const v = n(r.point_loss); return v === null ? "" : `${(v * 100).toFixed(2)} %`; } },
 ];
 
-/** A station's job: each row's station verification as the item stands and the camera's shift. */
+/** A station's job: each row's station verification as the item stands (with its date when a
+ *  verification stands), the camera's shift, and "re-verify" when that move asks for it. */
 const STATION: Column = {
   id: "station", title: "Station", key: (r) => (r.station_verification === null ? null : String(r.station_verification)),
   cell: (r) => {
     if (r.station_verification === null || r.station_verification === undefined) return "";
     const px = n(r.camera_shift_px), shift = n(r.camera_shift_mm);
-    return `${r.station_verification}${px === null ? "" : ` · camera moved ${px.toFixed(1)} px`}` +
-      `${shift === null ? "" : ` (${shift.toFixed(1)} mm)`}`;
+    const day = typeof r.station_verification_date === "string" ? r.station_verification_date : null;
+    const status = r.station_verification === "verified" && day ? `verified on ${day}` : String(r.station_verification);
+    return `${status}${px === null ? "" : ` · camera moved ${px.toFixed(1)} px`}` +
+      `${shift === null ? "" : ` (${shift.toFixed(1)} mm)`}${r.station_reverify === true ? " · re-verify" : ""}`;
   },
 };
 
@@ -233,7 +236,8 @@ export class ResultsTableView {
           title: "A warning of this scan is about this figure" }));
       }
       if (c.id === "input" && inputName(r) !== String(r.input ?? "")) td.title = String(r.input);
-      if (c.id === "station" && r.station_verification !== "verified" && td.textContent) td.classList.add("warned");
+      if (c.id === "station" && (r.station_verification !== "verified" || r.station_reverify === true) &&
+        td.textContent) td.classList.add("warned");
       if (typeof dv === "string") {
         // The dimension's own verdict as a symbol and (for screen readers) a word, not colour alone.
         const mark = Object.assign(document.createElement("span"), { className: "dim-verdict", textContent:

@@ -194,7 +194,7 @@ export interface ResultsTable {
   rows: ResultRow[];
 }
 
-export type ResultRow = Record<string, string | number | null> & {
+export type ResultRow = Record<string, string | number | boolean | null> & {
   item: number;
   frame: number | null;
   state: State;

@@ -12,6 +12,7 @@ import math
 import re
 from datetime import UTC, datetime
 from typing import Annotated
+from urllib.parse import unquote, urlsplit
 from uuid import uuid4
 
 from fastapi import APIRouter, Depends, Header, HTTPException, Query, Request, Response, status
@@ -20,6 +21,8 @@ from kombu.exceptions import OperationalError
 from prism_common import public
 from prism_common.queue import TASK_RUN_JOB
 from prism_common.records import ENDED_STATES, ItemRecord, JobRecord, State
+from prism_common.references import parse_reference
+from prism_common.settings import Settings
 from prism_common.stations import get_summary
 from prism_common.store import IdempotencyConflictError, JobStore
 
@@ -81,10 +84,7 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
     uploads = check_job(job_in, settings, store, tenant, raw=body,
                         stations=lambda station_id: get_summary(objects, tenant, station_id))
     check_queue_depth(client, settings)
-    items = [ItemRecord(index=i, spec=spec.model_copy(
-        update={"max_pixels": min(spec.max_pixels, settings.max_pixels),
-                "formats": _formats(spec, settings.default_formats)}))
-        for i, spec in enumerate(job_in.items)]
+    items = [_record(i, item, settings, uploads) for i, item in enumerate(job_in.items)]
     record = JobRecord(id=uuid4().hex, tenant=tenant, items=items, created_at=datetime.now(UTC),
                        client_reference=job_in.client_reference, webhook_url=job_in.webhook_url)
     try:
@@ -92,7 +92,7 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
     except IdempotencyConflictError as exc:
         raise HTTPException(status.HTTP_409_CONFLICT, str(exc)) from None
     if created:
-        store.touch_uploads(uploads)  # they expire counting from their last job, not their upload
+        store.touch_uploads(set(uploads))  # they expire counting from their last job, not their upload
         try:
             # ignore_result: the API never reads run_job's result; without it Celery's Redis
             # backend subscribes this process to every task's result channel, for good.
@@ -105,6 +105,25 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
                                 f"the job queue is unavailable; job {job.id} was not started") from None
     response.headers["Location"] = _location(settings.public_base_url, job.id)
     return to_public(job, presigner)
+
+
+def _record(index: int, spec: ScanSpec, settings: Settings, uploads: dict[str, str | None]) -> ItemRecord:
+    """The item as stored: its spec (the service's pixel cap and formats applied) and the name its
+    image was sent under (an upload's; an https URL's last segment)."""
+    return ItemRecord(index=index, spec=spec.model_copy(
+        update={"max_pixels": min(spec.max_pixels, settings.max_pixels),
+                "formats": _formats(spec, settings.default_formats)}), file_name=_file_name(spec, uploads))
+
+
+def _file_name(item: ScanSpec, uploads: dict[str, str | None]) -> str | None:
+    """The name the item's (front) image was sent under: its upload's, or an https URL's last path
+    segment; None for an object-store key (`input` names it)."""
+    ref = parse_reference(item.image)  # checked at submit: a reference of a kind the service reads
+    if ref.kind == "upload":
+        return uploads.get(ref.upload_id)
+    if ref.kind == "https":
+        return unquote(urlsplit(item.image).path.rsplit("/", 1)[-1]) or None
+    return None
 
 
 def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]:

@@ -119,19 +119,20 @@ def with_table(
     win = (slice(y0, y1), slice(x0, x1))
     level_full = cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)[win].astype(np.float32)
     Pw = photo_u[win].astype(np.float32)
-    table_plate = _texture_allowed(Pw, level_full, k)
+    table_plate = _texture_allowed(Pw, level_full, k, cover[win] > 0.02)
     c = cover[win][..., None]
     inside = c * board_plate[win].astype(np.float32) + (1 - c) * table_plate
     plate[win] = np.where(known[win][..., None], np.clip(inside, 0, 255), Pw).astype(np.uint8)
     return plate, known, []
 
 
-def _texture_allowed(P: np.ndarray, level: np.ndarray, k: int) -> np.ndarray:
+def _texture_allowed(P: np.ndarray, level: np.ndarray, k: int, board: np.ndarray) -> np.ndarray:
     """The table's level with its own texture let through: each pixel's difference from the level
     (after the shadow's scale, as the segmentation compares: :func:`shadow_scale`) shortened by
     the texture's local amplitude (its median over `k` pixels of a quarter-size copy), so the
     table's grain and streaks differ from the plate by nothing while a part differs by all but
-    that amplitude. P, level: (H, W, 3) float32."""
+    that amplitude. P, level: (H, W, 3) float32; board: (H, W) bool, the board's area (its
+    difference is the board's, not the table's texture)."""
     s = _shadow_scale(P, level)
     r = P - np.minimum(s * level, 255.0)
     D = np.sqrt(norm2(planes(r)))
@@ -139,6 +140,12 @@ def _texture_allowed(P: np.ndarray, level: np.ndarray, k: int) -> np.ndarray:
     # window leaves it), _TEXTURE times over
     small = (max(1, P.shape[1] // _COARSE), max(1, P.shape[0] // _COARSE))
     Dc = cv2.resize(D, small, interpolation=cv2.INTER_AREA)
+    # the board differs from the table's level by all its contrast: its pixels are no texture (the
+    # median's window over the board's edge took the board's difference for the table's grain,
+    # and a part rising past the board passed as grain)
+    board_c = cv2.resize(board.astype(np.float32), small, interpolation=cv2.INTER_AREA) > 0.02
+    if (~board_c).any():
+        Dc[board_c] = float(np.median(Dc[~board_c]))
     kk = min(k, max(1, 2 * (min(small) // 2) - 1))
     amp = (cv2.medianBlur(np.clip(Dc, 0, 255).astype(np.uint8), kk) if kk >= 3 else Dc).astype(np.float32)
     A = cv2.resize(amp * _TEXTURE, (P.shape[1], P.shape[0]), interpolation=cv2.INTER_LINEAR)

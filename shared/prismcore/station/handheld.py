@@ -33,6 +33,10 @@ _LIT = 0.85  # a square this much darker than the board's light nearby is in a s
 _LIT_PASSES = 3  # the light found again without the shadowed squares (each pass nearer the lit)
 _BLACK_LIT = 1.5  # a black square's pixel brighter than this against the plate's black is not lit so
 _INK_MM = 1.5  # the print on the sheet's margin (ruler, text) is strokes thinner than this
+_STRAY = 4.0  # a board corner missed by this many times the corners' median miss is a stray
+_STRAY_PX = 1.5  # (and by over this many px)
+_MAX_STRAYS = 0.2  # at most this share of the corners left out as strays
+_TOUCH_PX = 13  # a blob this near the board's squares (px) touches them
 
 
 def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
@@ -41,9 +45,54 @@ def _board_view(photo: np.ndarray, board: BoardSpec) -> BoardView:
         found = 0 if view is None else len(view)
         raise InputError(
             f"{found} board corners found, at least {MIN_PLANE_CORNERS} are needed: the board "
-            "must show around the part"
+            "must show around the part (a part as large as the board hides it: print a larger one, "
+            "prism board --paper A3; a board far off shows its markers too small: come closer)"
         )
     return view
+
+
+def _fit_flags(radial: bool) -> int:
+    return (
+        cv2.CALIB_USE_INTRINSIC_GUESS
+        | cv2.CALIB_FIX_PRINCIPAL_POINT
+        | cv2.CALIB_FIX_ASPECT_RATIO
+        | cv2.CALIB_ZERO_TANGENT_DIST
+        | cv2.CALIB_FIX_K2
+        | cv2.CALIB_FIX_K3
+        | (0 if radial else cv2.CALIB_FIX_K1)
+    )
+
+
+def _one_view_fit(view: BoardView, size: tuple[int, int], radial: bool = True
+                  ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """(RMS px, K, distortion, each corner's miss (N,) px) of the camera fitted to one view."""
+    w, h = size
+    K0 = np.array([[max(w, h), 0, (w - 1) / 2], [0, max(w, h), (h - 1) / 2], [0, 0, 1]], np.float64)
+    obj = [view.object_points.astype(np.float32)]
+    img = [view.image_points.astype(np.float32)]
+    rms, K, dist, rv, tv, _, _, _ = cv2.calibrateCameraExtended(obj, img, (w, h), K0, np.zeros(5),
+                                                                 flags=_fit_flags(radial))
+    seen, _ = cv2.projectPoints(obj[0], rv[0], tv[0], K, dist)
+    return float(rms), K, dist, np.linalg.norm(seen.reshape(-1, 2) - view.image_points, axis=1)
+
+
+def without_strays(view: BoardView, size: tuple[int, int]) -> BoardView:
+    """`view` without the corners its own one-view fit misses by over _STRAY times the corners'
+    median miss (and over _STRAY_PX): a corner refined onto a part's edge beside it, or read
+    through a marker half hidden. At most _MAX_STRAYS of the corners are left out, and never
+    below MIN_PLANE_CORNERS; a view whose misses are all alike is kept whole."""
+    if len(view) <= MIN_PLANE_CORNERS:
+        return view
+    try:
+        _, _, _, miss = _one_view_fit(view, size)
+    except cv2.error:
+        return view
+    stray = miss > max(_STRAY_PX, _STRAY * float(np.median(miss)))
+    left = len(view) - int(stray.sum())
+    if not stray.any() or stray.sum() > _MAX_STRAYS * len(view) or left < MIN_PLANE_CORNERS:
+        return view
+    keep = ~stray
+    return BoardView(view.image_points[keep], view.object_points[keep], view.ids[keep])
 
 
 def board_camera(
@@ -65,19 +114,7 @@ def board_camera(
     """
     h, w = photo.shape[:2]
     view = _board_view(photo, board) if view is None else view
-    K0 = np.array([[max(w, h), 0, (w - 1) / 2], [0, max(w, h), (h - 1) / 2], [0, 0, 1]], np.float64)
-    flags = (
-        cv2.CALIB_USE_INTRINSIC_GUESS
-        | cv2.CALIB_FIX_PRINCIPAL_POINT
-        | cv2.CALIB_FIX_ASPECT_RATIO
-        | cv2.CALIB_ZERO_TANGENT_DIST
-        | cv2.CALIB_FIX_K2
-        | cv2.CALIB_FIX_K3
-        | (0 if radial else cv2.CALIB_FIX_K1)
-    )
-    obj = [view.object_points.astype(np.float32)]
-    img = [view.image_points.astype(np.float32)]
-    rms, K, dist, _, _, _, _, _ = cv2.calibrateCameraExtended(obj, img, (w, h), K0, np.zeros(5), flags=flags)
+    rms, K, dist, _ = _one_view_fit(view, (w, h), radial)
     k1 = float(np.ravel(dist)[0])
     f = float(K[0, 0])
     if not (np.isfinite(f) and 0.2 * max(w, h) < f < 20 * max(w, h)):
@@ -271,7 +308,7 @@ def measure_on_board(
     """
     t0 = time.perf_counter()
     h, w = photo.shape[:2]
-    view = _board_view(photo, board)
+    view = without_strays(_board_view(photo, board), (w, h))
     cam = board_camera(photo, board, view) if camera is None else camera.for_size(w, h)
     photo_u = undistorter(cam).image(photo)
     pose = board_pose(view, cam)
@@ -288,14 +325,16 @@ def measure_on_board(
     # the photo is outlined against the table there.
     corners_mm, corners_px = _corners(board, pose_h, margins)
     tall = background.TABLE_HEIGHT * max(board.size_mm)
-    zone = table_zone(corners_mm, K, R, t, tall)
+    # a part over the sheet's edge reaches past it by up to its own size, and rises there too
+    grown = corners_mm + np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], np.float64) * tall
+    zone = table_zone(grown, K, R, t, tall)
     cover = board_cover(corners_px, (h, w))
     plate_u, region, table_notes = with_table(photo_u, plate_u, cover, zone)
-    # The part rests on the board (or over its edge): what differs only away from it is the table's
-    # (a printed cloth's pattern the median missed) or another object's, not the part.
-    board_px = _corners(board, pose_h)[1]
-    reach = int(2 * np.linalg.norm(board_px[1] - board_px[0]) / board.squares_x) | 1
-    rests_on = cv2.dilate((cover > 0.5).astype(np.uint8), np.ones((reach, reach), np.uint8)) > 0
+    # The part rests on the board's squares (or over their edge): what differs only away from them,
+    # on the sheet's margin or past it, is the table's (a printed cloth's pattern the median
+    # missed), the sheet's edge modelled short, or another object's, not the part.
+    rests_on = cv2.dilate((board_cover(_corners(board, pose_h)[1], (h, w)) > 0.5).astype(np.uint8),
+                          np.ones((_TOUCH_PX, _TOUCH_PX), np.uint8)) > 0
     reg = Registration(pose, np.eye(3), 0.0, "board", len(view))
     timings = {
         "undistort": 0.0,

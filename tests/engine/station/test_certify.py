@@ -4,11 +4,14 @@ over several station setups (prismsynth seeds):
 
 * a correct station's verification with the sample's reference part (70 x 45 x 30 mm, placed 7
   times as `prism sample --station` places it) passes at +-2 mm, its bias within the 10 % of 2T
-  the rule accepts (the renders read 0.1-0.35 mm long: the bias's own interval holds 0 on none of
-  them, figures in benchmarks/station_verification.py);
-* a station whose scale is 1 % off (its board described 1 % larger or smaller than printed: every
-  length, the plane's distance among them, 1 % off) fails it; a focal length 1 % off is absorbed
-  by the plane's pose fitted with it (the station still measures right, and passes);
+  the rule accepts and within the station's own stated one sigma of the truth. The bias's 95 %
+  t interval does NOT hold the truth (0) on most of these renders: they read 0.1-0.3 mm long, a
+  systematic bias of the renders' outlines that 7 placements resolve (figures in
+  benchmarks/station_verification.py); the rule accepts it as under 10 % of 2T;
+* a station whose scale is 1 % off (its board described 1 % larger or smaller than printed: the
+  plane's pose fitted to it puts the support 1 % farther or nearer, every length 1 % off) fails
+  it; a focal length 1 % off is absorbed by the plane's pose fitted with it (the station still
+  measures right, and passes);
 * a photo after the camera turned by 5-20 px is flagged: moved, "verified before the camera
   moved", warned; the placements' photos (the camera nudged 0-3 px) are not.
 """
@@ -177,9 +180,17 @@ def test_a_correct_station_is_verified_and_a_station_1_percent_off_is_not(seed):
     done = verify_station(_station(seed, "correct"), photos, REFERENCE, TOLERANCE, DATE)
     assert done.verified, done.decided_by
     for name, d in done.dimensions.items():
+        # the truth within the station's own stated one sigma of its mean reading, and the bias
+        # under the 10 % of 2T the rule accepts (its t interval need not hold 0: see above)
+        stated = float(np.sqrt(np.mean(np.square(d.sigmas_mm))))
+        assert abs(d.bias_mm) <= stated and abs(d.bias_mm) <= 0.1 * 2 * TOLERANCE, (name, d)
         low, high = d.bias_ci95_mm
-        assert low <= d.bias_mm <= high and abs(d.bias_mm) <= 0.1 * 2 * TOLERANCE, (name, d)
+        assert high - low == pytest.approx(2 * 2.447 * d.repeatability_mm / np.sqrt(7), rel=1e-3)
         assert all(d.within_3_sigma) and d.grr_percent is not None and d.grr_percent < 30, (name, d)
+    # the scale's error is the support's distance from the camera: the plane 1 % farther or nearer
+    distance = {kind: float(np.linalg.norm(_station(seed, kind).plane.camera_centre()))
+                for kind in ("correct", "scale")}
+    assert distance["scale"] / distance["correct"] == pytest.approx(1.01 if seed % 2 else 0.99, abs=1e-3)
     off = verify_station(_station(seed, "scale"), photos, REFERENCE, TOLERANCE, DATE)
     assert not off.verified
     assert any(f.startswith("width: bias ") and "over 10 % of the tolerance" in f
@@ -192,7 +203,11 @@ def test_a_correct_station_is_verified_and_a_station_1_percent_off_is_not(seed):
 @pytest.mark.parametrize("seed", SEEDS[:2])
 def test_a_focal_length_1_percent_off_is_absorbed_by_the_planes_pose(seed):
     """The plane's pose fitted with the wrong focal length keeps the board's corners where they are:
+    the support comes out about 1 % farther (focal over distance, the photo's scale, unchanged), so
     the support's scale, and so the footprint, stay right; the verification passes."""
+    distance = {kind: float(np.linalg.norm(_station(seed, kind).plane.camera_centre()))
+                for kind in ("correct", "focal")}
+    assert distance["focal"] / distance["correct"] == pytest.approx(1.01, abs=0.002)
     photos = list(_placements(seed))
     right = verify_station(_station(seed, "correct"), photos, REFERENCE, TOLERANCE, DATE)
     focal = verify_station(_station(seed, "focal"), photos, REFERENCE, TOLERANCE, DATE)
@@ -218,6 +233,7 @@ def test_a_camera_moved_5_to_20_px_is_flagged_and_a_still_one_is_not(seed):
         found = certify(m, verified, TOLERANCE)
         still = found["drift"]
         assert still["moved"] is False and still["shift_px"] <= MOVED_PX - 0.5, still
+        assert still["reverify"] is False and not any("verify the station again" in w for w in m.warnings)
         assert found["verification"]["status"] == VERIFIED
     box = reference_placements(setup)[2]  # the board's centre
     for shift in (5.0, 8.0, 12.0, 20.0):
@@ -229,3 +245,10 @@ def test_a_camera_moved_5_to_20_px_is_flagged_and_a_still_one_is_not(seed):
         assert d["shift_mm"] > 0
         assert found["verification"]["status"] == VERIFIED_BEFORE_MOVE
         assert any("before the camera moved" in w for w in m.warnings), m.warnings
+        # judged against a tolerance the move's cost exceeds a third of: re-verification asked for
+        cost = max(d["cost_mm"].values())
+        assert cost > 0, d
+        tight = certify(m, verified, cost)["drift"]
+        assert tight["reverify"] is True and tight["threshold_px"] < d["shift_px"], tight
+        assert any(w.startswith(f"the camera moved {d['shift_px']:.1f} px") and w.endswith(
+            "verify the station again (prism station verify)") for w in m.warnings), m.warnings

@@ -140,3 +140,52 @@ def test_the_board_lit_beside_a_shadow_s_edge_is_not_taken_for_a_second_part() -
     assert not any("speck" in w for w in m.warnings), m.warnings
     for key, true in sc.box.dimensions.items():
         assert abs(m.dimensions[key] - true) <= max(0.015 * true, 1.0), (key, m.dimensions, true)
+
+
+@pytest.mark.parametrize("shift_px", [3.0, 6.0, 12.0])
+def test_a_board_corner_refined_off_its_place_is_left_out_and_the_rest_kept(shift_px) -> None:
+    """A corner pulled onto a part's edge beside it (here moved by `shift_px`) is left out of the
+    one-view fit; the view found in the photo, whose corners all agree, is kept whole."""
+    sc = _scene(2)
+    view = handheld._board_view(sc.photo, sc.setup.board)
+    size = (sc.photo.shape[1], sc.photo.shape[0])
+    assert handheld.without_strays(view, size) is view
+    moved = view.image_points.copy()
+    moved[len(view) // 2] += shift_px / np.sqrt(2)
+    strayed = dataclasses.replace(view, image_points=moved)
+    kept = handheld.without_strays(strayed, size)
+    assert sorted(set(view.ids) - set(kept.ids)) == [view.ids[len(view) // 2]]
+    assert board_camera(sc.photo, sc.setup.board, kept).rms_px < 0.5
+
+
+def test_a_view_whose_corners_all_miss_alike_is_kept_whole() -> None:
+    """Noise on every corner is no stray: nothing is left out (the RMS check judges the view)."""
+    sc = _scene(2)
+    view = handheld._board_view(sc.photo, sc.setup.board)
+    noisy = view.image_points + np.random.default_rng(3).normal(0, 1.0, view.image_points.shape)
+    noisy_view = dataclasses.replace(view, image_points=noisy)
+    assert len(handheld.without_strays(noisy_view, (sc.photo.shape[1], sc.photo.shape[0]))) >= len(view) - 1
+
+
+@pytest.mark.parametrize("seed", [2, 4, 9])
+def test_a_thing_beside_the_board_s_squares_is_left_out_not_a_second_part(seed) -> None:
+    """A red strip (a pen, a cable) on the table a square and more past the board's far edge, where a
+    part rising past the board is looked for and within the reach once allowed to a part: it
+    touches no square, so it is left out and said, and the part is measured as without it."""
+    sc = _scene(seed)
+    su = sc.setup
+    assert sc.box is not None
+    bw, bh = su.board.size_mm
+    sq = su.board.square_mm
+    centre = -su.R.T @ np.ravel(su.t)  # the camera in the board's frame: the far edge is away from it
+    y0, y1 = (-1.8 * sq, -1.1 * sq) if centre[1] > bh / 2 else (bh + 1.1 * sq, bh + 1.8 * sq)
+    strip = np.array([[0.3 * bw, y0, 0], [0.6 * bw, y0, 0], [0.6 * bw, y1, 0], [0.3 * bw, y1, 0]])
+    px = cv2.projectPoints(strip, cv2.Rodrigues(su.R)[0], su.t, su.K, su.dist)[0].reshape(-1, 2)
+    h, w = sc.photo.shape[:2]
+    assert ((px >= 0) & (px < (w, h))).all()
+    photo = sc.photo.copy()
+    cv2.fillConvexPoly(photo, np.round(px).astype(np.int32), (200, 30, 30), lineType=cv2.LINE_AA)
+    m = measure_on_board(photo, su.board, true_camera(sc))
+    assert any("apart from the board left out" in w for w in m.warnings), m.warnings
+    for key, true in sc.box.dimensions.items():
+        assert abs(m.dimensions[key] - true) <= max(0.015 * true, 1.0), (key, m.dimensions, true)

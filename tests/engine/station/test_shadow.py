@@ -93,6 +93,35 @@ def test_the_table_is_modelled_in_its_zone_only() -> None:
     np.testing.assert_array_equal(plate[110:130, 110:150], board_plate[110:130, 110:150])
 
 
+@pytest.mark.parametrize("part", [24, 36, 48])
+def test_a_part_rising_past_the_board_differs_from_the_table_modelled_there(part) -> None:
+    """A part `part` px across over a board's edge, rising past it over a wood-like table (grain
+    +-12 levels): the table's texture is read from the table alone, so the part's half over the
+    table differs from the plate by most of its contrast (the board's own difference from the
+    table, in the median's window, had let it through as grain), and the grain by little."""
+    rng = np.random.default_rng(5)
+    h, w = 480, 640
+    grain = rng.normal(0, 6, (h, 1, 1)) + rng.normal(0, 4, (h, w, 1))
+    table = np.clip(np.array([150.0, 110.0, 70.0]) + grain, 0, 255)
+    cover = np.zeros((h, w), np.float32)
+    cover[300:420, 200:440] = 1  # the board
+    photo = table.copy()
+    photo[cover > 0] = 200.0  # the board's white
+    y0, x0 = 300 - part // 2, 320 - part // 2
+    photo[y0:y0 + part, x0:x0 + part] = (60.0, 90.0, 200.0)  # a blue part rising past the board
+    photo = photo.astype(np.uint8)
+    zone = np.array([[100, 40], [540, 40], [540, 460], [100, 460]], np.float64)
+    plate, known, _ = with_table(photo, np.full_like(photo, 200), cover, zone)
+    assert known[y0:y0 + part, x0:x0 + part].all()
+    inner = (slice(y0 + 2, 300 - 2), slice(x0 + 2, x0 + part - 2))  # over the table
+    diff = np.linalg.norm(photo[inner].astype(float) - plate[inner].astype(float), axis=-1)
+    contrast = float(np.linalg.norm(np.array([60.0, 90.0, 200.0]) - [150.0, 110.0, 70.0]))
+    assert np.median(diff) > 0.7 * contrast, (np.median(diff), contrast)
+    wood = (slice(60, 180), slice(120, 200))
+    grain_diff = np.linalg.norm(photo[wood].astype(float) - plate[wood].astype(float), axis=-1)
+    assert np.median(grain_diff) < 6, np.median(grain_diff)
+
+
 def test_the_board_is_modelled_lit_beside_a_shadow_s_edge() -> None:
     """The board's light is smoothed over most of a square: a shadow's edge within that reach
     darkened the plate on its lit side (a lit marker beside a shadow then differed, 1.2-1.5 times
