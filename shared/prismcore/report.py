@@ -9,7 +9,7 @@ Pydantic only, like `prismcore.spec` (no numpy, no OpenCV). Every mode builds a 
 Which keys a report.json has depends on its mode (`auto_points` only with found points,
 `station` only on a station or a board, `frame` only for a video's frame, ...): the file holds
 exactly the fields its mode set (`model_dump(exclude_unset=True)`), so a field that is null in
-the file (`uncertainty` without a scale's sigma) was set to null, and one the mode does not
+the file (`uncertainty` when the fit gave no covariance) was set to null, and one the mode does not
 give is absent. The blocks are closed (`extra="forbid"`) but for `inputs`, the spec as run
 (`ScanSpec`'s JSON, as the job spec's schema describes it), and the station's
 `registration.board_corners`, which are the board detector's own record.
