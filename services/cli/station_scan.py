@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from prismcore.camera import CameraModel
+    from prismcore.errors import InputError, PartRefusedError
     from prismcore.report import ScanReport, StationBlock
     from prismcore.station import Station, StationScan
 
@@ -35,6 +36,7 @@ def scan_on_station(
     """Measure `image` on the station (its file, or the station a batch loaded once); write
     report.json and the outputs in `out`. Returns the report. tolerance_mm (--tolerance-mm) is what
     the camera's drift is judged against, and with `nominal` (--nominal) the dimensions' verdicts."""
+    from prismcore.errors import PartRefusedError
     from prismcore.io import load_image
     from prismcore.quality import report_quality
     from prismcore.station import scan_on_station as scan
@@ -46,7 +48,10 @@ def scan_on_station(
     photo = load_image(image, max_pixels=max_pixels)
     judged = cast("float | tuple[float, float, float] | None",
                   tuple(tolerance_mm) if isinstance(tolerance_mm, list) else tolerance_mm)
-    done = scan(photo, station, str(image), _spec_extra(formats, max_pixels), judged)
+    try:
+        done = scan(photo, station, str(image), _spec_extra(formats, max_pixels), judged)
+    except PartRefusedError as exc:
+        raise _shown(exc, out, overlay_format) from None
     if nominal is not None:  # the verdicts judge the station's dimensions, as the service's do
         done.report.quality = report_quality(done.report, nominal, tolerance_mm)
     return _write(done, photo, out, started, overlay_format)
@@ -57,6 +62,7 @@ def scan_on_board_photo(
     max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
 ) -> ScanReport:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
+    from prismcore.errors import PartRefusedError
     from prismcore.io import load_image
     from prismcore.station import scan_on_board
 
@@ -65,8 +71,26 @@ def scan_on_board_photo(
     started = time.perf_counter()
     board = load_board(board_file)
     photo = load_image(image, max_pixels=max_pixels)
-    return _write(scan_on_board(photo, board, camera, str(image), _spec_extra(formats, max_pixels)), photo,
-                  out, started, overlay_format)
+    try:
+        done = scan_on_board(photo, board, camera, str(image), _spec_extra(formats, max_pixels))
+    except PartRefusedError as exc:
+        raise _shown(exc, out, overlay_format) from None
+    return _write(done, photo, out, started, overlay_format)
+
+
+def _shown(refused: PartRefusedError, out: Path, overlay_format: str) -> InputError:
+    """The refusal, its overlay (what was taken for the part, and why refused) written in `out`
+    and named in its words."""
+    from prismcore.errors import InputError
+    from prismcore.outputs import encode_overlay, overlay_name, refusal_overlay
+
+    if refused.photo is None:
+        return refused
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / overlay_name("overlay", overlay_format)
+    picture = refusal_overlay(refused.photo, refused.taken, str(refused))
+    path.write_bytes(encode_overlay(picture, overlay_format))
+    return InputError(f"{refused} ({path} shows what was taken for the part)")
 
 
 def certification_line(station: StationBlock) -> str:

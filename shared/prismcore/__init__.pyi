@@ -5,6 +5,7 @@ use) and type checkers read it as the package's interface."""
 from ._version import __version__ as __version__
 from .camera import CameraModel as CameraModel
 from .errors import InputError as InputError
+from .errors import PartRefusedError as PartRefusedError
 from .io.images import load_image as load_image
 from .locate.search import find_points as find_points
 from .multiview.joint import fit_views as fit_views

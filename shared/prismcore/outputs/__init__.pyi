@@ -14,6 +14,7 @@ from .overlay_report import overlay_from_report as overlay_from_report
 from .overlay_report import points_found as points_found
 from .part import Part as Part
 from .part import part_from_report as part_from_report
+from .refusal import refusal_overlay as refusal_overlay
 from .sink import Sink as Sink
 from .sink import Writer as Writer
 from .sink import overlay_media_type as overlay_media_type

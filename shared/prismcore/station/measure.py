@@ -14,13 +14,14 @@ import cv2
 import numpy as np
 
 from prismcore.camera import CameraModel
-from prismcore.errors import InputError
+from prismcore.errors import InputError, PartRefusedError
 from prismcore.geometry.rounding import RESOLVED_PX
 from prismcore.station.boxfit import _FACES, OutlineFit, fit_outline_box, project, visible_faces
 from prismcore.station.calibrate import Station
 from prismcore.station.edges import fold_distance
 from prismcore.station.rounding import edge_radius
-from prismcore.station.segment import Registration, register, segment_part, undistorter
+from prismcore.station.segment import Registration, register, segment_part
+from prismcore.station.undistort import undistorter
 
 __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
 
@@ -267,7 +268,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     if region is not None:
         edge = sil.mask & ~cv2.erode(region.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
         if edge.sum() > 0.002 * sil.area_px:
-            raise InputError(region_refusal)
+            raise PartRefusedError(region_refusal, photo_u, sil.mask)
     t3, c3 = time.perf_counter(), time.thread_time()
     K, R, t = cam.matrix(), reg.pose.rotation(), reg.pose.translation()
     # the folds and the outline's steps looked for in the part's window only
@@ -283,14 +284,21 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)
     if fit.residual_px > MAX_RESIDUAL_PX:
-        raise InputError(
+        raise PartRefusedError(
             f"the part is not a box resting flat on the support: its outline is "
             f"{fit.residual_px:.1f} px (RMS) from the best such box (over {MAX_RESIDUAL_PX} px). If it is "
             "one: stand it flat on its largest face, away from other objects, and where a face matches "
             "the support's colour or mirrors it, light it from another side or put a mat of another "
-            "colour under it"
+            "colour under it",
+            photo_u, sil.mask,
         )
-    warnings = [*sil.warnings, *_apart(sil.others, fit, K, R, t)]
+    try:
+        warnings = [*sil.warnings, *_apart(sil.others, fit, K, R, t)]
+    except InputError as exc:  # a second part beside this one: both shown
+        taken = sil.mask.copy()
+        for x, y, bw, bh in sil.others:
+            taken[int(y) : int(y + bh), int(x) : int(x + bw)] = True
+        raise PartRefusedError(str(exc), photo_u, taken) from None
     if fit.residual_px > WARN_RESIDUAL_PX:
         warnings.append(
             f"the outline is {fit.residual_px:.1f} px (RMS) from the fitted box: a part that is "
@@ -299,10 +307,11 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     L, W, H = fit.length_mm, fit.width_mm, fit.height_mm
     mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
     if min(L, W, H) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite([L, W, H])):
-        raise InputError(f"the fitted box is degenerate ({L:.1f} x {W:.1f} x {H:.1f} mm, a side under "
-                         f"{_MIN_SIDE_PX:.0f} px): the outline found is not a box's. Most often only the "
-                         "top was found, its sides matching the support's colour or mirroring it: light "
-                         "the part from another side, or put a mat of another colour under it")
+        raise PartRefusedError(
+            f"the fitted box is degenerate ({L:.1f} x {W:.1f} x {H:.1f} mm, a side under "
+            f"{_MIN_SIDE_PX:.0f} px): the outline found is not a box's. Most often only the "
+            "top was found, its sides matching the support's colour or mirroring it: light "
+            "the part from another side, or put a mat of another colour under it", photo_u, sil.mask)
     sL, sW, sH = fit.sigma_mm()
     if L >= W:
         dims, sig, yaw = (

@@ -13,13 +13,13 @@ import cv2
 import numpy as np
 
 from prismcore.camera import CameraModel
-from prismcore.errors import InputError
+from prismcore.errors import InputError, PartRefusedError
 from prismcore.station.board import BoardSpec, find_board_corners
 from prismcore.station.calibrate import MIN_PLANE_CORNERS, PlanePose, board_pose
 from prismcore.station.photometry import deepest_shadow, pattern_broken, pattern_match, tone_curve, toned
 
 __all__ = ["MAX_SHIFT_PX", "SHADOW_RANGE", "Registration", "Silhouette", "difference2", "norm2", "planes",
-           "register", "segment_part", "shadow_ratio", "undistorter"]
+           "register", "segment_part", "shadow_ratio"]
 
 MAX_SHIFT_PX = 25.0  # the camera moved further than this since calibration: refused
 SHADOW_RANGE = (0.25, 1.08)  # a shadow (or the light's change) scales the background by this
@@ -29,36 +29,6 @@ _NO_PART = ("no part found on the support (nothing differs from the plate): put 
             "support; a part of the support's colour (dark on the black squares) needs a mat of another "
             "colour under it")
 _LOW_CONTRAST = 25.0  # RGB levels: a part whose colour differs less from the support is flagged
-
-
-class Undistorter:
-    """The maps that remove a camera's lens distortion, built once per camera."""
-
-    def __init__(self, camera: CameraModel) -> None:
-        self.camera = camera
-        self.K = camera.matrix()
-        size = (camera.image_width, camera.image_height)
-        self.maps = (
-            cv2.initUndistortRectifyMap(self.K, camera.distortion(), None, self.K, size, cv2.CV_16SC2)
-            if camera.has_distortion
-            else None
-        )
-
-    def image(self, image: np.ndarray) -> np.ndarray:
-        if self.maps is None:
-            return image
-        return cv2.remap(image, self.maps[0], self.maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-
-
-_UNDISTORTERS: dict[str, Undistorter] = {}
-
-
-def undistorter(camera: CameraModel) -> Undistorter:
-    key = camera.model_dump_json()
-    if key not in _UNDISTORTERS:
-        _UNDISTORTERS.clear()
-        _UNDISTORTERS[key] = Undistorter(camera)
-    return _UNDISTORTERS[key]
 
 
 @dataclass(frozen=True)
@@ -438,6 +408,12 @@ _SPLIT_GAP = 0.3  # of the part's size (the square root of its area)
 _COARSE = 4  # the part is first found in a photo this many times smaller
 
 
+def _blobs(labels: np.ndarray, ids: list[int], size: tuple[int, int]) -> np.ndarray:
+    """The coarse `labels`' blobs `ids` at the photo's `size` (w, h): (H, W) bool."""
+    return cast("np.ndarray", cv2.resize(np.isin(labels, ids).astype(np.uint8), size,
+                                         interpolation=cv2.INTER_NEAREST) > 0)
+
+
 def segment_part(
     photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray, *, skip_inside: bool = True,
     rests_on: np.ndarray | None = None,
@@ -495,7 +471,8 @@ def segment_part(
     off_support = [] if on is None else [i for i in big if not on[labels == i].any()]
     big = [i for i in big if i not in off_support]
     if not big:
-        raise InputError(_NO_PART + f" ({len(off_support)} off the board left out)" * bool(off_support))
+        raise PartRefusedError(_NO_PART + f" ({len(off_support)} off the board left out)" * bool(off_support),
+                          photo_u, _blobs(labels, off_support, (w, h)))
     first = big[0]
     # A blob within a small gap of the part is the part split by a band of its colour meeting the
     # support's (one face alike the table behind it): joined. Farther, it is a second part; a blob
@@ -508,7 +485,8 @@ def segment_part(
     others = [i for i in far if areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     joined = [i for i in big[1:] if i not in far and areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     if others:
-        raise InputError(f"{1 + len(others)} parts found: one part per photo")
+        raise PartRefusedError(f"{1 + len(others)} parts found: one part per photo", photo_u,
+                          _blobs(labels, [first, *others], (w, h)))
     # the smaller blobs, near or far: the caller keeps those inside the fitted box's outline
     apart = [tuple(float(v) * _COARSE for v in stats[i, :4]) for i in big[1:] if i not in joined]
     pieces = [first, *joined]
@@ -516,7 +494,8 @@ def segment_part(
     bw = int(max(stats[i, 0] + stats[i, 2] for i in pieces)) - x0
     bh = int(max(stats[i, 1] + stats[i, 3] for i in pieces)) - y0
     if x0 <= 0 or y0 <= 0 or x0 + bw >= small[0] or y0 + bh >= small[1]:
-        raise InputError("the part is cut by the photo's edge: move it into view")
+        raise PartRefusedError("the part is cut by the photo's edge: move it into view", photo_u,
+                          _blobs(labels, pieces, (w, h)))
     # The part's window at full size, with a margin of support around it.
     m = 6
     X0, Y0 = max(0, (x0 - m) * _COARSE), max(0, (y0 - m) * _COARSE)
@@ -539,7 +518,7 @@ def segment_part(
     mask = _mask(resid, noise, 1.0)
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
-        raise InputError(_NO_PART)
+        raise PartRefusedError(_NO_PART, photo_u)
     warnings = [] if light_warning is None else [light_warning]
     if off_support:
         warnings.append(f"{len(off_support)} thing(s) apart from the board left out (a table's pattern, "
@@ -549,8 +528,8 @@ def segment_part(
                and near[lab == j].any()]
     if not in_part:
         # what differs at full size lies away from where the coarse photo found the part
-        raise InputError("no part found on the support (nothing differs from the plate where the part "
-                         "showed at a quarter of the size)")
+        raise PartRefusedError("no part found on the support (nothing differs from the plate where the part "
+                          "showed at a quarter of the size)", photo_u, _blobs(labels, pieces, (w, h)))
     part = np.isin(lab, in_part).astype(np.uint8)
     # Where the support's pattern is broken near the part but no pixel differs enough (a face that
     # mirrors the board): the part reaches there too. A box's silhouette is convex: the outline is

@@ -34,6 +34,9 @@ _PAPER_HUE = 0.06  # ...and its colour's direction within this of theirs (a tabl
 _STARTS = 0.3  # a side shows paper where this share of its positions do next to the board
 _GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
 _EDGE_STEP = 0.04  # ... and its colour steps by this share of the white's light across that end
+_NO_END = 0.7  # a side whose paper never ends (in view) at this share of its positions is a light
+# table (a part as light as paper standing on the margin hides the paper's end at fewer)...
+_LEAVES = 0.8  # ...unless this share of those positions' paper runs out of the photo: paper to its edge
 
 
 def _hue(rgb: np.ndarray) -> np.ndarray:
@@ -129,10 +132,14 @@ def sheet_margins(
         # shadow ends some early, a table alike the paper some later (or never, within the
         # window: those count only as most of the side); the commonest end, to a millimetre.
         counts = np.bincount(ends[starts], minlength=len(ds) + 1).astype(np.float64)
-        if counts[-1] >= 0.5 * starts.sum():
-            # most of the side's "paper" does not end within MAX_MARGIN_MM: a light table, or a
-            # sheet larger than that, is modelled as the table, as before the sheet was read
-            out.append(0.0)
+        if counts[-1] >= _NO_END * starts.sum():
+            # most of the side's "paper" does not end within MAX_MARGIN_MM: where it mostly runs
+            # out of the photo, paper reaches the photo's edge (the sheet's near side, cut by the
+            # frame); where it goes on in view, a light table, or a sheet larger than that, is
+            # modelled as the table, as before the sheet was read
+            never = starts & (ends == len(ds))
+            leaves = never & ~ok.all(axis=1)
+            out.append(MAX_MARGIN_MM if leaves.sum() >= _LEAVES * never.sum() else 0.0)
             continue
         counts[-1] = 0
         per_mm = np.convolve(counts, np.ones(max(1, round(1.0 / _STEP_MM))), mode="same")
@@ -140,8 +147,10 @@ def sheet_margins(
         # and the paper's edge is a step in colour: a faint stripe of a light table is not one
         k_end = min(int(np.argmax(per_mm)), len(ds) - 1)
         w = max(1, round(_GONE_MM / _STEP_MM))
-        inside = np.median(lines[starts][:, max(0, k_end - w) : k_end].reshape(-1, 3), axis=0)
-        beyond = lines[starts][:, k_end + 1 : k_end + 1 + w].reshape(-1, 3)
+        # (across the end where it was seen: the positions ending there, not those a part hides)
+        voters = starts & (np.abs(ends - k_end) <= run)
+        inside = np.median(lines[voters][:, max(0, k_end - w) : k_end].reshape(-1, 3), axis=0)
+        beyond = lines[voters][:, k_end + 1 : k_end + 1 + w].reshape(-1, 3)
         if len(beyond) == 0 or np.linalg.norm(inside - np.median(beyond, axis=0)) < _EDGE_STEP * light:
             out.append(0.0)
             continue

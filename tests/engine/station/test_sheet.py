@@ -13,8 +13,8 @@ import pytest
 from prismcore.errors import InputError
 from prismcore.station.calibrate import board_pose
 from prismcore.station.handheld import _board_view, board_camera
-from prismcore.station.segment import undistorter
 from prismcore.station.sheet import MAX_MARGIN_MM, ink_strokes, sheet_margins
+from prismcore.station.undistort import undistorter
 from prismpbr import DEVELOPMENT, handheld_scene, render_scene
 
 # Small fast renders on the tables whose colour is not the paper's (a grey metal or laminate
