@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.table import Table
 
 from prismcore import ScanSpec, run_scan
+from prismcore.report import report_dict
 from prismsynth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
 
@@ -69,7 +70,7 @@ def two_views(rng: np.random.Generator, click_px: float) -> dict[str, np.ndarray
                     scale={"kind": "mm_per_px", "front": front.mm_per_px, "side": side.mm_per_px})
     out = {}
     for m in ("default", "paper"):
-        report = run_scan(spec.model_copy(update={"method": m}), front.image, side.image).report
+        report = report_dict(run_scan(spec.model_copy(update={"method": m}), front.image, side.image).report)
         out[m] = _result(report, box)
         if m == "default":
             _misses(f"two views {box} {style} seed {seed}", report, out[m]["errors"], 0.005)
@@ -86,7 +87,7 @@ def oblique(rng: np.random.Generator, click_px: float) -> dict[str, np.ndarray]:
                     scale={"kind": "pinhole", "distance_mm": scene.distance_mm})
     out = {}
     for m in ("default", "paper"):
-        report = run_scan(spec.model_copy(update={"method": m}), scene.image).report
+        report = report_dict(run_scan(spec.model_copy(update={"method": m}), scene.image).report)
         out[m] = _result(report, box)
         if m == "default":
             _misses(f"oblique {box} {style} seed {seed} yaw {yaw:.1f} pitch {pitch:.1f}",
@@ -103,7 +104,8 @@ def five_points(rng: np.random.Generator, click_px: float) -> dict[str, dict[str
     scene = render_oblique_view(box, style=style, seed=seed, yaw_deg=yaw, pitch_deg=pitch)
     pts = _clicks(scene.points, ("p1", "p2", "p3", "p4", "p5"), rng, click_px)
     spec = ScanSpec(image="x", points=pts, scale={"kind": "edge", "edge": "width", "length_mm": box.width_mm})
-    return {m: _result(run_scan(spec.model_copy(update={"method": m}), scene.image).report, box, "width")
+    return {m: _result(report_dict(run_scan(spec.model_copy(update={"method": m}), scene.image).report), box,
+                       "width")
             for m in ("default", "paper")}
 
 

@@ -64,8 +64,8 @@ def time_engine(spec: ScanSpec, images: list[np.ndarray], runs: int) -> dict:
         start = time.perf_counter()
         result = run_scan(spec, *images)
         totals.append((time.perf_counter() - start) * 1000)
-        stages.append(result.report["timings_ms"])
-        points = result.report["points"]
+        stages.append(result.report.timings_ms)
+        points = result.report.points
     per_stage = {k: float(np.median([s[k] for s in stages])) for k in stages[0]}
     return {"median_ms": float(np.median(totals)), "p90_ms": float(np.percentile(totals, 90)),
             "stages": per_stage, "points": points}
@@ -84,7 +84,7 @@ result = run_scan(ScanSpec.model_validate_json(spec_json), load_image(image))
 write_csv(Path(out) / "cloud.csv", result.cloud.points)
 write_ply(Path(out) / "cloud.ply", result.cloud.points, result.cloud.colors)
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-print(json.dumps({"points": result.report["points"], "peak_rss_mb": peak, "after_imports_mb": before}))
+print(json.dumps({"points": result.report.points, "peak_rss_mb": peak, "after_imports_mb": before}))
 """
 
 

@@ -30,6 +30,7 @@ from prismcore import ScanSpec, run_scan
 from prismcore.io.images import load_image
 from prismcore.outputs.overlay_report import overlay_from_report
 from prismcore.outputs.writers import encode_png, write_format, write_ply
+from prismcore.report import report_dict
 from prismcore.scan.cloud import decimate
 from prismsynth import Box, render_oblique_view
 
@@ -55,7 +56,7 @@ def sizes(image: np.ndarray, spec_data: dict, spacing: float | None) -> dict[str
     """{output: bytes} for one photo, plus its points."""
     spec = ScanSpec.model_validate({**spec_data, "formats": list(FORMATS), "spacing_mm": spacing})
     result = run_scan(spec, image)
-    out: dict[str, int] = {"points": result.report["points"]}
+    out: dict[str, int] = {"points": result.report.points or 0}
     for kind in FORMATS:
         buf = io.BytesIO()
         write_format(kind, buf, result.cloud, spec, report=result.report, images=[image])
@@ -63,7 +64,7 @@ def sizes(image: np.ndarray, spec_data: dict, spacing: float | None) -> dict[str
     preview = decimate(result.cloud)
     out["preview"] = write_ply(io.BytesIO(), preview.points, preview.colors)
     out["overlay"] = len(encode_png(overlay_from_report(image, result.report)))
-    out["report"] = len((json.dumps(result.report, indent=2) + "\n").encode())
+    out["report"] = len((json.dumps(report_dict(result.report), indent=2) + "\n").encode())
     out["compact"] = sum(out[k] for k in COMPACT)
     always = out["preview"] + out["overlay"] + out["report"]
     out["stored csv,ply"] = out["csv"] + out["ply"] + always

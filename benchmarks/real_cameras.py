@@ -39,6 +39,7 @@ from rich.table import Table
 
 from prismcore import InputError, ScanSpec, run_scan
 from prismcore.camera import CameraModel, undistort_image, undistort_points
+from prismcore.report import report_dict
 from prismsynth import PhotoLikeScene, photo_like_scene
 
 TARGET_MEDIAN, TARGET_WORST, TARGET_COVERAGE = 0.01, 0.03, 0.90
@@ -142,29 +143,31 @@ def measure(seed: int, edge_radius_mm: float | None = None) -> tuple[str, dict[s
     takes_exif = "exif_focal_px" in inspect.signature(run_scan).parameters
     exif_focal = _exif_focal(p.jpeg, w, h) if p.has_exif else None
     out: dict[str, Outcome] = {}
-    out["a"] = _outcome(p, lambda: run_scan(_spec(p, clicks), p.image).report)
+    out["a"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, clicks), p.image).report))
     if not takes_exif:
         out["b"] = Outcome([], None, skipped="run_scan has no exif_focal_px")
     elif p.has_exif and not _has_exif_module():
         out["b"] = Outcome([], None, skipped="no prismcore.io.exif to read the EXIF")
     else:
-        out["b"] = _outcome(p, lambda: run_scan(_spec(p, clicks), p.image, exif_focal_px=exif_focal).report)
+        out["b"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, clicks), p.image,
+                                                            exif_focal_px=exif_focal).report))
     if exif_focal is None:
         out["b'"] = Outcome([], None, skipped="no EXIF focal length in this scene")
     else:
-        out["b'"] = _outcome(p, lambda: run_scan(_spec(p, clicks, focal_px=exif_focal), p.image).report)
+        out["b'"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, clicks, focal_px=exif_focal),
+                                                             p.image).report))
     camera = CameraModel(fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
                          dist=[float(v) for v in dist], image_width=w, image_height=h)
     if "camera" in ScanSpec.model_fields:
-        out["c"] = _outcome(p, lambda: run_scan(_spec(p, clicks, camera=camera), p.image).report)
+        out["c"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, clicks, camera=camera), p.image).report))
     else:
         out["c"] = Outcome([], None, skipped="ScanSpec has no camera field")
     flat = undistort_image(p.image, camera)
     flat_clicks = undistort_points(np.array(clicks), camera).tolist()
-    out["c'"] = _outcome(p, lambda: run_scan(_spec(p, flat_clicks, focal_px=float(K[0, 0]),
+    out["c'"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, flat_clicks, focal_px=float(K[0, 0]),
                                                    principal_point=(float(K[0, 2]), float(K[1, 2]))),
-                                             flat).report)
-    out["d"] = _outcome(p, lambda: run_scan(_spec(p, clicks, method="paper"), p.image).report)
+                                             flat).report))
+    out["d"] = _outcome(p, lambda: report_dict(run_scan(_spec(p, clicks, method="paper"), p.image).report))
     return describe(p), out
 
 

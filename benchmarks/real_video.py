@@ -43,6 +43,7 @@ import prismcore.scan.pipeline
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
 from prismcore.geometry.edges import EdgeFit, line_through
 from prismcore.geometry.faces import FaceQuads
+from prismcore.report import report_dict
 from prismcore.video.pooling import pool_focal
 
 
@@ -99,7 +100,7 @@ def measure(frame: dict, image: np.ndarray, camera: dict | None = None,
     truth = truth_mm(frame)
     row: dict = {"frame": frame["index"], "side": frame["side"], "truth": truth}
     try:
-        report = run_scan(frame_spec(frame, camera, focal_px), image).report
+        report = report_dict(run_scan(frame_spec(frame, camera, focal_px), image).report)
     except InputError as exc:
         return {**row, "error": str(exc), "errors_pct": None}
     dims = report["dimensions"]

@@ -41,6 +41,7 @@ from prism_cli.stack import start_api, start_redis, start_s3, start_worker
 from prismcore import ScanSpec, run_scan
 from prismcore.io.images import load_image
 from prismcore.outputs.writers import write_csv, write_ply
+from prismcore.report import report_dict
 from prismcore.scan.cloud import decimate
 from prismsynth import Box, render_oblique_view
 
@@ -75,7 +76,7 @@ def _engine_one(args: tuple[bytes, dict]) -> int:
     result = run_scan(ScanSpec.model_validate({"image": "x", **item}), load_image(data))
     write_csv(io.BytesIO(), result.cloud.points)
     write_ply(io.BytesIO(), result.cloud.points, result.cloud.colors)
-    return result.report["points"]
+    return result.report.points or 0
 
 
 _STORE: list = []  # the boto3 client of an engine-and-store process
@@ -95,12 +96,12 @@ def _engine_and_store_one(args: tuple[int, bytes, dict]) -> int:
     for name, write in (("cloud.csv", lambda f: write_csv(f, result.cloud.points)),
                         ("cloud.ply", lambda f: write_ply(f, result.cloud.points, result.cloud.colors)),
                         ("preview.ply", lambda f: write_ply(f, preview.points, preview.colors)),
-                        ("report.json", lambda f: f.write(json.dumps(result.report).encode()))):
+                        ("report.json", lambda f: f.write(json.dumps(report_dict(result.report)).encode()))):
         body = io.BytesIO()
         write(body)
         body.seek(0)
         _STORE[0].put_object(Bucket=STORE_BUCKET, Key=f"engine/{n}/{name}", Body=body)
-    return result.report["points"]
+    return result.report.points or 0
 
 
 def engine_alone(work: list[tuple[bytes, dict]], store: tuple[str, str, str] | None = None) -> float:

@@ -155,11 +155,11 @@ def engine_runs(ctx: Ctx, name: str, spec: Any, image: Any) -> dict[str, float]:
                 start = time.process_time()
                 result = run_scan(spec, image)
                 totals.append((time.process_time() - start) * 1000)
-                stages.append(result.report["timings_ms"])
+                stages.append(report_json(result.report)["timings_ms"])
         out = {k: statistics.median(s.get(k, 0.0) for s in stages) for k in ENGINE_STAGES}
         out["total"] = statistics.median(totals)
         assert result is not None
-        out.update({f"dim.{k}": float(v) for k, v in result.report["dimensions"].items()
+        out.update({f"dim.{k}": float(v) for k, v in report_json(result.report)["dimensions"].items()
                     if isinstance(v, int | float)})
         return out
     return ctx.once(f"engine:{name}", make)
@@ -258,6 +258,12 @@ for _stage_name in ENGINE_STAGES:
         _stage(photo_like_engine, _stage_name))
 
 
+def report_json(report: Any) -> dict[str, Any]:
+    """A scan's report as report.json's dict, in either tree: a dict before issue 35, a
+    `prismcore.report.ScanReport` since (the fields its mode set)."""
+    return report if isinstance(report, dict) else report.model_dump(exclude_unset=True)
+
+
 def _dims(report: dict) -> str:
     dims, sigma = report["dimensions"], report.get("uncertainty") or {}
     return " x ".join(f"{dims[k]:.2f}±{float(sigma.get(k) or 0):.2f}" for k in ("width", "height", "depth"))
@@ -270,13 +276,13 @@ def engine_dims(ctx: Ctx) -> Measured:
     from prismcore import ScanSpec, run_scan
     from prismsynth import photo_like_scene
     result, _ = sample_result(ctx)
-    out = [f"sample {_dims(result.report)}"]
+    out = [f"sample {_dims(report_json(result.report))}"]
     for seed in range(3):
         p = photo_like_scene(seed, image_size=(1280, 1024))
         clicks = [list(map(float, p.clicks[f"p{i}"])) for i in range(1, 8)]
         spec = ScanSpec(image="photo.jpg", points=clicks,
                         scale={"kind": "edge", "edge": p.known_edge, "length_mm": p.known_length_mm})
-        out.append(f"{seed}: {_dims(run_scan(spec, p.image).report)}")
+        out.append(f"{seed}: {_dims(report_json(run_scan(spec, p.image).report))}")
     return Measured(None, "; ".join(out))
 
 
@@ -698,7 +704,7 @@ def worker_parts(ctx: Ctx) -> dict[str, Any]:
                 picture = _display_size(draw(image, result.report, photo="front"))
                 writers.encode_overlay(picture, fmt) if fmt != "png" else writers.encode_png(picture)
                 marks.append(("overlay", time.process_time()))
-                json.dumps(result.report, indent=2).encode()
+                json.dumps(report_json(result.report), indent=2).encode()
                 marks.append(("report", time.process_time()))
                 rounds.append({name: (t - marks[k][1]) * 1000 for k, (name, t) in enumerate(marks[1:])})
         kept = rounds[4:]

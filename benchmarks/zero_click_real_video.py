@@ -50,7 +50,7 @@ def main() -> None:
                                                   "length_mm": truth["width"]}})
         try:
             resolved, _ = resolve_points(spec, image)
-            dims = run_scan(resolved, image).report["dimensions"]
+            dims = run_scan(resolved, image).report.dimensions.model_dump()
         except InputError as exc:
             table.add_row(str(frame["index"]), "yes", f"{found.confidence:.2f}", f"{worst:.1f}", "-", "-",
                           str(exc))

@@ -2,8 +2,9 @@
 
 Nothing here is copied by hand from the code: the command line comes from the typer app, the
 HTTP API from the app's OpenAPI document, the job spec from its JSON schema (what `prism schema`
-prints), the configuration from the settings class (its fields, defaults and the comments above
-them), the problem types from `prism_api.problems.KINDS`. Each page is added to the build as a
+prints), report.json from its model's schema (`prism schema --report`), the configuration from
+the settings class (its fields, defaults and the comments above them), the problem types from
+`prism_api.problems.KINDS`. Each page is added to the build as a
 generated file, so `mkdocs build --strict` fails on a broken link in any of them.
 """
 
@@ -126,6 +127,25 @@ def job_spec_page() -> str:
            "every length and scale is bounded, and a value outside its range is refused at once "
            "(exit 2, or HTTP 422 naming the field). `prism schema` prints the schema itself.", "",
            "## ScanSpec {#scanspec}", "", *schema_table(schema)]
+    for name, sub in schema.get("$defs", {}).items():
+        out += [f"## {name} {{#{name.lower()}}}", "", *schema_table(sub)]
+    return "\n".join(out) + "\n"
+
+
+def report_page() -> str:
+    from prismcore.report import report_schema
+
+    schema = report_schema()
+    out = ["# report.json", "",
+           "One photo's (or video frame's, or station photo's) measurement, as `prismcore.report.ScanReport` "
+           "holds it: the engine builds it, and the overlay, the glb model, the service's item result and "
+           "`prism scan`'s summary read it. A field is in the file when the measurement's mode sets it "
+           "(found points add `points_source` and `auto_points`, a video frame `frame`, a station "
+           "`scale_source`, `points_source`, `station` and `engine_dimensions`); a field set to null "
+           "says the value is unknown. Its JSON Schema (draft 2020-12) is "
+           "[report.schema.json](report.schema.json) (`prism schema --report` prints it); this page is "
+           "that schema as tables, and [Output files](outputs.md#reportjson) says what the fields mean.", "",
+           "## ScanReport {#scanreport}", "", *schema_table(schema)]
     for name, sub in schema.get("$defs", {}).items():
         out += [f"## {name} {{#{name.lower()}}}", "", *schema_table(sub)]
     return "\n".join(out) + "\n"
@@ -307,6 +327,7 @@ GENERATED = {
     "reference/cli.md": cli_page,
     "reference/http-api.md": http_api_page,
     "reference/job-spec.md": job_spec_page,
+    "reference/report.md": report_page,
     "reference/configuration.md": configuration_page,
     "reference/problems.md": problems_page,
 }

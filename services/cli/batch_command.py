@@ -17,6 +17,7 @@ from .scan_runners import RUNNERS, RunOptions
 
 if TYPE_CHECKING:
     from prismcore.camera import CameraModel
+    from prismcore.report import ScanReport
     from prismcore.spec import ScanSpec
 
 __all__ = ["board_batch", "station_batch", "table_batch"]
@@ -93,7 +94,7 @@ def table_batch(images: list[Path], table: Path, out: Path, *, spec_flags: dict[
 
     photos = read_points_table(table, images, spec_for)
 
-    def measure(photo: BatchPhoto, folder: Path) -> dict[str, Any]:
+    def measure(photo: BatchPhoto, folder: Path) -> ScanReport:
         assert photo.spec is not None
         RUNNERS[photo.spec.kind](photo.spec, Path("."), dataclasses.replace(
             run, out=folder, started=time.perf_counter()))

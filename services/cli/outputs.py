@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from prismcore import ScanResult, ScanSpec
 from prismcore.formats import FILE_NAMES
 from prismcore.outputs import DEFAULT_OVERLAY_FORMAT, Writer, report_bytes, write_outputs
+from prismcore.report import ScanReport
 
 __all__ = ["FolderSink", "write_report", "write_scan"]
 
@@ -53,7 +53,7 @@ def write_scan(result: ScanResult, spec: ScanSpec, out_dir: Path, images: list[n
     return {kind: out_dir / name for kind, name in names.items()}
 
 
-def write_report(report: dict[str, Any], out_dir: Path) -> Path:
+def write_report(report: ScanReport, out_dir: Path) -> Path:
     """report.json in `out_dir`; returns its path."""
     path = out_dir / FILE_NAMES["report"]
     path.write_bytes(report_bytes(report))

@@ -22,7 +22,6 @@ item_reference), ``width_mm``, ``height_mm``, ``depth_mm``, ``distance_mm``, ``m
 from __future__ import annotations
 
 import csv
-import json
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 from prismcore.errors import InputError
 
 if TYPE_CHECKING:
+    from prismcore.report import ScanReport
     from prismcore.spec import ScanSpec
 
 __all__ = ["PHOTO_FLAGS", "TABLE_COLUMNS", "BatchPhoto", "folders", "read_points_table", "report_of",
@@ -120,13 +120,13 @@ def read_points_table(table: Path, images: list[Path], spec_for: Callable[[Path,
     return photos
 
 
-def _sizes(report: dict[str, Any]) -> str:
-    dims, sigma = report["dimensions"], report.get("uncertainty") or {}
-    return " x ".join(f"{dims[k]:.2f}" + (f" ± {sigma[k]:.2f}" if k in sigma else "")
-                      for k in ("width", "height", "depth")) + f" {dims['unit']}"
+def _sizes(report: ScanReport) -> str:
+    dims, sigma = report.dimensions, report.uncertainty
+    return " x ".join(f"{getattr(dims, k):.2f}" + ("" if sigma is None else f" ± {getattr(sigma, k):.2f}")
+                      for k in ("width", "height", "depth")) + f" {dims.unit}"
 
 
-def run_batch(photos: list[BatchPhoto], out: Path, measure: Callable[[BatchPhoto, Path], dict[str, Any]]
+def run_batch(photos: list[BatchPhoto], out: Path, measure: Callable[[BatchPhoto, Path], ScanReport]
               ) -> int:
     """Measure each photo by `measure` (photo, its folder; returns its report), print a line as each
     finishes, write results.csv and results.json in `out`; returns how many failed."""
@@ -155,8 +155,6 @@ def run_batch(photos: list[BatchPhoto], out: Path, measure: Callable[[BatchPhoto
                                    input=str(photo.path), file_name=photo.path.name, item=i,
                                    item_reference=photo.reference))
             continue
-        report.setdefault("points", 0)  # a station's measurement whose derived points made no cloud
-        report.setdefault("point_loss", 0.0)
         result = item_result(report)
         if result.quality and result.quality.get("verdict") in verdicts:
             verdicts[result.quality["verdict"]] += 1
@@ -181,7 +179,8 @@ def run_batch(photos: list[BatchPhoto], out: Path, measure: Callable[[BatchPhoto
     return len(failed)
 
 
-def report_of(folder: Path) -> dict[str, Any]:
+def report_of(folder: Path) -> ScanReport:
     """The report.json a runner wrote in `folder`."""
-    report: dict[str, Any] = json.loads((folder / "report.json").read_text())
-    return report
+    from prismcore.report import ScanReport
+
+    return ScanReport.model_validate_json((folder / "report.json").read_text())

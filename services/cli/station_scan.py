@@ -18,6 +18,7 @@ if TYPE_CHECKING:
 
     from prismcore.camera import CameraModel
     from prismcore.errors import InputError, PartRefusedError
+    from prismcore.report import ScanReport, StationBlock
     from prismcore.station import Station, StationScan
 
 __all__ = ["certification_line", "scan_on_board_photo", "scan_on_station"]
@@ -31,13 +32,13 @@ def scan_on_station(
     image: Path, station_file: Path | Station, out: Path, formats: str = "csv,ply",
     max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
     tolerance_mm: float | list[float] | None = None, nominal: list[float] | None = None,
-) -> dict[str, Any]:
+) -> ScanReport:
     """Measure `image` on the station (its file, or the station a batch loaded once); write
     report.json and the outputs in `out`. Returns the report. tolerance_mm (--tolerance-mm) is what
     the camera's drift is judged against, and with `nominal` (--nominal) the dimensions' verdicts."""
     from prismcore.errors import PartRefusedError
     from prismcore.io import load_image
-    from prismcore.quality import quality_from_report
+    from prismcore.quality import report_quality
     from prismcore.station import scan_on_station as scan
 
     from .station_command import load_station
@@ -52,14 +53,14 @@ def scan_on_station(
     except PartRefusedError as exc:
         raise _shown(exc, out, overlay_format) from None
     if nominal is not None:  # the verdicts judge the station's dimensions, as the service's do
-        done.report["quality"] = quality_from_report(done.report, nominal, tolerance_mm)
+        done.report.quality = report_quality(done.report, nominal, tolerance_mm)
     return _write(done, photo, out, started, overlay_format)
 
 
 def scan_on_board_photo(
     image: Path, board_file: Path, out: Path, camera: CameraModel | None = None, formats: str = "csv,ply",
     max_pixels: int = 50_000_000, overlay_format: str = "jpeg",
-) -> dict[str, Any]:
+) -> ScanReport:
     """Measure a hand-held `image` of a part lying on the board; write the outputs in `out`."""
     from prismcore.errors import PartRefusedError
     from prismcore.io import load_image
@@ -92,16 +93,15 @@ def _shown(refused: PartRefusedError, out: Path, overlay_format: str) -> InputEr
     return InputError(f"{refused} ({path} shows what was taken for the part)")
 
 
-def certification_line(station_report: dict[str, Any]) -> str:
+def certification_line(station: StationBlock) -> str:
     """'station verified on 2026-12-06: bias ...; camera moved 0.1 px (0.0 mm) since calibration'."""
-    status = cast("dict[str, Any]", station_report["verification"])
-    moved = cast("dict[str, Any]", station_report["drift"])
-    return (f"station {status['text']}; camera moved {moved['shift_px']:.1f} px "
-            f"({moved['shift_mm']:.1f} mm on the support) since calibration")
+    assert station.verification is not None and station.drift is not None
+    return (f"station {station.verification.text}; camera moved {station.drift.shift_px:.1f} px "
+            f"({station.drift.shift_mm:.1f} mm on the support) since calibration")
 
 
 def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
-           overlay_format: str = "jpeg") -> dict[str, Any]:
+           overlay_format: str = "jpeg") -> ScanReport:
     """Write the outputs, the overlay in `overlay_format` (jpeg, png or webp) and report.json."""
     from .outputs import write_report, write_scan
     from .photo_scan import quality_lines
@@ -111,21 +111,22 @@ def _write(done: StationScan, photo: np.ndarray, out: Path, started: float,
     report = done.report
     if done.result is not None and done.spec is not None:
         paths = write_scan(done.result, done.spec, out, [photo], overlay_format)
-    station_report = report["station"]
-    report["timings_ms"]["total"] = round((time.perf_counter() - started) * 1000, 3)
+    station = report.station
+    assert station is not None
+    report.timings_ms["total"] = round((time.perf_counter() - started) * 1000, 3)
     paths["report"] = write_report(report, out)
-    d, s = report["dimensions"], report["uncertainty"]
-    position = cast("list[float]", station_report["position_mm"])
-    console().print(f"[bold]{report['scale_source']}[/]  width {d['width']:.2f} ± {s['width']:.2f}  height "
-                  f"{d['height']:.2f} ± {s['height']:.2f}  depth {d['depth']:.2f} ± {s['depth']:.2f} mm  "
+    d, s = report.dimensions, station.uncertainty
+    position = station.position_mm
+    console().print(f"[bold]{report.scale_source}[/]  width {d.width:.2f} ± {s.width:.2f}  height "
+                  f"{d.height:.2f} ± {s.height:.2f}  depth {d.depth:.2f} ± {s.depth:.2f} mm  "
                   f"(position {position[0]:.1f}, {position[1]:.1f} mm, "
-                  f"yaw {station_report['yaw_deg']:.1f} deg; "
-                  f"outline {station_report['silhouette_residual_px']:.2f} px)", soft_wrap=True)
-    if "verification" in station_report:  # a station's (a hand-held board has none)
-        console().print(certification_line(station_report), markup=False, soft_wrap=True)
-    for line in quality_lines(report.get("quality")):
+                  f"yaw {station.yaw_deg:.1f} deg; "
+                  f"outline {station.silhouette_residual_px:.2f} px)", soft_wrap=True)
+    if station.verification is not None:  # a station's (a hand-held board has none)
+        console().print(certification_line(station), markup=False, soft_wrap=True)
+    for line in quality_lines(report.quality):
         console().print(line, soft_wrap=True)
-    for warning in report["warnings"]:
+    for warning in report.warnings:
         console().print(f"[yellow]warning:[/] {warning}", soft_wrap=True)
     wide = max(map(len, paths))
     for kind, path in paths.items():

@@ -21,6 +21,7 @@ from rich.table import Table
 from prismcore import InputError, ScanSpec
 from prismcore.io import VideoInfo, iter_frames
 from prismcore.locate import scan_found
+from prismcore.report import FrameInfo, ScanReport
 from prismcore.spec import SUMMARY_NAME, frame_folder
 from prismcore.video import (
     DIMENSIONS,
@@ -76,11 +77,11 @@ class _FrameSpecs:
 
 
 def _measure(specs: _FrameSpecs, index: int, frame: np.ndarray, info: VideoInfo, out: Path, tiles: int,
-             decode_ms: float, pooled: PooledFocal | None, overlay_format: str) -> dict:
+             decode_ms: float, pooled: PooledFocal | None, overlay_format: str) -> ScanReport:
     one, auto = specs.spec(index)
     result = scan_found(one, auto, frame, tiles=tiles, pooled_focal=pooled)
-    result.report["frame"] = frame_info(index, info.fps)
-    result.report["timings_ms"]["load"] = round(decode_ms, 3)
+    result.report.frame = FrameInfo.model_validate(frame_info(index, info.fps))
+    result.report.timings_ms["load"] = round(decode_ms, 3)
     folder = out / frame_folder(index)
     write_scan(result, one, folder, [frame], overlay_format, report=True)
     return result.report
@@ -162,10 +163,10 @@ def scan_video(spec: ScanSpec, base: Path, out: Path, *, tiles: int, max_frames:
                 per_frame[index] = {"error": str(exc)}
                 console().print(f"[red]{frame_folder(index)} failed:[/] {exc}")
             else:
-                per_frame[index] = {"dimensions": report["dimensions"]}
-                d = report["dimensions"]
-                console().print(f"{frame_folder(index)}  {d['width']:.2f} x {d['height']:.2f} x "
-                              f"{d['depth']:.2f} {d['unit']}  point loss {report['point_loss']:.1%}")
+                d = report.dimensions
+                per_frame[index] = {"dimensions": d.model_dump()}
+                console().print(f"{frame_folder(index)}  {d.width:.2f} x {d.height:.2f} x "
+                              f"{d.depth:.2f} {d.unit}  point loss {report.point_loss or 0.0:.1%}")
             tick = time.perf_counter()
     except InputError as exc:  # the stream broke: the frames not reached fail with its reason
         for index in indices:

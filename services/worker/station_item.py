@@ -23,7 +23,9 @@ from prism_common.storage import is_missing
 
 from prismcore import InputError
 from prismcore.io import load_image
-from prismcore.quality import quality_from_report
+from prismcore.outputs import report_bytes
+from prismcore.quality import report_quality
+from prismcore.report import ScanReport
 
 from .artifacts import item_key, item_result, write_outputs
 from .context import WorkerContext
@@ -99,17 +101,15 @@ def measure_station(ctx: WorkerContext, view: ItemView) -> tuple[ItemResult, dic
     done = scan_on_station(photo, station, label, extra, spec.tolerance_mm)
     report = done.report
     # The verdicts judge the station's dimensions (the derived points' scan never saw the nominal).
-    report["quality"] = quality_from_report(report, spec.nominal, spec.tolerance_mm)
+    report.quality = report_quality(report, spec.nominal, spec.tolerance_mm)
     if done.result is None or done.spec is None:
         return _report_only(ctx, view, report)
     return write_outputs(ctx, view.job_id, view.item.index, done.spec, done.result, [photo])
 
 
 def _report_only(ctx: WorkerContext, view: ItemView,
-                 report: dict[str, Any]) -> tuple[ItemResult, dict[str, str]]:
+                 report: ScanReport) -> tuple[ItemResult, dict[str, str]]:
     """The measurement stands but its derived points made no cloud (report.json says why)."""
     key = item_key(view.job_id, view.item.index, "report.json")
-    ctx.objects.put_bytes(key, (json.dumps(report, indent=2) + "\n").encode(), "application/json")
-    report.setdefault("points", 0)
-    report.setdefault("point_loss", 0.0)
+    ctx.objects.put_bytes(key, report_bytes(report), "application/json")
     return item_result(report), {"report": key}

@@ -61,6 +61,7 @@ from prism_common.upload_keys import frame_error_key, frame_png_key, video_info_
 from prismcore import InputError, ReferencePoints, ScanSpec
 from prismcore.io import HEAD_BYTES, iter_frames, load_image, video_container
 from prismcore.locate import scan_found
+from prismcore.report import FrameInfo
 from prismcore.spec import SUMMARY_NAME, TRACKED_NAME
 from prismcore.video import (
     FrameSearch,
@@ -366,7 +367,8 @@ def scan_frame(ctx: WorkerContext, view: ItemView, frame: int) -> None:
         pooled = _pooled(ctx, item_key(job_id, item, FOCAL_NAME))
         scan = scan_found(photo_spec, auto, image, pooled_focal=pooled)
         fps = _frames(ctx, item_key(job_id, item, FRAMES_NAME))["video"]["fps"]
-        scan.report["frame"] = frame_info(frame, fps)  # as the CLI's per-frame report says
+        # as the CLI's per-frame report says
+        scan.report.frame = FrameInfo.model_validate(frame_info(frame, fps))
         result, outputs = write_outputs(ctx, job_id, item, photo_spec, scan, [image], frame=frame)
     except InputError as exc:
         record = FrameRecord(index=frame, state=State.failed, error=str(exc))

@@ -11,6 +11,7 @@ from .locate.search import find_points as find_points
 from .multiview.joint import fit_views as fit_views
 from .outputs.writers import write_csv as write_csv
 from .outputs.writers import write_ply as write_ply
+from .report import ScanReport as ScanReport
 from .scan.cloud import Cloud as Cloud
 from .scan.measure import Dimensions as Dimensions
 from .scan.pipeline import ScanPlan as ScanPlan

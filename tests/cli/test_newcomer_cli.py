@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 from prism_cli.main import cli
 from prismcore.outputs import overlay_report
+from prismcore.report import ScanReport
 
 SAMPLE = Path(__file__).resolve().parents[2] / "samples" / "box.jpg"
 # P1..P5 of samples/job.json: measured with the paper's colour scan, the front face's colour
@@ -104,7 +105,7 @@ def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, m
     # The known edge is the length given, not a measurement "± 0.00".
     assert " 120.00 (given) x 79.99 ± " in line and "± 0.00" not in line, line
     assert line.endswith("points found (confidence 0.99)"), line
-    report = json.loads((tmp_path / "report.json").read_text())
+    report = ScanReport.model_validate_json((tmp_path / "report.json").read_text())
     notes = overlay_report.report_notes(report)
     assert "width 120.00 mm (given)" in notes and "points found (confidence 0.99)" in notes, notes
     # The overlay's key calls the crosses found points, not clicks.
@@ -112,9 +113,9 @@ def test_a_given_edge_is_given_and_found_points_are_said_to_be_found(tmp_path, m
     monkeypatch.setattr(overlay_report, "draw_overlay", lambda *a, **k: keys.append(k["points_key"]))
     image = np.zeros((1024, 1280, 3), np.uint8)
     overlay_report.overlay_from_report(image, report)
-    overlay_report.overlay_from_report(image, {**report, "points_source": "clicked"})
+    overlay_report.overlay_from_report(image, report.model_copy(update={"points_source": None}))
     # On a station (or a board) nobody clicked: the points are the fitted box's.
-    overlay_report.overlay_from_report(image, {**report, "scale_source": "station"})
+    overlay_report.overlay_from_report(image, report.model_copy(update={"scale_source": "station"}))
     assert keys == ["found point", "click", "fitted box's point"]
 
 

@@ -22,6 +22,7 @@ from prism_common.storage import ObjectStore
 
 from prismcore import ScanSpec, run_scan
 from prismcore.outputs.writers import write_format
+from prismcore.report import report_dict
 from prismsynth import Box, Scene, render_oblique_view
 
 from .cluster import API_KEY, BUCKET, S3_KEY_ID, S3_SECRET, WEBHOOK_SECRET
@@ -197,7 +198,7 @@ class Oracle:
             local = run_scan(spec, image)
             write_format("ply", buf, local.cloud, spec)
             plys.append(buf.getvalue())
-            dims.append([local.report["dimensions"][k] for k in ("width", "height", "depth")])
+            dims.append([report_dict(local.report)["dimensions"][k] for k in ("width", "height", "depth")])
         return cls(plys, dims)
 
 

@@ -30,6 +30,7 @@ LAYERS: list[set[str]] = [
     {"camera"},
     {"spec_fields"},
     {"spec"},
+    {"report"},
     {"io", "quality"},
     {"geometry"},
     {"scan"},
@@ -105,7 +106,7 @@ def test_public_names_import():
 
 
 ARCHITECTURE = SHARED.parent / "docs" / "explanation" / "architecture.md"
-CONTRACT = {"errors", "bounds", "camera", "formats", "spec_fields", "spec", "_version"}
+CONTRACT = {"errors", "bounds", "camera", "formats", "spec_fields", "spec", "report", "_version"}
 
 
 def _drawn() -> tuple[dict[str, set[str]], list[str]]:

@@ -54,7 +54,7 @@ def test_soak(stack, figures):
         corrupt = stack.upload(damaged, "cut.png", tenant)  # whole, but its pixel data corrupt
         bad[tenant] = {"corrupt": {**specs[tenant][0], "image": corrupt},
                        "points": {**specs[tenant][1], "max_points": 10}}
-    points = [run_scan(ScanSpec.model_validate(s), load_image(p)).report["points"]
+    points = [run_scan(ScanSpec.model_validate(s), load_image(p)).report.points
               for s, p in zip(specs["acme"], photos, strict=True)]
     # idempotency key -> (kind, photo, tenant, items); client c sends keys[c::CLIENTS]
     plan: dict[str, tuple[str, int, str, list[dict]]] = {}

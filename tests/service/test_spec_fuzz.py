@@ -20,6 +20,7 @@ from pydantic import ValidationError
 
 from prism_api.main import create_app
 from prismcore import InputError, ScanSpec, run_scan
+from prismcore.report import report_dict
 
 from .conftest import API_KEYS
 from .faultstack import item, tiny_scene
@@ -71,7 +72,7 @@ def test_any_points_give_a_result_or_an_input_error(pts, tolerance, method, scal
         return
     assert result.cloud.points.dtype == np.float32 or np.issubdtype(result.cloud.points.dtype, np.floating)
     assert np.isfinite(result.cloud.points).all()
-    dims = result.report["dimensions"]
+    dims = report_dict(result.report)["dimensions"]
     assert all(math.isfinite(v) and v >= 0 for k, v in dims.items() if k != "unit"), dims
 
 

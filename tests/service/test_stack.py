@@ -23,6 +23,7 @@ from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, start_api, start_worker
 from prismcore import ScanSpec, run_scan
 from prismcore.io.images import load_image
+from prismcore.report import report_dict
 from prismcore.spec import frame_folder
 from prismsynth import Box, render_clip, render_oblique_view, write_video
 
@@ -121,8 +122,8 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     las = laspy.read(io.BytesIO(httpx.get(first["downloads"]["laz"]).content))
     report = httpx.get(first["downloads"]["report"]).json()
     local = run_scan(ScanSpec.model_validate(_item("x", scene)), load_image(photo))
-    assert report["points"] == local.report["points"] == las.header.point_count
-    assert report["dimensions"] == local.report["dimensions"]
+    assert report["points"] == report_dict(local.report)["points"] == las.header.point_count
+    assert report["dimensions"] == report_dict(local.report)["dimensions"]
     # LAS's axes written out here (metres, Z up: x, z, -y), to its 0.1 mm grid.
     p = local.cloud.points.astype(np.float64)
     np.testing.assert_allclose(np.column_stack([las.x, las.y, las.z]),
@@ -133,7 +134,7 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     csv = np.loadtxt(io.BytesIO(httpx.get(other["downloads"]["csv"]).content), delimiter=",")
     ply = PlyData.read(io.BytesIO(httpx.get(other["downloads"]["ply"]).content))["vertex"]
     local = run_scan(ScanSpec.model_validate(_item("x", scene2)), load_image(second))
-    assert other["result"]["points"] == local.report["points"] == csv.shape[0] == ply.count
+    assert other["result"]["points"] == report_dict(local.report)["points"] == csv.shape[0] == ply.count
     np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]),
                                   local.cloud.points)
     # The overlay is a JPEG, served under its name and under the one it had as a PNG (old links).

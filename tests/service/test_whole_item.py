@@ -17,6 +17,7 @@ from prism_common.records import State
 from prismcore import run_scan
 from prismcore.io.images import load_image
 from prismcore.outputs.writers import write_csv, write_ply
+from prismcore.report import report_dict
 from prismcore.scan.cloud import PREVIEW_POINTS, Cloud, decimate
 from prismsynth import Box, render_oblique_view
 
@@ -65,8 +66,8 @@ def test_batch_items_are_scanned_whole_and_match_the_engine(env, scenes):
     for index, photo, spec in ((0, photos[0], specs[0]), (2, photos[1], specs[2])):
         local = run_scan(spec, load_image(photo))
         item = job.items[index]
-        assert item.result.points == local.report["points"]
-        assert item.result.dimensions == local.report["dimensions"]
+        assert item.result.points == report_dict(local.report)["points"]
+        assert item.result.dimensions == report_dict(local.report)["dimensions"]
         expected = _expected_files(local.cloud)
         for kind, name in (("csv", "cloud.csv"), ("ply", "cloud.ply"), ("preview", "preview.ply")):
             assert env.objects.get_bytes(item.outputs[kind]) == expected[name], (index, name)

@@ -23,6 +23,7 @@ from prism_worker.broker import UNACKED_HASH
 from prismcore import ScanSpec, finish_scan, plan_scan, run_scan
 from prismcore.io.images import load_image
 from prismcore.outputs.writers import write_csv
+from prismcore.report import report_dict
 from prismcore.scan.colour_scan import merge_bands, row_tiles, scan_band
 from prismsynth import Box, CameraExif, Realism, Style, render_oblique_view
 
@@ -72,8 +73,8 @@ def test_plan_json_and_packed_tiles_reproduce_the_engine_exactly(scene):
     tiled, local = finish_scan(plan, [image], scans), run_scan(spec, image)
     np.testing.assert_array_equal(tiled.cloud.points, local.cloud.points)
     np.testing.assert_array_equal(tiled.cloud.colors, local.cloud.colors)
-    assert {k: v for k, v in tiled.report.items() if k != "timings_ms"} == {
-        k: v for k, v in local.report.items() if k != "timings_ms"}
+    assert {k: v for k, v in report_dict(tiled.report).items() if k != "timings_ms"} == {
+        k: v for k, v in report_dict(local.report).items() if k != "timings_ms"}
 
 
 # -- through the worker ------------------------------------------------------------------------
@@ -110,8 +111,8 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     # The tiled result is exactly the engine's own on the same bytes.
     local = run_scan(spec_for("x", scene, csv={"header": True}), load_image(photo))
     report = json.loads(env.objects.get_bytes(first.outputs["report"]))
-    assert report["points"] == local.report["points"] == first.result.points
-    assert report["dimensions"] == local.report["dimensions"]
+    assert report["points"] == report_dict(local.report)["points"] == first.result.points
+    assert report["dimensions"] == report_dict(local.report)["dimensions"]
     csv = env.objects.get_bytes(first.outputs["csv"])
     expected = io.BytesIO()
     write_csv(expected, local.cloud.points, header=True)
@@ -151,7 +152,7 @@ def test_a_calibrated_camera_inline_and_exif_reach_the_tiled_scan(env):
         assert set(item.result.uncertainty) == {"width", "height", "depth"}
     # The service's result is the engine's own on the same input (tiles of the undistorted photo).
     local = run_scan(specs[0], load_image(shot.jpeg))
-    assert with_camera.result.dimensions == local.report["dimensions"]
+    assert with_camera.result.dimensions == report_dict(local.report)["dimensions"]
 
 
 def test_bad_inputs_fail_only_their_items(env, scene):
@@ -218,7 +219,7 @@ def test_tasks_run_twice_write_each_object_once(env, scene):
     assert total == done == 2 * TILES_PER_FACE + 2
     assert env.redis.scard(f"prism:job:{job_id}:tiles:0") == 2 * TILES_PER_FACE + 2
     local = run_scan(spec_for("x", scene), load_image(photo))
-    assert job.items[0].result.points == local.report["points"]
+    assert job.items[0].result.points == report_dict(local.report)["points"]
 
 
 def test_a_task_failing_for_good_fails_its_item_not_the_worker(env, scene):
@@ -294,7 +295,7 @@ def test_worker_killed_mid_job_finishes_it_without_duplicates(env, scene):
     assert f"watchdog: job {job_id} made no progress" in env.worker.log, lost
     assert all(item.state == State.succeeded for item in job.items), job
     local = run_scan(specs[0], load_image(photo))
-    assert {item.result.points for item in job.items} == {local.report["points"]}
+    assert {item.result.points for item in job.items} == {report_dict(local.report)["points"]}
     names = _tile_names(specs[0], load_image(photo))
     assert env.keys(job_id) == set().union(*(_item_files(i, names) for i in range(4))) | {"job.json"}
     total, done = env.units(job_id)

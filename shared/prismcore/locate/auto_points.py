@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from prismcore.errors import InputError
+from prismcore.report import FoundPoints, ScanReport
 from prismcore.scan.pipeline import ScanResult, run_scan
 from prismcore.spec import ScanSpec
 
@@ -29,15 +30,16 @@ def found_box_guard(auto: bool = True) -> Iterator[None]:
         raise InputError(f"points auto: the box found fails the fit guards: {exc}") from None
 
 
-def record_found(report: dict[str, Any], found: dict[str, Any]) -> None:
-    """Mark `report` (report.json's dict) as measured with found points.
+def record_found(report: ScanReport, found: dict[str, Any]) -> None:
+    """Mark `report` as measured with found points.
 
     `found` is `locate.Found.report()`: its confidence, side face, points and warnings are kept
     under ``auto_points``, and its warnings (a low confidence: check the points) join the scan's.
     """
-    report["points_source"] = "auto"
-    report["auto_points"] = found
-    report["warnings"] = [*report.get("warnings", []), *found.get("warnings", [])]
+    auto = FoundPoints.model_validate(found)
+    report.points_source = "auto"
+    report.auto_points = auto
+    report.warnings = [*report.warnings, *auto.warnings]
 
 
 def scan_found(spec: ScanSpec, found: dict[str, Any] | None, *args: Any, **kwargs: Any) -> ScanResult:

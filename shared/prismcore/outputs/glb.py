@@ -21,12 +21,12 @@ outward normals, counter-clockwise front faces.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from prismcore.errors import InputError
+from prismcore.report import ScanReport
 
 __all__ = ["GREY", "JPEG_QUALITY", "TEXTURE_MAX_PX", "box_corners", "box_glb", "box_to_gltf"]
 
@@ -103,13 +103,13 @@ def _texture(photo: np.ndarray, quad: np.ndarray, aspect: float) -> bytes:
     return data.tobytes()
 
 
-def _undistorted(report: Mapping[str, Any], photos: list[np.ndarray]) -> list[np.ndarray]:
+def _undistorted(report: ScanReport, photos: list[np.ndarray]) -> list[np.ndarray]:
     """The photos as the fit saw them: undistorted with the report's camera when it was."""
-    if not (report.get("camera") or {}).get("undistorted"):
+    if report.camera is None or not report.camera.undistorted:
         return photos
     from prismcore.camera import CameraModel, undistort_image
 
-    model = (report.get("inputs") or {}).get("camera")
+    model = (report.inputs or {}).get("camera")
     if model is None:
         raise InputError("the report says the photos were undistorted but has no inputs.camera")
     out = []
@@ -119,13 +119,13 @@ def _undistorted(report: Mapping[str, Any], photos: list[np.ndarray]) -> list[np
     return out
 
 
-def box_glb(report: Mapping[str, Any], front: np.ndarray, side: np.ndarray | None = None) -> bytes:
+def box_glb(report: ScanReport, front: np.ndarray, side: np.ndarray | None = None) -> bytes:
     """The bytes of a ``.glb`` of the fitted box, textured from the photo(s).
 
     Parameters
     ----------
-    report : mapping
-        A report.json dict: reads ``dimensions`` (mm), ``side_face``, ``faces.front.corners``
+    report : ScanReport
+        The scan's report: reads ``dimensions`` (mm), ``side_face``, ``faces.front.corners``
         and ``faces.side.corners`` (px, TL TR BR BL), ``inputs.side_image``, ``camera.undistorted``
         and ``inputs.camera``.
     front : ndarray, shape (H, W, 3)
@@ -140,19 +140,17 @@ def box_glb(report: Mapping[str, Any], front: np.ndarray, side: np.ndarray | Non
     """
     import pygltflib as g
 
-    dims = report["dimensions"]
-    if dims.get("unit") != "mm":
-        raise InputError(f"a glTF model is in metres: the dimensions are in {dims.get('unit')!r}; "
+    dims = report.dimensions
+    if dims.unit != "mm":
+        raise InputError(f"a glTF model is in metres: the dimensions are in {dims.unit!r}; "
                          "give a scale")
-    W, H, D = (float(dims[k]) for k in ("width", "height", "depth"))
-    second = report.get("side_face") or "right"
-    if second not in ("right", "left", "top"):
-        raise InputError(f"unknown side_face {second!r} in the report")
-    two_photo = bool((report.get("inputs") or {}).get("side_image"))
+    W, H, D = float(dims.width), float(dims.height), float(dims.depth)
+    second = report.side_face or "right"
+    two_photo = bool((report.inputs or {}).get("side_image"))
     if two_photo and side is None:
         raise InputError("two-photo report: the side photo is needed for its face's texture")
     photos = _undistorted(report, [front] + ([side] if two_photo and side is not None else []))
-    faces = report.get("faces") or {}
+    faces = {name: face.corners for name, face in (report.faces or {}).items()}
     seen = {"front": ("front", photos[0], (W, H)),
             second: ("side", photos[-1], (W, D) if second == "top" else (D, H))}
     corners = box_corners(W, H, D)
@@ -211,12 +209,12 @@ def box_glb(report: Mapping[str, Any], front: np.ndarray, side: np.ndarray | Non
     materials: list[Any] = []
     primitives: list[Any] = []
     for name, (key, photo, (fw, fh)) in seen.items():
-        face = faces.get(key)
-        if not isinstance(face, Mapping) or "corners" not in face:
+        fitted = faces.get(key)
+        if fitted is None:
             raise InputError(f"report has no corners for the {key} face")
-        quad = np.asarray(face["corners"], dtype=np.float64)
+        quad = np.asarray(fitted, dtype=np.float64)
         if quad.shape != (4, 2) or not np.isfinite(quad).all():
-            raise InputError(f"face {key}: corners {face['corners']!r} are not a finite (4, 2) array")
+            raise InputError(f"face {key}: corners {fitted!r} are not a finite (4, 2) array")
         images.append(g.Image(bufferView=add_view(_texture(photo, quad, fw / fh)), mimeType="image/jpeg",
                               name=f"{name}.jpg"))
         materials.append(g.Material(

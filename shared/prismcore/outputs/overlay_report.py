@@ -7,13 +7,14 @@ names (overlay.jpg by default, overlay.png on request) are `prismcore.outputs.wr
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.outputs.overlay import CORNER_OF, SECOND_FACE_CORNERS, _as_rgb8, draw_overlay
+from prismcore.outputs.overlay import CORNER_OF, _as_rgb8, draw_overlay
+from prismcore.report import Fit, ScanReport
 
 __all__ = [
     "clicked_sides",
@@ -35,130 +36,103 @@ def _number(value: object) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _sigma(uncertainty: object, name: str) -> float | None:
-    if not isinstance(uncertainty, Mapping):
-        return None
-    value = uncertainty.get(name, uncertainty.get(f"{name}_mm"))
-    if isinstance(value, Mapping):
-        value = next((value[k] for k in ("std", "sigma", "std_mm", "sigma_mm") if k in value), None)
-    return _number(value)
-
-
-def given_dimension(report: Mapping[str, Any]) -> str | None:
+def given_dimension(report: ScanReport) -> str | None:
     """The dimension the scale gave rather than measured: a known edge's (``inputs.scale`` of
     kind ``edge``), shown as "120.00 mm (given)", never as a measurement "± 0.00"."""
-    if report.get("scale_source") in ("station", "board"):
+    if report.scale_source is not None:
         return None  # measured on a station (board): its height is only the derived points' scale
-    inputs = report.get("inputs")
-    scale = inputs.get("scale") if isinstance(inputs, Mapping) else None
+    scale = (report.inputs or {}).get("scale")
     if isinstance(scale, Mapping) and scale.get("kind") == "edge" and scale.get("edge") in _DIMENSIONS:
         return str(scale["edge"])
     return None
 
 
-def points_found(report: Mapping[str, Any]) -> str | None:
+def points_found(report: ScanReport) -> str | None:
     """'points found (confidence 0.99)' when the zero-click search placed the points, else None."""
-    if report.get("points_source") != "auto":
+    if report.points_source != "auto":
         return None
-    found = report.get("auto_points")
-    confidence = _number(found.get("confidence")) if isinstance(found, Mapping) else None
+    confidence = None if report.auto_points is None else _number(report.auto_points.confidence)
     return "points found" + (f" (confidence {confidence:.2f})" if confidence is not None else "")
 
 
-def _points_key(report: Mapping[str, Any]) -> str:
+def _points_key(report: ScanReport) -> str:
     """What the overlay's key calls the crosses: clicks, or points placed by the search or by a
     box fitted on a station (or a board), which nobody clicked."""
-    if report.get("scale_source") in ("station", "board"):
+    if report.scale_source is not None:
         return "fitted box's point"
     return "found point" if points_found(report) else "click"
 
 
-def report_notes(report: Mapping[str, Any]) -> list[str]:
+def report_notes(report: ScanReport) -> list[str]:
     """The legend's lines for a report: dimensions (± one standard deviation when the report
     has `uncertainty`; a known edge's "(given)"), focal length (`camera`), fit RMS (`fit`),
-    method, video frame and points found by the search.
-
-    Fields the report lacks are left out; nothing here fails on a report of an older engine.
-    """
+    method, video frame and points found by the search. Fields the report lacks are left out."""
     notes: list[str] = []
-    dims = report.get("dimensions")
+    dims = report.dimensions
     given = given_dimension(report)
-    if isinstance(dims, Mapping):
-        unit = dims.get("unit", "")
-        for name in _DIMENSIONS:
-            value = _number(dims.get(name))
-            if value is None:
-                continue
-            if name == given:
-                notes.append(f"{name} {value:.2f} {unit} (given)")
-                continue
-            sigma = _sigma(report.get("uncertainty"), name)
-            spread = f" ± {sigma:.2f}" if sigma is not None else ""
-            notes.append(f"{name} {value:.2f}{spread} {unit}".rstrip())
-    camera = report.get("camera")
-    if isinstance(camera, Mapping) and (focal := _number(camera.get("focal_px"))) is not None:
-        source = camera.get("focal_source", camera.get("source"))
-        notes.append(f"focal {focal:.0f} px" + (f" ({source})" if isinstance(source, str) else ""))
-    fit = report.get("fit")
-    if isinstance(fit, Mapping) and (rms := _number(fit.get("rms_px"))) is not None:
+    for name in _DIMENSIONS:
+        value = _number(getattr(dims, name))
+        if value is None:
+            continue
+        if name == given:
+            notes.append(f"{name} {value:.2f} {dims.unit} (given)")
+            continue
+        sigma = None if report.uncertainty is None else _number(getattr(report.uncertainty, name))
+        spread = f" ± {sigma:.2f}" if sigma is not None else ""
+        notes.append(f"{name} {value:.2f}{spread} {dims.unit}".rstrip())
+    camera = report.camera
+    if camera is not None and (focal := _number(camera.focal_px)) is not None:
+        notes.append(f"focal {focal:.0f} px ({camera.focal_source})")
+    fit = report.fit
+    if fit is not None and (rms := _number(fit.rms_px)) is not None:
         notes.append(f"fit RMS {rms:.2f} px")
     notes += edge_use_notes(fit)
-    if report.get("method") == "paper":
+    if report.method == "paper":
         notes.append("paper method (no perspective correction)")
-    frame = report.get("frame")
-    if isinstance(frame, Mapping) and _number(frame.get("index")) is not None:
-        time_s = _number(frame.get("time_s"))
-        notes.append(f"frame {int(frame['index'])}" + (f" at {time_s:.2f} s" if time_s is not None else ""))
+    frame = report.frame
+    if frame is not None:
+        time_s = _number(frame.time_s)
+        notes.append(f"frame {frame.index}" + (f" at {time_s:.2f} s" if time_s is not None else ""))
     if (found := points_found(report)) is not None:
         notes.append(found)
     return notes
 
 
-def clicked_sides(fit: object, faces: Mapping[str, Any]) -> dict[str, list[int]]:
+def clicked_sides(fit: Fit | None, faces: Mapping[str, Any]) -> dict[str, list[int]]:
     """Per face drawn, the sides (0 top ... 3 left) the report's `fit.edges` says rest on the
     clicks; empty for a report without it."""
-    edges = fit.get("edges") if isinstance(fit, Mapping) else None
-    if not isinstance(edges, Mapping):
+    edges = None if fit is None else fit.edges
+    if edges is None:
         return {}
-    out = {}
-    for face in faces:
-        sides = edges.get(face)
-        if isinstance(sides, Sequence):
-            out[face] = [i for i, s in enumerate(sides[:4])
-                         if isinstance(s, Mapping) and s.get("used") == "click"]
-    return out
+    return {face: [i for i, s in enumerate(edges[face][:4]) if s.used == "click"]
+            for face in faces if face in edges}
 
 
-def edge_use_notes(fit: object) -> list[str]:
+def edge_use_notes(fit: Fit | None) -> list[str]:
     """Per face, which sides rest on the photo's edge and which on the clicks, and why each click
     side was kept (the report's `fit.edges`; nothing when the report has none)."""
-    edges = fit.get("edges") if isinstance(fit, Mapping) else None
-    if not isinstance(edges, Mapping):
+    edges = None if fit is None else fit.edges
+    if edges is None:
         return []
     notes = []
     for face, sides in edges.items():
-        if not isinstance(sides, Sequence):
-            continue
-        used = [s for s in sides if isinstance(s, Mapping)]
-        photo = [str(s.get("side")) for s in used if s.get("used") == "edge"]
-        clicked = [s for s in used if s.get("used") == "click"]
+        photo = [s.side for s in sides if s.used == "edge"]
+        clicked = [s for s in sides if s.used == "click"]
         line = f"{face} edges: " + (f"{', '.join(photo)} from the photo" if photo else "none from the photo")
         whys: dict[str, list[str]] = {}
         for s in clicked:
-            whys.setdefault(str(s.get("why")), []).append(str(s.get("side")))
+            whys.setdefault(s.why, []).append(s.side)
         for why, names in whys.items():
             line += f"; {', '.join(names)} clicked ({why})"
         notes.append(line)
     return notes
 
 
-def _residuals(fit: object, given: list[str]) -> dict[str, float] | None:
-    value = fit.get("point_residuals_px") if isinstance(fit, Mapping) else None
-    if isinstance(value, Mapping):
-        return {str(k): v for k, v in value.items() if _number(v) is not None}
-    if isinstance(value, Sequence) and not isinstance(value, str) and len(value) == len(given):
-        return {n: v for n, v in zip(given, value, strict=True) if _number(v) is not None}
-    return None
+def _residuals(fit: Fit | None) -> dict[str, float] | None:
+    value = None if fit is None else fit.point_residuals_px
+    if value is None:
+        return None
+    return {k: float(v) for k, v in value.items() if _number(v) is not None}
 
 
 def _undistorted(
@@ -201,7 +175,7 @@ def photo_points(two_photo: bool, photo: str) -> tuple[tuple[str, ...], tuple[st
     return tuple(n for n in CORNER_OF if n not in _SIDE_PHOTO_POINTS), ("front",)
 
 
-def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: str = "front",
+def overlay_from_report(image: np.ndarray, report: ScanReport, *, photo: str = "front",
                         warn_px: float = 3.0) -> np.ndarray:
     """The overlay of one photo of a scan, from the scan's report.json content.
 
@@ -216,7 +190,7 @@ def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: 
     ----------
     image : ndarray, (H, W, 3) or (H, W), uint8 or float 0..255
         The photo `photo` of the scan (a video frame: the frame).
-    report : mapping
+    report : ScanReport
         The report of the scan.
     photo : "front" or "side"
         Which photo `image` is; in two-photo mode each shows only its own clicks and face.
@@ -233,51 +207,44 @@ def overlay_from_report(image: np.ndarray, report: Mapping[str, Any], *, photo: 
         The report lacks points or face corners, `image` is not the size the report says the
         photo has, or `photo` does not exist in this scan.
     """
-    inputs = report.get("inputs")
-    points = inputs.get("points") if isinstance(inputs, Mapping) else None
+    inputs = report.inputs or {}
+    points = inputs.get("points")
     if not isinstance(points, Mapping):
         raise InputError("report has no inputs.points (the clicked reference points)")
-    assert isinstance(inputs, Mapping)  # points came from it
     two_photo = bool(inputs.get("side_image"))
     names, face_names = photo_points(two_photo, photo)
-    sizes = report.get("images")
+    sizes = report.images or []
     index = 1 if photo == "side" else 0
-    if isinstance(sizes, Sequence) and len(sizes) > index and isinstance(sizes[index], Mapping):
-        want = (sizes[index].get("width"), sizes[index].get("height"))
+    if len(sizes) > index:
+        want = (sizes[index].width, sizes[index].height)
         got = (np.asarray(image).shape[1], np.asarray(image).shape[0])
         if want != got:
             raise InputError(f"the {photo} photo is {got[0]}x{got[1]} px but the report's is "
                              f"{want[0]}x{want[1]}")
-    faces_in = report.get("faces")
-    if not isinstance(faces_in, Mapping):
+    if report.faces is None:
         raise InputError("report has no faces")
     faces = {}
     for name in face_names:
-        face = faces_in.get(name)
-        if not isinstance(face, Mapping) or "corners" not in face:
+        face = report.faces.get(name)
+        if face is None:
             raise InputError(f"report has no corners for the {name} face")
-        faces[name] = face["corners"]
+        faces[name] = face.corners
     given = [n for n in CORNER_OF if points.get(n) is not None]
     clicks = {n: points[n] for n in given if n in names}
     notes = report_notes(report)
-    camera = report.get("camera")
-    if isinstance(camera, Mapping) and camera.get("undistorted"):
+    if report.camera is not None and report.camera.undistorted:
         # the fit lives in the undistorted photo's coordinates: draw it there, clicks moved alike
         image, clicks = _undistorted(image, clicks, inputs.get("camera"))
         notes.append("drawn on the undistorted photo")
-    residuals = _residuals(report.get("fit"), sorted(given, key=lambda n: int(n[1:])))
-    if residuals is None and report.get("method") == "paper":
+    residuals = _residuals(report.fit)
+    if residuals is None and report.method == "paper":
         residuals = {}  # paper regions are axis-aligned boxes, not corners fitted to the clicks
-    warnings = report.get("warnings")
-    count = len(warnings) if isinstance(warnings, Sequence) and not isinstance(warnings, str) else 0
+    count = len(report.warnings)
     alerts = [f"{count} warning{'s' if count != 1 else ''} (see report.json)"] if count else []
     if not count:
         notes.append("no warnings")
     title = "PrismCloud fit" + (f" - {photo} photo" if two_photo else "")
-    side_face = report.get("side_face", "right")
-    if side_face not in SECOND_FACE_CORNERS:
-        side_face = "right"  # a report from before the choice existed, or a side photo's
     return draw_overlay(image, clicks, faces, residuals=residuals, notes=notes, alerts=alerts,
-                        clicked_sides=clicked_sides(report.get("fit"), faces),
-                        title=title, warn_px=warn_px, side_face=side_face,
+                        clicked_sides=clicked_sides(report.fit, faces),
+                        title=title, warn_px=warn_px, side_face=report.side_face or "right",
                         points_key=_points_key(report))

@@ -26,6 +26,7 @@ from prismcore.outputs.writers import (
     write_format,
     write_part,
 )
+from prismcore.report import ScanReport, report_dict
 
 if TYPE_CHECKING:
     from prismcore.scan.pipeline import ScanResult
@@ -50,9 +51,11 @@ def overlay_media_type(fmt: str = DEFAULT_OVERLAY_FORMAT) -> str:
     return mimetypes.guess_type(overlay_name("overlay", fmt))[0] or "application/octet-stream"
 
 
-def report_bytes(report: Mapping[str, Any]) -> bytes:
-    """report.json's bytes: the report indented by 2, with a final newline."""
-    return (json.dumps(report, indent=2) + "\n").encode()
+def report_bytes(report: ScanReport | Mapping[str, Any]) -> bytes:
+    """report.json's bytes: the report (`prismcore.report.report_dict`) indented by 2, with a
+    final newline."""
+    content = report_dict(report) if isinstance(report, ScanReport) else report
+    return (json.dumps(content, indent=2) + "\n").encode()
 
 
 def write_outputs(result: ScanResult, sink: Sink, *, spec: ScanSpec, images: Sequence[np.ndarray],
@@ -92,18 +95,18 @@ def write_outputs(result: ScanResult, sink: Sink, *, spec: ScanSpec, images: Seq
 
         names[kind] = FILE_NAMES[kind]
         sink.put(names[kind], write, media_type(kind))
-        result.report["timings_ms"][f"write_{kind}"] = round(spent[0], 3)
+        result.report.timings_ms[f"write_{kind}"] = round(spent[0], 3)
     if preview:
         _put_preview(result, sink, names)
     started = time.perf_counter()
-    two = spec.two_photo and result.report["inputs"].get("side_image") and len(images) > 1
+    two = spec.two_photo and (result.report.inputs or {}).get("side_image") and len(images) > 1
     for kind, photo in (("overlay", "front"), ("overlay_side", "side"))[:2 if two else 1]:
         picture = overlay_from_report(images[0 if photo == "front" else 1], result.report, photo=photo)
         if overlay_max_side is not None:
             picture = display_size(picture, overlay_max_side)
         names[kind] = overlay_name(kind, overlay_format)
         sink.put(names[kind], encode_overlay(picture, overlay_format), overlay_media_type(overlay_format))
-    result.report["timings_ms"]["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
+    result.report.timings_ms["write_overlay"] = round((time.perf_counter() - started) * 1000, 3)
     if report:
         names["report"] = FILE_NAMES["report"]
         sink.put(names["report"], report_bytes(result.report), media_type("report"))

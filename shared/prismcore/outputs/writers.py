@@ -35,6 +35,7 @@ import polars as pl
 from prismcore.errors import InputError
 from prismcore.formats import FILE_NAMES, PART_FORMATS, output_files
 from prismcore.outputs.cloud_check import check_cloud
+from prismcore.report import ScanReport, report_dict
 
 if TYPE_CHECKING:
     from prismcore.scan.cloud import Cloud
@@ -195,7 +196,7 @@ def write_ply(
 
 
 def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Cloud, spec: ScanSpec, *,
-                 report: Mapping[str, Any] | None = None,
+                 report: ScanReport | Mapping[str, Any] | None = None,
                  images: Sequence[np.ndarray] | None = None, when: datetime | None = None) -> float:
     """Write `kind` (one of `prismcore.spec.FORMATS`, or of the files a format writes:
     `prismcore.spec.output_files`) with the spec's options; returns the ms taken.
@@ -204,11 +205,12 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
     the writers, for the CLI and the service alike. "csv", "ply", "las" and "laz" write the
     cloud (LAS/LAZ: see `prismcore.outputs.las` for its metres and axes; they need a seekable `dest`);
     "glb" writes the fitted box textured from the photos (`prismcore.outputs.glb`) and needs
-    `report` (the scan's report dict) and `images` (the front photo, and the side photo in
-    two-photo mode, as decoded). The part's CAD files need `report` too and are dated `when` (now,
-    UTC, if not given): "step" the STEP solid and "step_meta" its JSON sidecar
-    (`prismcore.outputs.step`), "drawing_svg", "drawing_pdf" and "drawing_dxf" the inspection
-    sheet (`prismcore.outputs.drawing`); a report without a scale (in px) is refused.
+    `report` (the scan's report; a report.json dict is read as `ScanReport`) and `images` (the
+    front photo, and the side photo in two-photo mode, as decoded). The part's CAD files need
+    `report` too and are dated `when` (now, UTC, if not given): "step" the STEP solid and
+    "step_meta" its JSON sidecar (`prismcore.outputs.step`), "drawing_svg", "drawing_pdf" and
+    "drawing_dxf" the inspection sheet (`prismcore.outputs.drawing`); a report without a scale (in
+    px) is refused.
     """
     start = time.perf_counter()
     if kind == "csv":
@@ -225,12 +227,13 @@ def write_format(kind: str, dest: str | os.PathLike[str] | BinaryIO, cloud: Clou
             raise InputError("the glb model needs the scan's report and its photos")
         from prismcore.outputs.glb import box_glb
 
-        data = box_glb(report, images[0], images[1] if len(images) > 1 else None)
+        typed = report if isinstance(report, ScanReport) else ScanReport.model_validate(report)
+        data = box_glb(typed, images[0], images[1] if len(images) > 1 else None)
         _emit(dest, iter([data]))
     elif kind in PART_FILES:
         if report is None:
             raise InputError(f"the {kind} file needs the scan's report")
-        write_part(kind, dest, report, when)
+        write_part(kind, dest, report_dict(report) if isinstance(report, ScanReport) else report, when)
     else:
         raise InputError(f"unknown output format {kind!r}")
     return (time.perf_counter() - start) * 1000

@@ -7,3 +7,4 @@ from .verdicts import Verdict as Verdict
 from .verdicts import judge as judge
 from .verdicts import quality_block as quality_block
 from .verdicts import quality_from_report as quality_from_report
+from .verdicts import report_quality as report_quality

@@ -22,9 +22,10 @@ from collections.abc import Mapping, Sequence
 from typing import Any, Literal, TypedDict
 
 from prismcore.errors import InputError
+from prismcore.report import Quality, ScanReport
 
 __all__ = ["COVERAGE_K", "DIMENSIONS", "EPSILON_MM", "DimensionVerdict", "QualityBlock", "Verdict",
-           "judge", "quality_block", "quality_from_report"]
+           "judge", "quality_block", "quality_from_report", "report_quality"]
 
 COVERAGE_K = 2.0
 """Coverage factor: the measurement's interval is value ± COVERAGE_K * sigma (about 95 %)."""
@@ -172,3 +173,14 @@ def quality_from_report(report: Mapping[str, Any], nominal: Sequence[float] | No
         raise InputError(f"the dimensions are in {dims.get('unit')!r}, not mm: a nominal size in mm "
                          "needs a scale")
     return quality_block(dims, report.get("uncertainty"), nominal, tolerance)
+
+
+def report_quality(report: ScanReport, nominal: Sequence[float] | None,
+                   tolerance: float | Sequence[float] | None) -> Quality | None:
+    """`quality_from_report` of a typed report: its ``quality`` block, or None without a nominal."""
+    if nominal is None:
+        return None
+    sigma = None if report.uncertainty is None else report.uncertainty.model_dump()
+    block = quality_from_report({"dimensions": report.dimensions.model_dump(), "uncertainty": sigma},
+                                nominal, tolerance)
+    return None if block is None else Quality.model_validate(block)

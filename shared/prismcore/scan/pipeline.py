@@ -20,7 +20,8 @@ from prismcore._version import __version__
 from prismcore.errors import InputError
 from prismcore.geometry.edges import EdgeFit
 from prismcore.geometry.faces import SideFace, resolve_side_face
-from prismcore.quality.verdicts import quality_from_report
+from prismcore.quality.verdicts import report_quality
+from prismcore.report import ScanReport
 from prismcore.scan.cloud import Cloud, assemble, face_points
 from prismcore.scan.colour_scan import FacePlan, FaceScan, merge_bands, row_tiles, scan_band, window_for
 from prismcore.scan.fit import EdgeUses, edge_use_json, fit_guard, measure_faces, refine_faces, unless_snapped
@@ -78,7 +79,7 @@ class ScanPlan:
 @dataclass(frozen=True)
 class ScanResult:
     cloud: Cloud
-    report: dict[str, Any]
+    report: ScanReport  # report.json (`prismcore.report.report_dict`)
 
 
 @contextmanager
@@ -213,7 +214,7 @@ def finish_scan(plan: ScanPlan, images: list[np.ndarray], scans: list[FaceScan])
         if plan.spec.spacing_mm is not None:
             cloud = thin_to_spacing(cloud, plan.spec.spacing_mm)
     report = build_report(plan, scans, cloud)
-    report["quality"] = quality_from_report(report, plan.spec.nominal, plan.spec.tolerance_mm)
+    report.quality = report_quality(report, plan.spec.nominal, plan.spec.tolerance_mm)
     return ScanResult(cloud, report)
 
 
@@ -232,8 +233,8 @@ def _point_loss_warning(plan: ScanPlan, scans: list[FaceScan]) -> list[str]:
             f"the points may not outline the faces, or {cause}"]
 
 
-def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[str, Any]:
-    """The report.json content (without the writers' timings, which the caller adds)."""
+def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> ScanReport:
+    """The report (without the writers' timings, which the caller adds, nor the verdicts)."""
     rejected = sum(s.point_loss_counts[0] for s in scans)
     marked = sum(s.point_loss_counts[1] for s in scans)
     dims = plan.dimensions
@@ -254,7 +255,7 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[st
                                 strict=True)
             ]
         faces[scan.plan.name] = face
-    return {
+    return ScanReport.model_validate({
         "points": int(cloud.points.shape[0]),
         "dimensions": {"width": round(dims.width, 4), "height": round(dims.height, 4),
                        "depth": round(dims.depth, 4), "unit": dims.unit},
@@ -274,7 +275,7 @@ def build_report(plan: ScanPlan, scans: list[FaceScan], cloud: Cloud) -> dict[st
         "images": [{"width": w, "height": h} for w, h in plan.image_sizes],
         "inputs": plan.spec.model_dump(mode="json"),
         "engine_version": __version__,
-    }
+    })
 
 
 def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, *,

@@ -19,6 +19,7 @@ from .measure import measure_on_station as measure_on_station
 from .scan import StationScan as StationScan
 from .scan import scan_on_board as scan_on_board
 from .scan import scan_on_station as scan_on_station
+from .scan import station_report as station_report
 from .verify import Verification as Verification
 from .verify import check_count as check_count
 from .verify import verify_placements as verify_placements

@@ -1,33 +1,39 @@
 """A photo scanned on a station (or on a board, hand-held): the measurement, and the cloud made
-from its seven derived points as from clicks, in one report. Shared by `prism scan` and the worker."""
+from its seven derived points as from clicks, in one report. Shared by `prism scan` and the worker.
+
+The report is the station's own (`station_report`): its dimensions and their sigma are the
+station's fit; the cloud's scan of the derived points adds what it made (the cloud, its faces, the
+camera, the fit to the points) and its own reading of the size, kept as ``engine_dimensions``."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import Any, Literal
 
 import numpy as np
 
 from prismcore.camera import CameraModel
 from prismcore.errors import InputError
+from prismcore.report import ScanReport, StationBlock
 from prismcore.scan.pipeline import ScanResult, run_scan
 from prismcore.spec import ScanSpec, parse_points
 from prismcore.station.board import BoardSpec
 from prismcore.station.calibrate import Station
 from prismcore.station.measure import StationMeasurement, measure_on_station
 
-__all__ = ["StationScan", "certify", "scan_on_board", "scan_on_station", "station_spec"]
+__all__ = ["StationScan", "certify", "scan_on_board", "scan_on_station", "station_report", "station_spec"]
 
 
 @dataclass
 class StationScan:
     """measured : the measurement. result : the cloud's scan, None when the engine refused the
-    derived points (the measurement stands, with a warning). report : report.json."""
+    derived points (the measurement stands, with a warning); its report is `report`.
+    report : report.json, the station's (`station_report`)."""
 
     measured: StationMeasurement
     spec: ScanSpec | None
     result: ScanResult | None
-    report: dict[str, Any]
+    report: ScanReport
 
 
 def station_spec(measured: StationMeasurement, image: str, extra: dict[str, Any] | None = None) -> ScanSpec:
@@ -48,12 +54,41 @@ def station_spec(measured: StationMeasurement, image: str, extra: dict[str, Any]
     )
 
 
+def station_report(measured: StationMeasurement, source: Literal["station", "board"],
+                   cloud: ScanReport | str, certification: dict[str, Any] | None = None) -> ScanReport:
+    """report.json of a photo measured on a station (`source` "station") or a board ("board").
+
+    The dimensions and their sigma are the station's fit (`measured`, with `certification`'s
+    verification and drift on a station); `cloud` is the report of the cloud made from the
+    derived points, whose fields (points, faces, camera, fit, ...) the report keeps, its reading
+    of the size as ``engine_dimensions``; or, when the engine refused those points, the reason.
+    """
+    block = StationBlock.model_validate({**measured.report(), **(certification or {})})
+    if isinstance(cloud, str):
+        made: dict[str, Any] = {}
+        engine, warnings, timings = None, [f"no cloud: the derived points were refused ({cloud})"], {}
+    else:  # every field the cloud's scan set, as it set it
+        made = {name: getattr(cloud, name) for name in cloud.model_fields_set}
+        engine, warnings, timings = cloud.dimensions, cloud.warnings, cloud.timings_ms
+    return ScanReport.model_validate({
+        **made,
+        "engine_dimensions": engine,  # the engine's reading of the derived points
+        "dimensions": block.dimensions,
+        "uncertainty": block.uncertainty,
+        "scale_source": source,
+        "points_source": source,
+        "station": block,
+        "warnings": list(measured.warnings) + warnings,
+        "timings_ms": {**timings, "station": round(sum(measured.timings_ms.values()), 3)},
+    })
+
+
 def _with_cloud(
     measured: StationMeasurement,
     photo: np.ndarray,
     image: str,
     extra: dict[str, Any] | None,
-    source: str,
+    source: Literal["station", "board"],
     certification: dict[str, Any] | None = None,
 ) -> StationScan:
     spec: ScanSpec | None = None
@@ -61,18 +96,11 @@ def _with_cloud(
     try:
         spec = station_spec(measured, image, extra)
         result = run_scan(spec, photo, None)
-        report = result.report
     except InputError as exc:  # the measurement stands; the cloud could not be made from its points
-        report = {"warnings": [f"no cloud: the derived points were refused ({exc})"], "timings_ms": {}}
-    station_report = {**measured.report(), **(certification or {})}
-    report["engine_dimensions"] = report.get("dimensions")  # the engine's reading of the derived points
-    report["dimensions"] = station_report["dimensions"]
-    report["uncertainty"] = station_report["uncertainty"]
-    report["scale_source"] = source
-    report["points_source"] = source
-    report["station"] = station_report
-    report["warnings"] = list(measured.warnings) + list(report.get("warnings", []))
-    report.setdefault("timings_ms", {})["station"] = round(sum(measured.timings_ms.values()), 3)
+        report = station_report(measured, source, str(exc), certification)
+    else:
+        report = station_report(measured, source, result.report, certification)
+        result = replace(result, report=report)
     return StationScan(measured, spec, result, report)
 
 

@@ -21,6 +21,7 @@ from pypdf import PdfReader
 from prismcore import InputError, ScanSpec, run_scan
 from prismcore.outputs.part import dimension_text, part_from_report
 from prismcore.outputs.writers import write_format
+from prismcore.report import report_dict
 from prismcore.spec import FILE_NAMES, output_files
 from prismsynth import Box, render_oblique_view
 
@@ -49,7 +50,7 @@ def written(tmp_path_factory) -> tuple[dict, dict[str, Path]]:
         paths[kind] = out / FILE_NAMES[kind]
         write_format(kind, paths[kind], result.cloud, spec, report=result.report, images=[SCENE.image],
                      when=WHEN)
-    return result.report, paths
+    return report_dict(result.report), paths  # report.json's content
 
 
 def _read_step(path: Path):

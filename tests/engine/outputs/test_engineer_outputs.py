@@ -19,6 +19,7 @@ from prismcore.camera import CameraModel
 from prismcore.outputs.glb import box_glb, box_to_gltf
 from prismcore.outputs.las import SCALE_M, box_to_las, write_las
 from prismcore.outputs.writers import write_format
+from prismcore.report import report_dict
 from prismcore.scan.spacing import thin_to_count, thin_to_spacing
 from prismsynth import Box, Realism, distort_points, render_oblique_view
 
@@ -57,7 +58,7 @@ def _front(cloud: Cloud) -> np.ndarray:
 
 
 def test_the_report_has_the_quality_block(scan):
-    quality = scan[1].report["quality"]
+    quality = report_dict(scan[1].report)["quality"]
     assert set(quality["dimensions"]) == {"width", "height", "depth"}
     assert quality["dimensions"]["width"]["nominal_mm"] == 120.0
     assert sum(quality["counts"].values()) == 3
@@ -67,14 +68,14 @@ def test_the_report_has_the_quality_block(scan):
 def test_spacing_gives_neighbours_about_that_far_apart_and_no_holes(scan, thinned):
     full, thin = scan[1].cloud, thinned[1].cloud
     assert len(thin.points) < len(full.points) / 4
-    assert thinned[1].report["points"] == len(thin.points)
-    assert thinned[1].report["dimensions"] == scan[1].report["dimensions"]  # thinning measures nothing
+    assert thinned[1].report.points == len(thin.points)
+    assert thinned[1].report.dimensions == scan[1].report.dimensions  # thinning measures nothing
     front = _front(thin)
     d, _ = cKDTree(front).query(front, k=2)
     assert np.median(d[:, 1]) == pytest.approx(1.0, rel=0.15)
     # No hole wider than ~2 spacings anywhere inside the face: every spot of the face has a
     # kept point within one spacing.
-    w, h = thinned[1].report["dimensions"]["width"], thinned[1].report["dimensions"]["height"]
+    w, h = thinned[1].report.dimensions.width, thinned[1].report.dimensions.height
     gx, gy = np.meshgrid(np.linspace(1, w - 1, 400), np.linspace(1, h - 1, 300))
     gap, _ = cKDTree(front).query(np.stack([gx.ravel(), gy.ravel()], axis=1))
     assert gap.max() <= 1.0
@@ -176,7 +177,7 @@ def test_glb_loads_with_pygltflib_and_is_well_formed(glb, scan):
 
 
 def test_glb_bounds_are_the_measured_box_in_metres_y_up(glb, scan):
-    dims = scan[1].report["dimensions"]
+    dims = report_dict(scan[1].report)["dimensions"]
     W, H, D = (dims[k] / 1000 for k in ("width", "height", "depth"))
     scene = trimesh.load(io.BytesIO(glb), file_type="glb", force="scene")
     assert np.allclose(scene.bounds, [[0, 0, -D], [W, H, 0]], atol=1e-6)
@@ -202,7 +203,7 @@ def test_front_texture_is_the_rectified_photo(glb, scan):
                                                   np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     h, w = tex.shape[:2]
     assert w / h == pytest.approx(120 / 80, rel=0.02)
-    corners = np.asarray(scan[1].report["faces"]["front"]["corners"], np.float64)
+    corners = np.asarray(scan[1].report.faces["front"].corners, np.float64)
     middle = cv2.perspectiveTransform(np.array([[[w / 2 - 0.5, h / 2 - 0.5]]]), cv2.getPerspectiveTransform(
         np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]], np.float32),
         corners.astype(np.float32)))[0, 0]
@@ -216,7 +217,7 @@ def test_glb_needs_its_inputs(scan):
     spec, result = scan
     with pytest.raises(InputError, match="report"):
         write_format("glb", io.BytesIO(), result.cloud, spec)
-    report = json.loads(json.dumps(result.report))
+    report = json.loads(json.dumps(report_dict(result.report)))
     report["dimensions"]["unit"] = "px"
     with pytest.raises(InputError, match="metres"):
         write_format("glb", io.BytesIO(), result.cloud, spec, report=report, images=[SCENE.image])
@@ -265,12 +266,12 @@ def test_glb_textures_the_second_face_where_it_was_photographed(face, yaw, pitch
     second = model.meshes[0].primitives[1]  # front, second face, then the grey ones
     assert second.attributes.TEXCOORD_0 is not None
     pos = model.accessors[second.attributes.POSITION]
-    dims = result.report["dimensions"]
+    dims = report_dict(result.report)["dimensions"]
     plane = {("low", 0): 0.0, ("high", 0): dims["width"] / 1000, ("high", 1): dims["height"] / 1000}
     assert pos.min[axis] == pytest.approx(plane[where, axis], abs=1e-6)
     assert pos.max[axis] == pytest.approx(plane[where, axis], abs=1e-6)
-    _texture_middle_matches_photo(model, 1, result.report["faces"]["side"]["corners"], scene.image)
-    _texture_middle_matches_photo(model, 0, result.report["faces"]["front"]["corners"], scene.image)
+    _texture_middle_matches_photo(model, 1, result.report.faces["side"].corners, scene.image)
+    _texture_middle_matches_photo(model, 0, result.report.faces["front"].corners, scene.image)
 
 
 def _primitive_arrays(model, prim) -> tuple[np.ndarray, np.ndarray]:
@@ -295,7 +296,7 @@ def _texel_misses(scene, result, lens: np.ndarray | None = None) -> np.ndarray:
     coded[..., 0] = np.rint(cols * 255 / (w_img - 1))
     coded[..., 1] = np.rint(rows * 255 / (h_img - 1))
     model = pygltflib.GLTF2.load_from_bytes(box_glb(result.report, coded))
-    dims = result.report["dimensions"]
+    dims = report_dict(result.report)["dimensions"]
     to_true = np.array([BOX.width_mm, BOX.height_mm, BOX.depth_mm]) / np.array(
         [dims["width"], dims["height"], dims["depth"]])
     blob = model.binary_blob()
@@ -345,7 +346,7 @@ def test_glb_of_an_undistorted_scan_is_textured_from_the_undistorted_photo():
                                     "camera": camera.model_dump(),
                                     "scale": {"kind": "edge", "edge": "width", "length_mm": 120.0}})
     result = run_scan(spec, scene.image)
-    assert result.report["camera"]["undistorted"] is True
+    assert result.report.camera.undistorted is True
     misses = _texel_misses(scene, result, lens=realism.distortion())
     assert np.median(misses) < 12 and np.max(misses) < 30
     # the texture agrees with the real lens better than with a lens-free camera
@@ -365,10 +366,10 @@ def test_glb_two_photos_textures_the_side_from_the_side_photo():
     with pytest.raises(InputError, match="side photo"):
         box_glb(result.report, front.image)
     model = pygltflib.GLTF2.load_from_bytes(box_glb(result.report, front.image, side.image))
-    _texture_middle_matches_photo(model, 0, result.report["faces"]["front"]["corners"], front.image)
-    _texture_middle_matches_photo(model, 1, result.report["faces"]["side"]["corners"], side.image)
+    _texture_middle_matches_photo(model, 0, result.report.faces["front"].corners, front.image)
+    _texture_middle_matches_photo(model, 1, result.report.faces["side"].corners, side.image)
     scene = trimesh.load(io.BytesIO(b"".join(model.save_to_bytes())), file_type="glb", force="scene")
-    dims = result.report["dimensions"]
+    dims = report_dict(result.report)["dimensions"]
     assert np.allclose(scene.extents, [dims[k] / 1000 for k in ("width", "height", "depth")], atol=1e-6)
 
 
@@ -378,7 +379,7 @@ def test_thin_to_count_fits_and_leaves_no_stripes(scan):
     assert 50_000 <= len(preview.points) <= 100_000
     assert thin_to_count(preview, 100_000) is preview
     front = _front(preview)
-    w, h = scan[1].report["dimensions"]["width"], scan[1].report["dimensions"]["height"]
+    w, h = scan[1].report.dimensions.width, scan[1].report.dimensions.height
     spacing = np.median(cKDTree(front).query(front, k=2)[0][:, 1])
     gx, gy = np.meshgrid(np.linspace(1, w - 1, 300), np.linspace(1, h - 1, 200))
     gap, _ = cKDTree(front).query(np.stack([gx.ravel(), gy.ravel()], axis=1))

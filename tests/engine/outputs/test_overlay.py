@@ -18,6 +18,7 @@ from prismcore.outputs.overlay import (
     draw_overlay,
 )
 from prismcore.outputs.overlay_report import overlay_from_report, report_notes
+from prismcore.report import ScanReport
 
 SIZES = [(240, 320), (480, 640), (1024, 1280), (3000, 4000)]
 # single-photo geometry as fractions of (width, height): the box sits left of centre, so the
@@ -201,31 +202,39 @@ def test_the_legend_goes_where_it_hides_nothing():
 # --- the report adapter -----------------------------------------------------------------------
 
 def _report(h: int = 480, w: int = 640, *, two_photo: bool = False) -> dict:
-    """A report.json as the engine writes it today (no fit, uncertainty or camera fields)."""
+    """A report.json's content without the optional blocks (no fit, uncertainty or camera)."""
     clicks, faces = _geometry(h, w)
     points = {n: [float(v) for v in np.rint(p)] for n, p in clicks.items()}
     return {
         "points": 1000,
         "dimensions": {"width": 120.0123, "height": 79.9933, "depth": 59.9909, "unit": "mm"},
         "method": "default",
-        "faces": {n: {"corners": np.round(q, 3).tolist()} for n, q in faces.items()},
+        "faces": {n: {"corners": np.round(q, 3).tolist(), "object_pixels": 900, "marked_pixels": 1000,
+                      "point_loss": 0.1} for n, q in faces.items()},
         "warnings": [],
+        "timings_ms": {},
         "images": [{"width": w, "height": h}] * (2 if two_photo else 1),
         "inputs": {"image": "a.jpg", "side_image": "b.jpg" if two_photo else None,
                    "points": points, "method": "default"},
     }
 
 
+def _typed(report: dict) -> ScanReport:
+    """The report the adapter reads: report.json's content as `ScanReport`."""
+    return ScanReport.model_validate(report)
+
+
 def test_notes_of_a_report_without_the_optional_fields():
-    assert report_notes(_report()) == ["width 120.01 mm", "height 79.99 mm", "depth 59.99 mm"]
+    assert report_notes(_typed(_report())) == ["width 120.01 mm", "height 79.99 mm", "depth 59.99 mm"]
 
 
 def test_notes_of_a_report_with_every_field():
     report = _report()
-    report |= {"uncertainty": {"width": 0.314, "height": {"std": 0.2}, "depth": 0.555},
-               "camera": {"focal_px": 1400.4, "focal_source": "exif"}, "fit": {"rms_px": 0.834},
+    report |= {"uncertainty": {"width": 0.314, "height": 0.2, "depth": 0.555},
+               "camera": {"focal_px": 1400.4, "focal_source": "exif", "principal_point": [320, 240]},
+               "fit": {"rms_px": 0.834},
                "method": "paper", "frame": {"index": 12, "time_s": 0.48}}
-    assert report_notes(report) == [
+    assert report_notes(_typed(report)) == [
         "width 120.01 ± 0.31 mm", "height 79.99 ± 0.20 mm", "depth 59.99 ± 0.56 mm",
         "focal 1400 px (exif)", "fit RMS 0.83 px", "paper method (no perspective correction)",
         "frame 12 at 0.48 s",
@@ -238,27 +247,25 @@ def test_the_adapter_draws_what_the_report_holds():
     points = report["inputs"]["points"]
     corners = {n: f["corners"] for n, f in report["faces"].items()}
     want = draw_overlay(photo, points, corners, title="PrismCloud fit",
-                        notes=[*report_notes(report), "no warnings"])
-    np.testing.assert_array_equal(overlay_from_report(photo, report), want)
+                        notes=[*report_notes(_typed(report)), "no warnings"])
+    np.testing.assert_array_equal(overlay_from_report(photo, _typed(report)), want)
     report["warnings"] = ["one", "two"]
-    want = draw_overlay(photo, points, corners, title="PrismCloud fit", notes=report_notes(report),
+    want = draw_overlay(photo, points, corners, title="PrismCloud fit", notes=report_notes(_typed(report)),
                         alerts=["2 warnings (see report.json)"])
-    np.testing.assert_array_equal(overlay_from_report(photo.astype(np.float32), report), want)
+    np.testing.assert_array_equal(overlay_from_report(photo.astype(np.float32), _typed(report)), want)
 
 
-@pytest.mark.parametrize("form", ["mapping", "list"])
-def test_the_adapter_reads_the_fits_residuals_in_either_form(form):
+def test_the_adapter_reads_the_fits_residuals():
     report = _report()
     names = ["p1", "p2", "p3", "p4", "p5", "p6", "p7"]
     values = [0.1, 0.2, 9.5, 0.3, 0.4, 0.5, 0.6]
-    report["fit"] = {"point_residuals_px": dict(zip(names, values, strict=True)) if form == "mapping"
-                     else values}
+    report["fit"] = {"point_residuals_px": dict(zip(names, values, strict=True))}
     photo = _photo(480, 640)
     corners = {n: f["corners"] for n, f in report["faces"].items()}
     want = draw_overlay(photo, report["inputs"]["points"], corners, title="PrismCloud fit",
-                        notes=[*report_notes(report), "no warnings"],
+                        notes=[*report_notes(_typed(report)), "no warnings"],
                         residuals=dict(zip(names, values, strict=True)))
-    got = overlay_from_report(photo, report)
+    got = overlay_from_report(photo, _typed(report))
     np.testing.assert_array_equal(got, want)
     assert _red(got) > 0  # p3's 9.5 px shows, although its click sits on its corner
 
@@ -269,16 +276,16 @@ def test_paper_regions_are_not_taken_for_residuals():
     f = np.array(report["faces"]["front"]["corners"])
     report["faces"]["front"]["corners"] = [[f[0, 0], f[0, 1]], [f[1, 0], f[0, 1]], [f[1, 0], f[2, 1]],
                                            [f[0, 0], f[2, 1]]]  # axis-aligned, off the clicks
-    assert _red(overlay_from_report(_photo(480, 640), report)) == 0
+    assert _red(overlay_from_report(_photo(480, 640), _typed(report))) == 0
 
 
 def test_two_photos_each_show_their_own_clicks_and_face():
     report = _report(two_photo=True)
     photo = _photo(480, 640)
     pts, corners = report["inputs"]["points"], {n: f["corners"] for n, f in report["faces"].items()}
-    notes = [*report_notes(report), "no warnings"]
-    front = overlay_from_report(photo, report, photo="front")
-    side = overlay_from_report(photo, report, photo="side")
+    notes = [*report_notes(_typed(report)), "no warnings"]
+    front = overlay_from_report(photo, _typed(report), photo="front")
+    side = overlay_from_report(photo, _typed(report), photo="side")
     want_front = draw_overlay(photo, {n: pts[n] for n in ("p1", "p2", "p3", "p6")},
                               {"front": corners["front"]}, notes=notes,
                               title="PrismCloud fit - front photo")
@@ -299,7 +306,8 @@ def test_an_undistorted_fit_is_drawn_on_the_undistorted_photo():
                          image_width=w, image_height=h)
     report = _report(h, w)
     report["inputs"]["camera"] = camera.model_dump(mode="json")
-    report["camera"] = {"focal_px": 600.0, "focal_source": "camera", "undistorted": True}
+    report["camera"] = {"focal_px": 600.0, "focal_source": "camera", "principal_point": [319.5, 239.5],
+                        "undistorted": True}
     photo = _photo(h, w)
     names = list(report["inputs"]["points"])
     raw = np.array([report["inputs"]["points"][n] for n in names])
@@ -307,11 +315,12 @@ def test_an_undistorted_fit_is_drawn_on_the_undistorted_photo():
     assert max(np.linalg.norm(moved[n] - raw[i]) for i, n in enumerate(names)) > 5  # premise
     corners = {n: f["corners"] for n, f in report["faces"].items()}
     want = draw_overlay(undistort_image(photo, camera), moved, corners, title="PrismCloud fit",
-                        notes=[*report_notes(report), "drawn on the undistorted photo", "no warnings"])
-    np.testing.assert_array_equal(overlay_from_report(photo, report), want)
+                        notes=[*report_notes(_typed(report)), "drawn on the undistorted photo",
+                               "no warnings"])
+    np.testing.assert_array_equal(overlay_from_report(photo, _typed(report)), want)
     del report["inputs"]["camera"]
     with pytest.raises(InputError, match=r"inputs\.camera"):
-        overlay_from_report(photo, report)
+        overlay_from_report(photo, _typed(report))
 
 
 @pytest.mark.parametrize(
@@ -328,5 +337,5 @@ def test_the_adapter_refuses_a_report_that_does_not_fit(change, kw, needle):
     report = copy.deepcopy(_report())
     change(report)
     with pytest.raises(InputError) as err:
-        overlay_from_report(_photo(480, 640), report, **kw)
+        overlay_from_report(_photo(480, 640), _typed(report), **kw)
     assert needle in str(err.value)

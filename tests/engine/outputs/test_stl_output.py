@@ -17,6 +17,7 @@ from prismcore import ScanSpec, run_scan
 from prismcore.outputs.part import part_from_report
 from prismcore.outputs.sink import Writer, write_outputs
 from prismcore.outputs.writers import write_part
+from prismcore.report import report_dict
 from prismsynth import Box, render_oblique_view
 
 BOX = Box(120.0, 80.0, 60.0)
@@ -51,7 +52,7 @@ def scanned() -> tuple[dict, DictSink]:
     result = run_scan(spec, SCENE.image)
     sink = DictSink()
     write_outputs(result, sink, spec=spec, images=[SCENE.image])
-    return result.report, sink
+    return report_dict(result.report), sink
 
 
 def _mesh(data: bytes) -> trimesh.Trimesh:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec, run_scan
+from prismcore.report import report_dict
 from prismcore.scan.pipeline import SAME_SCALE_ASSUMED
 from prismsynth import Box, Style, render_front_view, render_oblique_view, render_side_view
 
@@ -45,7 +46,7 @@ def test_two_square_views_within_half_percent(box, style, seed):
     clicks_f = _clicks(front.points, ("p1", "p2", "p3"), rng, 2.0)
     clicks_s = _clicks(side.points, ("p4", "p5"), rng, 2.0)
     result = run_scan(_two_view_spec(front, side, clicks_f, clicks_s), front.image, side.image)
-    errors = _error(result.report, box)
+    errors = _error(report_dict(result.report), box)
     assert max(errors.values()) < 0.005, errors
 
 
@@ -63,8 +64,8 @@ def test_oblique_photo_with_corners_and_focal_within_two_percent(box, yaw, pitch
                   else {"kind": "edge", "edge": "width", "length_mm": box.width_mm})
     spec = ScanSpec(image="x", points=clicks, focal_px=scene.focal_px, scale=spec_scale)
     result = run_scan(spec, scene.image)
-    assert result.report["perspective_corrected"]
-    errors = _error(result.report, box)
+    assert report_dict(result.report)["perspective_corrected"]
+    errors = _error(report_dict(result.report), box)
     assert max(errors.values()) < 0.02, errors
 
 
@@ -75,7 +76,7 @@ def test_oblique_without_perspective_correction_is_wrong():
     names = ("p1", "p2", "p3", "p4", "p5")
     clicks = [list(np.rint(scene.points[n])) for n in names]
     spec = ScanSpec(image="x", points=clicks, scale={"kind": "edge", "length_mm": box.width_mm})
-    errors = _error(run_scan(spec, scene.image).report, box)
+    errors = _error(report_dict(run_scan(spec, scene.image).report), box)
     assert max(errors.values()) > 0.05, errors
 
 
@@ -93,7 +94,7 @@ def test_clicks_four_px_off_change_dimensions_under_half_percent(seed):
     off_s = _clicks(side.points, ("p4", "p5"), rng, 4.0)
     moved = run_scan(_two_view_spec(front, side, off_f, off_s), front.image, side.image)
     for key in ("width", "height", "depth"):
-        a, b = base.report["dimensions"][key], moved.report["dimensions"][key]
+        a, b = report_dict(base.report)["dimensions"][key], report_dict(moved.report)["dimensions"][key]
         assert abs(a - b) / a < 0.005, (key, a, b)
 
 
@@ -107,7 +108,7 @@ def test_oblique_clicks_four_px_off_change_dimensions_under_half_percent(seed):
             "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm}}
     exact = _clicks(scene.points, names, np.random.default_rng(0), 0.0)
     off = _clicks(scene.points, names, np.random.default_rng(seed + 11), 4.0)
-    dims = [run_scan(ScanSpec(points=pts, **spec), scene.image).report["dimensions"]
+    dims = [report_dict(run_scan(ScanSpec(points=pts, **spec), scene.image).report)["dimensions"]
             for pts in (exact, off)]
     for key in ("width", "height", "depth"):
         assert abs(dims[0][key] - dims[1][key]) / dims[0][key] < 0.005, (key, dims)
@@ -120,8 +121,8 @@ def test_default_method_has_no_holes_where_paper_has_them():
     clicks_f = _clicks(scene.points, ("p1", "p2", "p3"), np.random.default_rng(0), 0.0)
     clicks_s = _clicks(side.points, ("p4", "p5"), np.random.default_rng(0), 0.0)
     spec = _two_view_spec(scene, side, clicks_f, clicks_s)
-    ours = run_scan(spec, scene.image, side.image).report
-    paper = run_scan(spec.model_copy(update={"method": "paper"}), scene.image, side.image).report
+    ours = report_dict(run_scan(spec, scene.image, side.image).report)
+    paper = report_dict(run_scan(spec.model_copy(update={"method": "paper"}), scene.image, side.image).report)
     assert ours["faces"]["front"]["point_loss"] < 0.01
     assert paper["faces"]["front"]["point_loss"] > 0.05  # the label and the lighting punch holes
 
@@ -137,7 +138,7 @@ def test_two_photos_at_different_scales_need_p7_or_a_side_scale(method):
     points = [front.points[n] for n in ("p1", "p2", "p3")] + [side.points["p4"], side.points["p5"]]
     spec = ScanSpec(image="f", side_image="s", points=[list(map(float, p)) for p in points],
                     method=method, scale={"kind": "edge", "edge": "width", "length_mm": 120.0})
-    assumed = run_scan(spec, front.image, side.image).report
+    assumed = report_dict(run_scan(spec, front.image, side.image).report)
     assert SAME_SCALE_ASSUMED in assumed["warnings"]
     assert not any("shared height" in w for w in assumed["warnings"])
     # The assumption is what makes the depth wrong, by the ratio of the scales.
@@ -146,6 +147,6 @@ def test_two_photos_at_different_scales_need_p7_or_a_side_scale(method):
 
     with_p7 = spec.model_copy(update={"points": spec.points.model_copy(
         update={"p6": tuple(map(float, front.points["p6"])), "p7": tuple(map(float, side.points["p7"]))})})
-    measured = run_scan(with_p7, front.image, side.image).report
+    measured = report_dict(run_scan(with_p7, front.image, side.image).report)
     assert measured["dimensions"]["depth"] == pytest.approx(box.depth_mm, rel=0.005)
     assert SAME_SCALE_ASSUMED not in measured["warnings"]

@@ -18,6 +18,7 @@ import pytest
 from prismcore import ScanSpec, plan_scan
 from prismcore.geometry.perspective import NOISE_CLICK_PX
 from prismcore.outputs.overlay_report import edge_use_notes, report_notes
+from prismcore.report import Fit, ScanReport
 from prismsynth import Box, render_oblique_view
 
 _DATA = Path(__file__).resolve().parents[3] / "benchmarks" / "real_clicks_data.py"
@@ -80,12 +81,14 @@ def test_the_overlay_legend_names_each_faces_edges_and_why():
             ]
         },
     }
-    assert edge_use_notes(fit) == [
+    assert edge_use_notes(Fit.model_validate(fit)) == [
         "front edges: top, bottom from the photo; "
         "right, left clicked (another edge lies outside the one found)"
     ]
-    assert edge_use_notes({}) == [] and edge_use_notes(None) == []
-    assert report_notes({"fit": fit})[-1].startswith("front edges: ")
+    assert edge_use_notes(Fit()) == [] and edge_use_notes(None) == []
+    report = ScanReport.model_validate({"dimensions": {"width": 1, "height": 1, "depth": 1, "unit": "px"},
+                                        "fit": fit, "warnings": [], "timings_ms": {}})
+    assert report_notes(report)[-1].startswith("front edges: ")
 
 
 @pytest.mark.parametrize("frame", [1, 4, 7, 10])
@@ -127,8 +130,8 @@ def test_the_overlay_dashes_the_sides_the_clicks_set_and_only_those():
         }
     }
     quad = _OUTLINE.tolist()
-    assert clicked_sides(fit, {"front": quad}) == {"front": [1]}
-    assert clicked_sides({}, {"front": quad}) == {}
+    assert clicked_sides(Fit.model_validate(fit), {"front": quad}) == {"front": [1]}
+    assert clicked_sides(Fit(), {"front": quad}) == {}
     photo = _face()
     plain = draw_overlay(photo, {}, {"front": quad})
     dashed = draw_overlay(photo, {}, {"front": quad}, clicked_sides={"front": [1]})

@@ -19,6 +19,7 @@ from pydantic import ValidationError
 from prismcore import InputError, ScanSpec, plan_scan, run_scan
 from prismcore.geometry.faces import resolve_side_face
 from prismcore.outputs.overlay import RESIDUAL_COLOR, draw_overlay
+from prismcore.report import report_dict
 from prismsynth import Box, Style, render_oblique_view, save_image
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -215,11 +216,11 @@ def test_paper_method_reads_the_faces_rectangles(face, yaw, pitch):
     (x1, y1), (x2, _), (_, y3), (x4, y4), (x5, y5) = clicks
     mm = box.width_mm / (x2 - x1)
     depth_px = x4 - x5 if face == "left" else y4 - y5
-    dims = result.report["dimensions"]
+    dims = report_dict(result.report)["dimensions"]
     assert (dims["width"], dims["height"], dims["depth"]) == pytest.approx(
         (box.width_mm, (y3 - y1) * mm, depth_px * mm), rel=1e-6, abs=1e-4)  # (4 decimals)
-    assert result.report["side_face"] == face
-    side = np.array(result.report["faces"]["side"]["corners"])
+    assert report_dict(result.report)["side_face"] == face
+    side = np.array(report_dict(result.report)["faces"]["side"]["corners"])
     xs, ys = (x5, x4) if face == "left" else (x4, x2), (y4, y3) if face == "left" else (y5, y4)
     np.testing.assert_allclose(side, [[xs[0], ys[0]], [xs[1], ys[0]], [xs[1], ys[1]], [xs[0], ys[1]]])
 
@@ -234,12 +235,12 @@ def test_cloud_puts_the_second_face_where_it_is_with_the_colours_seen_there(face
     spec = ScanSpec(image="x", points=clicks, focal_px=scene.focal_px,
                     scale={"kind": "edge", "edge": "width", "length_mm": box.width_mm})
     result = run_scan(spec, scene.image)
-    assert result.report["side_face"] == face
+    assert report_dict(result.report)["side_face"] == face
     pts, rgb = result.cloud.points.astype(np.float64), result.cloud.colors.astype(np.float64)
     W, H, D = box.width_mm, box.height_mm, box.depth_mm
     # The cloud's parts in order: front, back (its copy), the second face as seen, its copy.
-    n_front = result.report["faces"]["front"]["object_pixels"]
-    n_side = result.report["faces"]["side"]["object_pixels"]
+    n_front = report_dict(result.report)["faces"]["front"]["object_pixels"]
+    n_side = report_dict(result.report)["faces"]["side"]["object_pixels"]
     seen = slice(2 * n_front, 2 * n_front + n_side)
     copy = slice(2 * n_front + n_side, 2 * n_front + 2 * n_side)
     axis, at, across = {"right": (0, W, 0.0), "left": (0, 0.0, W), "top": (1, 0.0, H)}[face]
@@ -279,7 +280,7 @@ def test_right_side_by_choice_is_the_same_cloud_as_read_from_the_points():
     base = {"image": "x", "points": clicks, "focal_px": scene.focal_px}
     auto = run_scan(ScanSpec(**base), scene.image)
     right = run_scan(ScanSpec(**base, side_face="right"), scene.image)
-    assert auto.report["side_face"] == right.report["side_face"] == "right"
+    assert report_dict(auto.report)["side_face"] == report_dict(right.report)["side_face"] == "right"
     np.testing.assert_array_equal(auto.cloud.points, right.cloud.points)
     np.testing.assert_array_equal(auto.cloud.colors, right.cloud.colors)
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from prismcore import ScanSpec, plan_scan, run_scan
+from prismcore.report import report_dict
 from prismsynth import Box, Style, render_oblique_view
 
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -80,8 +81,8 @@ def test_square_on_model_says_it_is_unsure_of_an_oblique_photo(seed):
 
 def test_report_carries_the_uncertainty_in_the_reports_unit():
     box, scene, clicks = _scene(0)
-    report = run_scan(ScanSpec(image="x", points=clicks, scale={"kind": "edge", "length_mm": box.width_mm}),
-                      scene.image).report
+    spec = ScanSpec(image="x", points=clicks, scale={"kind": "edge", "length_mm": box.width_mm})
+    report = report_dict(run_scan(spec, scene.image).report)
     assert set(report["uncertainty"]) == {"width", "height", "depth"}
     assert report["uncertainty"]["width"] == pytest.approx(0.0, abs=1e-6)  # the known edge itself
     assert 0 < report["uncertainty"]["depth"] < 0.05 * report["dimensions"]["depth"]

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from prismcore import InputError, ScanSpec, run_scan
+from prismcore.report import report_dict
 
 _DATA = Path(__file__).resolve().parents[3] / "benchmarks" / "real_video_data.py"
 _spec = importlib.util.spec_from_file_location("real_video_data", _DATA)
@@ -37,7 +38,7 @@ def _report(frame: dict, image) -> dict:
         "side_face": frame["side"],
         "scale": {"kind": "edge", "edge": "width", "length_mm": truth["width"]}})
     try:
-        report: dict = run_scan(spec, image).report
+        report: dict = report_dict(run_scan(spec, image).report)
     except InputError as exc:
         pytest.fail(f"frame {frame['index']}: the engine refused the marks: {exc}")
     return report

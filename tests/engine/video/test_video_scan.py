@@ -7,6 +7,7 @@ import pytest
 from video_clips import CLIP_BOX, CLIP_FRAMES, CODEC_IDS, CODECS
 
 from prismcore import ScanSpec, run_scan
+from prismcore.report import report_dict
 from prismcore.video.frames import frame_spec, iter_frames, probe_video, select_frames
 from prismcore.video.summary import DIMENSIONS, summarize
 
@@ -43,7 +44,7 @@ def _errors(report: dict) -> dict[str, float]:
 def raw_errors(clip_scenes) -> dict[tuple[str, int], dict[str, float]]:
     """The engine's own error on each rendered frame, per spec: the same for every codec, so
     measured once (the path in the spec is not read when the frame is given)."""
-    return {(name, i): _errors(run_scan(frame_spec(spec, i), scene.image).report)
+    return {(name, i): _errors(report_dict(run_scan(frame_spec(spec, i), scene.image).report))
             for name, spec in _specs("clip", clip_scenes).items()
             for i, scene in enumerate(clip_scenes)}
 
@@ -64,7 +65,7 @@ def test_every_frame_measures_the_box(make_clip, clip_scenes, raw_errors, ext, c
         assert indices == list(range(CLIP_FRAMES))
         reports = {}
         for i, frame in iter_frames(path, indices):
-            decoded = run_scan(frame_spec(spec, i), frame).report
+            decoded = report_dict(run_scan(frame_spec(spec, i), frame).report)
             errors = _errors(decoded)
             assert max(errors.values()) < BOUND, (name, i, errors)
             # what the codec costs on top of the engine's own error
@@ -94,4 +95,4 @@ def test_frames_listed_in_frame_points_are_the_ones_measured(make_clip, clip_sce
     frames = dict(iter_frames(path, select_frames(path, spec.frames, probe_video(path), max_frames=2)))
     assert sorted(frames) == [1, 4]
     for i, frame in frames.items():
-        assert max(_errors(run_scan(frame_spec(spec, i), frame).report).values()) < BOUND
+        assert max(_errors(report_dict(run_scan(frame_spec(spec, i), frame).report)).values()) < BOUND
