@@ -59,6 +59,7 @@ class Tally:
     by_material: dict[str, list[int]] = field(default_factory=dict)
     hidden: int = 0  # photos whose part hides the board (under MIN_PLANE_CORNERS corners show)
     hidden_found: int = 0
+    shown_known: bool = False  # the scenes' truth says how much of the board shows (prismpbr's)
 
     def add(
         self,
@@ -70,6 +71,7 @@ class Tally:
         board_shown: int | None = None,
     ) -> None:
         self.photos += 1
+        self.shown_known |= board_shown is not None
         hidden = board_shown is not None and board_shown < MIN_PLANE_CORNERS
         self.hidden += hidden
         self.hidden_found += hidden and not isinstance(outcome, str)
@@ -112,7 +114,7 @@ class Tally:
             "found": f"{self.found / p:.1%}",
             "found, board not hidden": (
                 f"{(self.found - self.hidden_found) / max(self.photos - self.hidden, 1):.1%} "
-                f"of {self.photos - self.hidden}"
+                f"of {self.photos - self.hidden}" if self.shown_known else "-"
             ),
             "within max(1 %, 1 mm)": f"{self.within / t:.1%}",
             "within 3 sigma": f"{self.in3 / t:.1%}",

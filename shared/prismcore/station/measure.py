@@ -243,7 +243,7 @@ def _apart(others: list[tuple[float, ...]], fit: OutlineFit, K: np.ndarray, R: n
         if mm >= _SECOND_PART_MM:
             raise InputError(f"{1 + len(outside)} parts found: one part per photo (one of them about "
                              f"{mm:.0f} mm across, its outline mapped onto the support, at "
-                             f"({cx:.0f}, {cy:.0f}) px)")
+                             f"({cx:.0f}, {cy:.0f}) px): take it off the support")
         specks.append(f"a speck {mm:.0f} mm across at ({cx:.0f}, {cy:.0f}) px, apart from the part, "
                       "was left out: dust or a mark on the support?")
     return specks

@@ -485,7 +485,8 @@ def segment_part(
     others = [i for i in far if areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     joined = [i for i in big[1:] if i not in far and areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     if others:
-        raise PartRefusedError(f"{1 + len(others)} parts found: one part per photo", photo_u,
+        raise PartRefusedError(f"{1 + len(others)} parts found: one part per photo; take the other things "
+                               "off the support (its board and the sheet round it)", photo_u,
                           _blobs(labels, [first, *others], (w, h)))
     # the smaller blobs, near or far: the caller keeps those inside the fitted box's outline
     apart = [tuple(float(v) * _COARSE for v in stats[i, :4]) for i in big[1:] if i not in joined]
@@ -529,7 +530,9 @@ def segment_part(
     if not in_part:
         # what differs at full size lies away from where the coarse photo found the part
         raise PartRefusedError("no part found on the support (nothing differs from the plate where the part "
-                          "showed at a quarter of the size)", photo_u, _blobs(labels, pieces, (w, h)))
+                          "showed at a quarter of the size): a part of the support's colour needs a mat of "
+                          "another colour under it, or light from another side", photo_u,
+                          _blobs(labels, pieces, (w, h)))
     part = np.isin(lab, in_part).astype(np.uint8)
     # Where the support's pattern is broken near the part but no pixel differs enough (a face that
     # mirrors the board): the part reaches there too. A box's silhouette is convex: the outline is
