@@ -86,10 +86,13 @@ def _shown(refused: PartRefusedError, out: Path, overlay_format: str) -> InputEr
 
     if refused.photo is None:
         return refused
-    out.mkdir(parents=True, exist_ok=True)
     path = out / overlay_name("overlay", overlay_format)
-    picture = refusal_overlay(refused.photo, refused.taken, str(refused))
-    path.write_bytes(encode_overlay(picture, overlay_format))
+    try:
+        picture = refusal_overlay(refused.photo, refused.taken, str(refused))
+        out.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(encode_overlay(picture, overlay_format))
+    except (OSError, InputError):  # the refusal's words matter more than its picture
+        return refused
     return InputError(f"{refused} ({path} shows what was taken for the part)")
 
 

@@ -27,7 +27,7 @@ def _save(path: Path, rgb: np.ndarray) -> None:
 def refused(tmp_path_factory) -> tuple[Path, np.ndarray, np.ndarray]:
     """A station, its empty support, and a photo with two parts: the second pasted from another
     photo on the same station where it differs from the support. Returns (folder, where the two
-    parts are (H, W) bool, the plate)."""
+    parts are (H, W) bool, the plate), both undistorted as the overlay shows them."""
     d = tmp_path_factory.mktemp("refusal")
     setup = station_setup(11)
     plate = station_scene(11, setup, parts=0).plate
@@ -41,7 +41,8 @@ def refused(tmp_path_factory) -> tuple[Path, np.ndarray, np.ndarray]:
     parts = []  # each part's true silhouette: the hull of its box's corners through the camera
     for sc in scenes:
         assert sc.box is not None
-        px = cv2.projectPoints(sc.box.corners(), cv2.Rodrigues(su.R)[0], su.t, su.K, su.dist)[0]
+        # in the undistorted photo, as the segmentation sees it and the overlay shows it
+        px = cv2.projectPoints(sc.box.corners(), cv2.Rodrigues(su.R)[0], su.t, su.K, None)[0]
         hull = np.zeros(plate.shape[:2], np.uint8)
         cv2.fillConvexPoly(hull, cv2.convexHull(px.astype(np.int32)), 1)
         parts.append(hull > 0)
@@ -50,7 +51,7 @@ def refused(tmp_path_factory) -> tuple[Path, np.ndarray, np.ndarray]:
     both[parts[1]] = scenes[1].photo[parts[1]]
     _save(d / "two.jpg", both)
     _save(d / "empty.jpg", plate)
-    return d, parts[0] | parts[1], plate
+    return d, parts[0] | parts[1], cv2.undistort(plate, su.K, su.dist)
 
 
 def _run(d: Path, photo: str, out: str) -> subprocess.CompletedProcess[str]:

@@ -309,7 +309,9 @@ def measure_on_board(
     """
     t0 = time.perf_counter()
     h, w = photo.shape[:2]
-    view = without_strays(_board_view(photo, board), (w, h))
+    view = _board_view(photo, board)
+    if camera is None:  # (strays are judged by the free one-view fit: a given lens may need more)
+        view = without_strays(view, (w, h))
     cam = board_camera(photo, board, view) if camera is None else camera.for_size(w, h)
     photo_u = undistorter(cam).image(photo)
     pose = board_pose(view, cam)

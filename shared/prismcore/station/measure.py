@@ -68,12 +68,14 @@ def _undistorted_plate(station: Station) -> np.ndarray | None:
     if station.plate_png is None:
         return None
     key = (station.camera.model_dump_json(), _plate_sha1(station.plate_png))
-    if key not in _PLATES:
+    kept = _PLATES.get(key)  # read once, as undistorter's cache (threads may clear it meanwhile)
+    if kept is None:
         plate = station.plate()
         assert plate is not None
+        kept = undistorter(station.camera).image(plate)
         _PLATES.clear()
-        _PLATES[key] = undistorter(station.camera).image(plate)
-    return _PLATES[key]
+        _PLATES[key] = kept
+    return kept
 
 
 def _corner_at(point: np.ndarray, image_pts: np.ndarray) -> int:

@@ -486,7 +486,7 @@ def segment_part(
     joined = [i for i in big[1:] if i not in far and areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     if others:
         raise PartRefusedError(f"{1 + len(others)} parts found: one part per photo; take the other things "
-                               "off the support (its board and the sheet round it)", photo_u,
+                               "off the support", photo_u,
                           _blobs(labels, [first, *others], (w, h)))
     # the smaller blobs, near or far: the caller keeps those inside the fitted box's outline
     apart = [tuple(float(v) * _COARSE for v in stats[i, :4]) for i in big[1:] if i not in joined]

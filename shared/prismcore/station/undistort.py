@@ -35,7 +35,11 @@ _UNDISTORTERS: dict[str, Undistorter] = {}
 
 def undistorter(camera: CameraModel) -> Undistorter:
     key = camera.model_dump_json()
-    if key not in _UNDISTORTERS:
+    # the one kept is read once and returned as read: another thread (the API verifies stations
+    # in threads) may clear the cache for its own camera meanwhile
+    kept = _UNDISTORTERS.get(key)
+    if kept is None:
+        kept = Undistorter(camera)
         _UNDISTORTERS.clear()
-        _UNDISTORTERS[key] = Undistorter(camera)
-    return _UNDISTORTERS[key]
+        _UNDISTORTERS[key] = kept
+    return kept

@@ -23,6 +23,7 @@ SEEDS = range(930, 946)
 def outcomes(tmp_path_factory):
     import os
 
+    before = os.environ.get("PRISM_PBR_CACHE")
     os.environ["PRISM_PBR_CACHE"] = str(tmp_path_factory.mktemp("pbr"))
     out = []
     try:
@@ -36,7 +37,10 @@ def outcomes(tmp_path_factory):
                 outcome = exc
             out.append((sc, board_corners_shown(sc), outcome))
     finally:
-        del os.environ["PRISM_PBR_CACHE"]
+        if before is None:
+            del os.environ["PRISM_PBR_CACHE"]
+        else:
+            os.environ["PRISM_PBR_CACHE"] = before
     return out
 
 
