@@ -120,13 +120,19 @@ def job_spec_page() -> str:
     from prismcore import ScanSpec
 
     schema = ScanSpec.model_json_schema()
-    out = ["# Job spec", "",
+    return _schema_page(
+        "# Job spec",
            "A scan as JSON: the file `prism scan --spec FILE` reads, and each item of a job sent to "
            "`POST /v1/jobs` (there `image` is a reference: `upload:ID`, `s3://bucket/key` or an "
            "allowed `https` URL). This page is the JSON Schema `prism schema` prints, as tables; "
            "every length and scale is bounded, and a value outside its range is refused at once "
-           "(exit 2, or HTTP 422 naming the field). `prism schema` prints the schema itself.", "",
-           "## ScanSpec {#scanspec}", "", *schema_table(schema)]
+           "(exit 2, or HTTP 422 naming the field). `prism schema` prints the schema itself.",
+        "ScanSpec", schema)
+
+
+def _schema_page(title: str, intro: str, top: str, schema: dict[str, Any]) -> str:
+    """A JSON Schema as a page: its title, its intro, the top model's table, then each $defs'."""
+    out = [title, "", intro, "", f"## {top} {{#{top.lower()}}}", "", *schema_table(schema)]
     for name, sub in schema.get("$defs", {}).items():
         out += [f"## {name} {{#{name.lower()}}}", "", *schema_table(sub)]
     return "\n".join(out) + "\n"
@@ -136,7 +142,8 @@ def report_page() -> str:
     from prismcore.report import report_schema
 
     schema = report_schema()
-    out = ["# report.json", "",
+    return _schema_page(
+        "# report.json",
            "One photo's (or video frame's, or station photo's) measurement, as `prismcore.report.ScanReport` "
            "holds it: the engine builds it, and the overlay, the glb model, the service's item result and "
            "`prism scan`'s summary read it. A field is in the file when the measurement's mode sets it "
@@ -144,11 +151,8 @@ def report_page() -> str:
            "`scale_source`, `points_source`, `station` and `engine_dimensions`); a field set to null "
            "says the value is unknown. Its JSON Schema (draft 2020-12) is "
            "[report.schema.json](report.schema.json) (`prism schema --report` prints it); this page is "
-           "that schema as tables, and [Output files](outputs.md#reportjson) says what the fields mean.", "",
-           "## ScanReport {#scanreport}", "", *schema_table(schema)]
-    for name, sub in schema.get("$defs", {}).items():
-        out += [f"## {name} {{#{name.lower()}}}", "", *schema_table(sub)]
-    return "\n".join(out) + "\n"
+           "that schema as tables, and [Output files](outputs.md#reportjson) says what the fields mean.",
+        "ScanReport", schema)
 
 
 # -- the HTTP API ----------------------------------------------------------------------------------
