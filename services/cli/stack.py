@@ -155,6 +155,14 @@ class ManagedProcess:
         self.stop()
         self.start()
 
+    def dump_stacks(self, settle_s: float = 2.0) -> None:
+        """Ask every process of a worker's group to print its threads' stacks into the log
+        (prism_worker.app.DUMP_STACKS_SIGNAL), and give them `settle_s` to. Only for a worker:
+        the signal would end another process."""
+        if self.proc is not None and self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGUSR2)
+            time.sleep(settle_s)
+
     @property
     def log(self) -> str:
         path = self.workdir / "server.log"

@@ -15,13 +15,22 @@ Nothing here runs at import but the app's creation and the connection of the sig
 
 from __future__ import annotations
 
+import faulthandler
 import logging
+import signal
 import threading
 import time
 from typing import Any
 
 from celery import Celery, Task
-from celery.signals import task_postrun, task_prerun, worker_process_init, worker_ready, worker_shutdown
+from celery.signals import (
+    task_postrun,
+    task_prerun,
+    worker_init,
+    worker_process_init,
+    worker_ready,
+    worker_shutdown,
+)
 from prism_common.metrics import record_task_duration
 from prism_common.queue import configure_celery
 from prism_common.settings import get_settings
@@ -29,12 +38,14 @@ from prism_common.settings import get_settings
 from .context import WorkerContext, build_context
 from .watchdog import Watchdog
 
-__all__ = ["app", "worker_context"]
+__all__ = ["DUMP_STACKS_SIGNAL", "app", "worker_context"]
 
 log = logging.getLogger(__name__)
 
 app = Celery("prism")
 app.conf.include = ["prism_worker.tasks"]
+
+DUMP_STACKS_SIGNAL = signal.SIGUSR2
 
 _context: WorkerContext | None = None
 _context_lock = threading.Lock()
@@ -60,9 +71,23 @@ def worker_context() -> WorkerContext:
     return _context if _context is not None else _build()
 
 
+def _print_stacks_on_signal() -> None:
+    """`kill -USR2` on the worker's process group prints every thread's stack of every process
+    into the log (fd 2: Celery replaces sys.stderr by a logging proxy with no file behind it), so
+    a task that hangs can be located without a debugger. Not USR1: billiard delivers the soft
+    time limit to a pool child with it."""
+    faulthandler.register(DUMP_STACKS_SIGNAL, file=2, all_threads=True, chain=False)
+
+
+@worker_init.connect
+def _main_started(**_: Any) -> None:
+    _print_stacks_on_signal()
+
+
 @worker_process_init.connect
 def _process_started(**_: Any) -> None:
     _build()  # the child's own clients, not the ones it inherited from the main process
+    _print_stacks_on_signal()
 
 
 @worker_ready.connect

@@ -60,6 +60,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     report: pytest.TestReport = yield
     stack = getattr(item, "funcargs", {}).get("stack")
     if report.failed and call.when == "call" and isinstance(stack, Stack):
+        stack.worker.dump_stacks()  # where a task that never ended stands (prism_worker.app)
         for name, process in (("worker", stack.worker), ("API", stack.api)):
             report.sections.append((f"the {name}'s log, its end", process.log[-6000:]))
     return report
