@@ -19,8 +19,9 @@ from prismcore.geometry.rounding import RESOLVED_PX
 from prismcore.station.boxfit import _FACES, OutlineFit, fit_outline_box, project, visible_faces
 from prismcore.station.calibrate import Station
 from prismcore.station.edges import fold_distance
+from prismcore.station.hidden_sides import evidence_enough, read_hidden_sides, widened
 from prismcore.station.rounding import edge_radius
-from prismcore.station.segment import Registration, register, segment_part
+from prismcore.station.segment import Registration, Silhouette, register, segment_part
 from prismcore.station.undistort import undistorter
 
 __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
@@ -251,6 +252,30 @@ def _apart(others: list[tuple[float, ...]], fit: OutlineFit, K: np.ndarray, R: n
     return specks
 
 
+def _too_flat(fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> bool:
+    """Whether a fitted side is under _MIN_SIDE_PX in the photo (or not finite): no box."""
+    sizes = (fit.length_mm, fit.width_mm, fit.height_mm)
+    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
+    return min(sizes) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite(sizes))
+
+
+def _hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, reg: Registration, sil: Silhouette,
+                  fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> tuple[OutlineFit, str]:
+    """`fit` with the height read where the support's pattern is hidden below its top
+    (`prismcore.station.hidden_sides`), where the outline's own reading is suspect (much of it
+    barely differs from the support, part of it was found only where the pattern broke, or it
+    gave no height): taken as the measurement where the outline gave none, else as a rival
+    that widens the sigma, when that reading stands taller and its band is mostly the part's.
+    Returns the fit and the warning to give ('' for none)."""
+    flat = _too_flat(fit, K, R, t)
+    if sil.tone is None or not (flat or sil.mirrored or fit.weak_fraction > _WARN_WEAK):
+        return fit, ""
+    reading = read_hidden_sides(photo_u, plate_u, reg.homography, sil.tone, sil.shadow_least, fit, K, R, t)
+    if reading is None or not evidence_enough(reading) or reading.height_mm < 1.1 * fit.height_mm + 1.0:
+        return fit, ""
+    return widened(fit, reading, adopt=flat)
+
+
 def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraModel, reg: Registration,
                        timings: dict[str, float] | None = None, *, region: np.ndarray | None = None,
                        region_refusal: str = _REGION_REFUSAL, rests_on: np.ndarray | None = None,
@@ -282,6 +307,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         # rounded edges pull the silhouette in: the box refitted as its inner box grown by them
         fit = fit_outline_box(sil.contour, K, R, t, folds, sil.difference, sil.origin,
                               radius_mm=radius.radius_mm)
+    fit, hidden_warning = _hidden_sides(photo_u, plate_u, reg, sil, fit, K, R, t)
     t4, c4 = time.perf_counter(), time.thread_time()
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)
@@ -301,6 +327,8 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         for x, y, bw, bh in sil.others:
             taken[int(y) : int(y + bh), int(x) : int(x + bw)] = True
         raise PartRefusedError(str(exc), photo_u, taken) from None
+    if hidden_warning:
+        warnings.append(hidden_warning)
     if fit.residual_px > WARN_RESIDUAL_PX:
         warnings.append(
             f"the outline is {fit.residual_px:.1f} px (RMS) from the fitted box: a part that is "

@@ -248,6 +248,11 @@ class Silhouette:
     # blobs much smaller than the part, not joined to it: the bounding box (x, y, width, height)
     # px of each, the photo's pixels
     others: list[tuple[float, ...]] = field(default_factory=list)
+    # how the plate was compared: (3, 256) the camera's tone change since it, and the deepest
+    # shadow's scale; and whether part of the outline was found only where the pattern broke
+    tone: np.ndarray | None = None
+    shadow_least: float = SHADOW_RANGE[0]
+    mirrored: bool = False
 
     @property
     def window(self) -> tuple[slice, slice]:
@@ -579,4 +584,7 @@ def segment_part(
         difference=resid,
         origin=(X0, Y0),
         others=apart,
+        tone=lut,
+        shadow_least=float(shadow[0]),
+        mirrored=mirrored,
     )
