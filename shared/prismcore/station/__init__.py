@@ -2,8 +2,9 @@
 measured from its silhouette in millimetres, with no click and no known edge.
 
 ``board`` describes, draws and finds calibration boards; ``calibrate`` makes a station (camera,
-support plane, plate); ``segment`` re-registers a photo on the plate and outlines the part;
-``boxfit`` fits the box to the outline (`OutlineFit`); ``measure`` chains them and derives the seven points;
+support plane, plate); ``registration`` re-registers a photo on the plate (or finds the camera
+unmoved); ``segment`` outlines the part; ``boxfit`` fits the box to the outline (`OutlineFit`);
+``hidden_sides`` reads a height the outline lost; ``measure`` chains them and derives the seven points;
 ``verify`` holds the statistics of a verification with a reference part; ``certify`` what a
 measurement states of its station (the verification's status, the camera's drift since
 calibration and its cost); ``capability`` the scale over the support and the smallest part and

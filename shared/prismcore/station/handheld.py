@@ -18,7 +18,8 @@ from prismcore.station.background import board_cover, shadow_difference, smooth_
 from prismcore.station.board import BoardSpec, BoardView, board_image, find_board_corners
 from prismcore.station.calibrate import MAX_RMS_PX, MIN_PLANE_CORNERS, board_pose
 from prismcore.station.measure import StationMeasurement, measure_registered
-from prismcore.station.segment import SHADOW_RANGE, Registration, norm2, planes, shadow_ratio
+from prismcore.station.registration import Registration
+from prismcore.station.segment import SHADOW_RANGE, norm2, planes, shadow_ratio
 from prismcore.station.sheet import ink_strokes, sheet_margins
 from prismcore.station.undistort import undistorter
 

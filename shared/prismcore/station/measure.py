@@ -20,8 +20,9 @@ from prismcore.station.boxfit import _FACES, OutlineFit, fit_outline_box, projec
 from prismcore.station.calibrate import Station
 from prismcore.station.edges import fold_distance
 from prismcore.station.hidden_sides import evidence_enough, read_hidden_sides, widened
+from prismcore.station.registration import Registration, register
 from prismcore.station.rounding import edge_radius
-from prismcore.station.segment import Registration, Silhouette, register, segment_part
+from prismcore.station.segment import Silhouette, segment_part
 from prismcore.station.undistort import undistorter
 
 __all__ = ["MAX_RESIDUAL_PX", "StationMeasurement", "measure_on_station", "reference_points"]
