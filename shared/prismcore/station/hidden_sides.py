@@ -27,7 +27,7 @@ import numpy as np
 
 from prismcore.station.boxfit import OutlineFit, project
 from prismcore.station.photometry import pattern_match, toned
-from prismcore.station.segment import SHADOW_RANGE, _residual
+from prismcore.station.segment import _AT_WHITE, SHADOW_RANGE, _residual
 
 __all__ = ["HiddenSides", "evidence_enough", "read_hidden_sides", "widened"]
 
@@ -116,9 +116,10 @@ def read_hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.n
         return None
     shift = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]])
     P = photo_u[y0:y1, x0:x1].astype(np.float32)
-    bg = toned(cv2.warpPerspective(plate_u, shift @ homography, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                                   borderMode=cv2.BORDER_REPLICATE), tone)
-    resid = _residual(P, bg, shadow=(shadow_least, SHADOW_RANGE[1]))
+    bg8 = cv2.warpPerspective(plate_u, shift @ homography, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+    bg = toned(bg8, tone)
+    resid = _residual(P, bg, shadow=(shadow_least, SHADOW_RANGE[1]), clipped=bg8 >= _AT_WHITE)
     offset = np.array([x0, y0], np.float64)
     outside = np.ones(resid.shape, np.uint8)
     reach = cv2.convexHull((tallest - offset).astype(np.float32))

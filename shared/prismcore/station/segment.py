@@ -84,23 +84,29 @@ def shadow_ratio(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray | None
 
 
 def difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray,
-                shadow: tuple[np.ndarray | float, np.ndarray | float] = SHADOW_RANGE) -> np.ndarray:
+                shadow: tuple[np.ndarray | float, np.ndarray | float] = SHADOW_RANGE,
+                clipped: list[np.ndarray] | None = None) -> np.ndarray:
     """The squared distance of photo planes `p` from support planes `b` (`b2` their squared norm)
     scaled by the best shadow factor within `shadow` (the least and the most: numbers, or (H, W)
     arrays, per pixel), per pixel, float32: a channel-plane loop (numpy reduces a last axis of 3
-    slowly)."""
+    slowly). clipped : per channel, (H, W) bool where the plate was clipped at white: there the
+    support was at least as bright as the plate shows, so only a photo darker than the model
+    differs."""
     ratio = shadow_ratio(p, b, b2)
     s = np.clip(ratio, *shadow, out=ratio).astype(np.float32, copy=False)
     out: np.ndarray | None = None
-    for pc, bc in zip(p, b, strict=True):
+    for i, (pc, bc) in enumerate(zip(p, b, strict=True)):
         # A brighter light saturates a channel at 255 where the plate's did not: the model clips too.
         e = pc - np.minimum(s * bc, 255.0)
+        if clipped is not None:
+            np.minimum(e, 0.0, out=e, where=clipped[i])
         e *= e
         out = e if out is None else np.add(out, e, out=out)
     assert out is not None
     return out
 
 
+_AT_WHITE = 254  # a plate's channel at this level or above was clipped: its support as bright or brighter
 _LIGHT_MIN_PIXELS = 100  # unclipped support pixels needed to measure the light's change
 
 
@@ -125,7 +131,7 @@ _INSIDE = np.float32(442.0)  # the residual read inside the part where it is not
 
 
 def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None,
-              shadow: tuple[float, float] = SHADOW_RANGE) -> np.ndarray:
+              shadow: tuple[float, float] = SHADOW_RANGE, clipped: np.ndarray | None = None) -> np.ndarray:
     """A shadow scales the support; the part does not. The support is also compared shifted by a
     pixel each way and the least difference kept: the registration's last fraction of a pixel
     then shows no difference along the board's edges, while the part differs from every shift.
@@ -135,11 +141,17 @@ def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None,
         run of columns inside it on every row of the strip is not computed and reads _INSIDE: the
         outline cannot lie there, and a large part's inside was most of the segmentation's time.
         Every pixel computed has the value it has without `core`.
+    clipped : (H, W, 3) bool, optional: where the plate (as `bg`) was clipped at white, per
+        channel (`difference2`); None or none set: none.
     """
     h, w = P.shape[:2]
     p = planes(P)
     padded = [np.ascontiguousarray(q) for q in planes(np.pad(bg, ((1, 1), (1, 1), (0, 0)), mode="wrap"))]
     padded2 = norm2(padded)
+    at_white = None
+    if clipped is not None and clipped.any():
+        wrapped = np.pad(clipped, ((1, 1), (1, 1), (0, 0)), mode="wrap")
+        at_white = [np.ascontiguousarray(q) for q in planes(wrapped)]
     runs = _runs(core, h, w)
     out = None if runs == [(0, h, 0, w)] else np.full((h, w), _INSIDE, np.float32)
     for r0, r1, c0, c1 in runs:
@@ -147,7 +159,8 @@ def _residual(P: np.ndarray, bg: np.ndarray, core: np.ndarray | None = None,
         best: np.ndarray | None = None
         for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
             rows, cols = slice(r0 + 1 - dy, r1 + 1 - dy), slice(c0 + 1 - dx, c1 + 1 - dx)
-            d2 = difference2(pr, [q[rows, cols] for q in padded], padded2[rows, cols], shadow)
+            d2 = difference2(pr, [q[rows, cols] for q in padded], padded2[rows, cols], shadow,
+                             None if at_white is None else [q[rows, cols] for q in at_white])
             best = d2 if best is None else np.minimum(best, d2, out=best)
         assert best is not None
         if out is None:
@@ -252,17 +265,18 @@ def segment_part(
     # without it, and kept only where it explains the support clearly better than the gain: a
     # light that only changed needs none, and a curve fitted to a large part's levels would invent one.
     linear = np.minimum(np.arange(256, dtype=np.float32)[None] * gain[:, None], 255.0)
-    resid_g = _residual(Ps, toned(Bs8, linear))
+    white_s = Bs8 >= _AT_WHITE
+    resid_g = _residual(Ps, toned(Bs8, linear), clipped=white_s)
     first = _mask(resid_g, float(np.median(resid_g)) * 1.4826 + 1.0, 1 / _COARSE) > 0
     support = cv2.dilate(first.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
     lut = tone_curve(Ps, Bs, gain, ~support)
-    resid_t = _residual(Ps, toned(Bs8, lut))
+    resid_t = _residual(Ps, toned(Bs8, lut), clipped=white_s)
     if not float(np.median(resid_t[support])) < _TONE_BETTER * float(np.median(resid_g[support])):
         lut = linear
     Bs = toned(Bs8, lut)
     coarse_match = pattern_match(Ps, Bs, _NCC_WINDOW)  # one pass for the shadow's depth and the pattern
     shadow = (deepest_shadow(coarse_match, SHADOW_RANGE[0]), SHADOW_RANGE[1])
-    resid_s = _residual(Ps, Bs, shadow=shadow)
+    resid_s = _residual(Ps, Bs, shadow=shadow, clipped=white_s)
     broken_s = pattern_broken(coarse_match)
     resid_s[broken_s] = np.maximum(resid_s[broken_s], _BROKEN_LEVEL)
     noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
@@ -307,15 +321,16 @@ def segment_part(
     X1, Y1 = min(w, (x0 + bw + m) * _COARSE), min(h, (y0 + bh + m) * _COARSE)
     P = photo_u[Y0:Y1, X0:X1].astype(np.float32)
     window_h = np.array([[1, 0, -X0], [0, 1, -Y0], [0, 0, 1.0]]) @ homography
-    bg = toned(cv2.warpPerspective(
-        plate_u, window_h, (X1 - X0, Y1 - Y0), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    ), lut)
+    bg8 = cv2.warpPerspective(
+        plate_u, window_h, (X1 - X0, Y1 - Y0), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    bg = toned(bg8, lut)
     # the coarse blob at full size in the window (nearest: each coarse pixel's full-size pixels)
     cols = np.minimum(np.arange(X0, X1) * small[0] // w, small[0] - 1)
     rows = np.minimum(np.arange(Y0, Y1) * small[1] // h, small[1] - 1)
     blob = np.isin(labels, pieces).astype(np.uint8)
     core = cv2.erode(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * _CORE + 1,) * 2))
-    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None, shadow)
+    resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None, shadow,
+                      clipped=bg8 >= _AT_WHITE)
     near: np.ndarray = blob[np.ix_(rows, cols)]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
