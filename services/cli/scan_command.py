@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from prismcore.errors import InputError
-from prismcore.formats import FORMATS
+from prismcore.formats import FORMATS, METRIC_FORMATS
 
 from .scan_runners import RUNNERS, RunOptions
 
@@ -28,6 +28,9 @@ if TYPE_CHECKING:
 # prismcore.video.frame_select.DEFAULT_MAX_FRAMES (importing it loads OpenCV for --help);
 # tests/cli/test_cli_imports.py checks the two agree.
 DEFAULT_MAX_FRAMES = 500
+
+# The formats in pixels, from the format table: --format's help names them.
+_NO_SCALE = " and ".join(f for f in FORMATS if f not in METRIC_FORMATS)
 
 __all__ = ["one_line", "quality_flags", "scale_options", "scan", "selection_from_flags", "spec_from_flags"]
 
@@ -280,7 +283,8 @@ def scan(
         "--format", help=f"Any of {','.join(FORMATS)} (las/laz: the cloud in metres, Z "
                          "up; glb: the box textured from the photo; step: the part as a STEP solid, "
                          "part.step and part.step.json; drawing: its inspection drawing, drawing.svg, "
-                         ".pdf and .dxf; all but csv and ply need a scale).")] = "csv,ply",
+                         f".pdf and .dxf; stl: the box as a mesh; all but {_NO_SCALE} need a "
+                         "scale).")] = "csv,ply",
     spacing_mm: Annotated[float | None, typer.Option(
         help="Thin the cloud to about this spacing, mm (default: one point per pixel).")] = None,
     nominal: Annotated[str | None, typer.Option(

@@ -77,3 +77,22 @@ def test_the_reference_page_lists_the_tables_formats():
     documented = {fmt: (re.findall(r"`([^`]+)`", files), needs == "yes") for fmt, files, needs in rows}
     assert documented == {fmt: ([FILE_NAMES[kind] for kind in row.files], row.needs_scale)
                           for fmt, row in FORMAT_TABLE.items()}
+
+
+def test_the_architecture_page_names_the_format_table_and_the_sink():
+    """What the architecture page says a new format and a scan's files go through is there: the
+    format table, its writer's branch, the sink and `write_outputs`."""
+    import importlib
+
+    page = (ROOT / "docs" / "explanation" / "architecture.md").read_text(encoding="utf-8")
+    section = page.split("## Where a new feature goes", 1)[1]
+    named = set(re.findall(r"`((?:formats|outputs)(?:\.\w+)+)`", section))
+    assert {"formats.FORMAT_TABLE", "formats.FILES", "formats.OutputFormat", "outputs.writers.write_format",
+            "outputs.sink.Sink"} <= named
+    for dotted in named:
+        module, _, name = dotted.rpartition(".")
+        assert hasattr(importlib.import_module(f"prismcore.{module}"), name), dotted
+    assert "`write_outputs`" in section
+    from prismcore.outputs import write_outputs
+
+    assert callable(write_outputs)

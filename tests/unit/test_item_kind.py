@@ -4,6 +4,8 @@ fields itself, in its own order (the tests below keep those orders as they were)
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
 from typing import Any
 
 from hypothesis import HealthCheck, assume, event, given, settings
@@ -120,6 +122,25 @@ def test_every_table_picks_what_its_caller_picked_before(doc: tuple[tuple[str, D
 def test_every_table_names_every_kind() -> None:
     for table in (tasks.PLANS, scan_runners.RUNNERS, validation.KINDS):
         assert sorted(table) == sorted(ITEM_KINDS)
+
+
+ARCHITECTURE = Path(__file__).resolve().parents[2] / "docs" / "explanation" / "architecture.md"
+
+
+def test_the_architecture_page_draws_the_kind_table() -> None:
+    """The page's table of kinds has a row for each kind, and the `prism scan` runner it names is
+    the one `RUNNERS` picks (a kind prism scan refuses names none)."""
+    section = ARCHITECTURE.read_text(encoding="utf-8").split("## The item's kind", 1)[1].split("\n## ", 1)[0]
+    tables = ("tasks.PLANS", "scan_runners.RUNNERS", "validation.KINDS", "prismcore.spec_fields.item_kind")
+    for table in tables:
+        assert f"`{table}`" in section, table
+    rows = [[cell.strip() for cell in line.strip("|").split("|")]
+            for line in section.splitlines() if re.match(r"\| `\w+` \|", line)]
+    assert [row[0].strip("`") for row in rows] == list(ITEM_KINDS)
+    for row in rows:
+        named = re.findall(r"`(run_\w+)`", row[3])
+        runner = scan_runners.RUNNERS[row[0].strip("`")].__name__  # type: ignore[index]
+        assert named == [runner] or (not named and row[3].startswith("refused")), row
 
 
 def test_each_kind_is_met() -> None:
