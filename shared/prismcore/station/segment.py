@@ -91,7 +91,8 @@ def difference2(p: list[np.ndarray], b: list[np.ndarray], b2: np.ndarray,
     arrays, per pixel), per pixel, float32: a channel-plane loop (numpy reduces a last axis of 3
     slowly). clipped : per channel, (H, W) bool where the plate was clipped at white: there the
     support was at least as bright as the plate shows, so only a photo darker than the model
-    differs."""
+    differs. (The shadow's scale is still read on every channel: read on the unclipped ones
+    alone, a pixel clipped in two channels gave a noisy one, and blobs of 17 and 28 "parts".)"""
     ratio = shadow_ratio(p, b, b2)
     s = np.clip(ratio, *shadow, out=ratio).astype(np.float32, copy=False)
     out: np.ndarray | None = None
