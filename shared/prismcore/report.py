@@ -176,7 +176,10 @@ class FrameInfo(_Block):
 class Registration(_Block):
     """How the photo was put back on the station's plate (or the board found)."""
 
-    source: str = Field(description="what registered it (the board's corners, the plate's features)")
+    source: Literal["board", "plate", "unmoved", "none"] = Field(
+        description="what registered it: board (its corners found again), plate (the support's own "
+        "features), unmoved (the camera found where it was calibrated: the calibration's pose and "
+        "plate used as they are), none (no plate to register on)")
     shift_px: Number = Field(description="how far the support moved in the photo since calibration, px")
     board_corners: Any = Field(description="the board's corners used (the detector's record)")
 
