@@ -50,7 +50,9 @@ class HiddenSides:
     evidence : the mean score of the band between the outline's height
     and `height_mm` (1: all of it hides the support, -1: all of it shows the support).
     length_mm, width_mm : the footprint under the top at `height_mm` (the top's corners pushed
-    back along their rays). params : (6,) the box at `height_mm` as `OutlineFit.params`.
+    back along their rays).
+    params, low, high : (6,) float64, the boxes at `height_mm`, `low_mm` and `high_mm` as
+    `OutlineFit.params` (x, y mm, yaw rad, log length, log width, log height).
     """
 
     height_mm: float
@@ -101,14 +103,23 @@ def read_hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.n
     photo_u, plate_u : undistorted RGB (H, W, 3) uint8; homography : plate -> photo pixels; tone :
     (3, 256) the camera's tone change since the plate (`Silhouette.tone`); shadow_least : the
     deepest shadow's scale (`Silhouette.shadow_least`). K (3, 3), R (3, 3), t (3,) mm: the support's
-    pose. Heights from `fit`'s to it plus the footprint's longer side are tried. None where the
-    grown box leaves the photo or no height scores above the outline's.
+    pose. Heights from `fit`'s to it plus the footprint's longer side are tried, below nine tenths
+    of the camera's height over the support; the band is scored where it lies in the photo. None
+    where the fit or its grown box is not finite, the crop in the photo is under two windows wide,
+    or no height scores above the outline's.
     """
     h, w = photo_u.shape[:2]
     top_px = project(fit.corners()[4:], K, R, t)
     h0 = fit.height_mm
+    # no taller than the camera stands above the support: a top beyond it is behind the camera
+    below_camera = 0.9 * float(-(-R.T @ t)[2])
     heights = h0 + np.linspace(0.0, max(fit.length_mm, fit.width_mm), _STEPS + 1)
+    heights = heights[heights < below_camera]
+    if heights.size < 2 or not np.all(np.isfinite(top_px)):
+        return None
     tallest = _box_under(top_px, float(heights[-1]), K, R, t)[1]
+    if not np.all(np.isfinite(tallest)):
+        return None
     x0, y0 = np.floor(np.vstack([top_px, tallest]).min(axis=0)).astype(int) - _MARGIN_PX
     x1, y1 = np.ceil(np.vstack([top_px, tallest]).max(axis=0)).astype(int) + _MARGIN_PX
     x0, y0, x1, y1 = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
@@ -134,15 +145,23 @@ def read_hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, homography: np.n
     score[differs | hidden] = 1.0
     top_mask = np.zeros(resid.shape, np.uint8)
     cv2.fillConvexPoly(top_mask, np.round(top_px - offset).astype(np.int32), 1)
+    score[top_mask > 0] = 0.0  # the top is common to every height: only the band under it counts
+    under = (top_mask == 0).astype(np.int32)
+    crop_h, crop_w = y1 - y0, x1 - x0
     totals, areas, boxes = [], [], []
     for height in heights:
         params, corners = _box_under(top_px, float(height), K, R, t)
-        hull = cv2.convexHull((corners - offset).astype(np.float32))
-        band = np.zeros(resid.shape, np.uint8)
-        cv2.fillConvexPoly(band, np.round(hull).astype(np.int32), 1)
-        band[top_mask > 0] = 0
-        totals.append(float(score[band > 0].sum()))
-        areas.append(int(band.sum()))
+        hull = np.round(cv2.convexHull((corners - offset).astype(np.float32))).astype(np.int32)
+        # filled within the hull's own rectangle, not the whole crop (a large part's crop is big)
+        bx, by, bw, bh = cv2.boundingRect(hull)
+        x, y = max(0, bx), max(0, by)
+        bw, bh = min(bx + bw, crop_w) - x, min(by + bh, crop_h) - y
+        band = np.zeros((max(bh, 0), max(bw, 0)), np.uint8)
+        if band.size:
+            cv2.fillConvexPoly(band, hull - np.array([x, y], np.int32), 1)
+        inside = band > 0
+        totals.append(float(score[y:y + bh, x:x + bw][inside].sum()))
+        areas.append(int(under[y:y + bh, x:x + bw][inside].sum()))
         boxes.append(params)
     best = int(np.argmax(totals))
     if best == 0 or totals[best] <= totals[0]:
@@ -179,7 +198,8 @@ def widened(fit: OutlineFit, reading: HiddenSides, *, adopt: bool) -> tuple[Outl
         cov = fit.cov.copy()  # the top's own outline still places length and width; no height
         cov[5, :] = 0.0
         cov[:, 5] = 0.0
-        return replace(fit, params=reading.params, cov=cov, ambiguity_mm=reading.spread_mm()), (
+        rivals = tuple(float(max(a, b)) for a, b in zip(fit.ambiguity_mm, reading.spread_mm(), strict=True))
+        return replace(fit, params=reading.params, cov=cov, ambiguity_mm=(rivals[0], rivals[1], rivals[2])), (
             "only the part's top was outlined (its sides mirror the support or match its colour): its "
             f"height, {reading.height_mm:.1f} mm, was read from where the support's pattern is hidden "
             f"below the top (between {reading.low_mm:.1f} and {reading.high_mm:.1f} mm): a coarse reading; "

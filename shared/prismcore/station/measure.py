@@ -253,13 +253,6 @@ def _apart(others: list[tuple[float, ...]], fit: OutlineFit, K: np.ndarray, R: n
     return specks
 
 
-def _too_flat(fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> bool:
-    """Whether a fitted side is under _MIN_SIDE_PX in the photo (or not finite): no box."""
-    sizes = (fit.length_mm, fit.width_mm, fit.height_mm)
-    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
-    return min(sizes) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite(sizes))
-
-
 def _hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, reg: Registration, sil: Silhouette,
                   fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> tuple[OutlineFit, str]:
     """`fit` with the height read where the support's pattern is hidden below its top
@@ -268,8 +261,13 @@ def _hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, reg: Registration, s
     gave no height): taken as the measurement where the outline gave none, else as a rival
     that widens the sigma, when that reading stands taller and its band is mostly the part's.
     Returns the fit and the warning to give ('' for none)."""
-    flat = _too_flat(fit, K, R, t)
-    if sil.tone is None or not (flat or sil.mirrored or fit.weak_fraction > _WARN_WEAK):
+    with np.errstate(over="ignore"):
+        sizes = (fit.length_mm, fit.width_mm, fit.height_mm)
+    if sil.tone is None or not np.all(np.isfinite(fit.params)) or not np.all(np.isfinite(sizes)):
+        return fit, ""  # a fit with no finite size is refused as degenerate, as it was
+    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
+    flat = fit.height_mm < _MIN_SIDE_PX * mm_px  # no height (a thin footprint is refused as it was)
+    if not (flat or sil.mirrored or fit.weak_fraction > _WARN_WEAK):
         return fit, ""
     reading = read_hidden_sides(photo_u, plate_u, reg.homography, sil.tone, sil.shadow_least, fit, K, R, t)
     if reading is None or not evidence_enough(reading) or reading.height_mm < 1.1 * fit.height_mm + 1.0:
@@ -308,7 +306,10 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         # rounded edges pull the silhouette in: the box refitted as its inner box grown by them
         fit = fit_outline_box(sil.contour, K, R, t, folds, sil.difference, sil.origin,
                               radius_mm=radius.radius_mm)
-    fit, hidden_warning = _hidden_sides(photo_u, plate_u, reg, sil, fit, K, R, t)
+    outline_rivals = fit.ambiguity_mm  # the outline's own: the second reading's gap is said apart
+    hidden_warning = ""
+    if fit.residual_px <= MAX_RESIDUAL_PX:  # a part refused below need not pay for the second reading
+        fit, hidden_warning = _hidden_sides(photo_u, plate_u, reg, sil, fit, K, R, t)
     t4, c4 = time.perf_counter(), time.thread_time()
     timings.update(segment=(t3 - t2) * 1e3, fit=(t4 - t3) * 1e3)
     cpu.update(segment=(c3 - c2) * 1e3, fit=(c4 - c3) * 1e3)
@@ -356,7 +357,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
             {"width": sW, "height": sH, "depth": sL},
             fit.params[2] + np.pi / 2,
         )
-    aL, aW, aH = fit.ambiguity_mm
+    aL, aW, aH = outline_rivals
     rival = dict(zip(dims, (aL, aH, aW) if L >= W else (aW, aH, aL), strict=True))
     if any(rival[k] > max(1.0, _WARN_RELATIVE_SIGMA * dims[k]) for k in dims):
         warnings.append("another box fits the outline almost as well (" + ", ".join(

@@ -29,7 +29,9 @@ class Registration:
 
     pose : the support plane's pose now. homography : plate pixels -> photo pixels (undistorted).
     shift_px : how far the support moved in the image (median over the photo). source : what it
-    was measured on: "board" (its corners found again), "plate" (the support's texture), "none".
+    was measured on: "board" (its corners found again), "plate" (the support's texture),
+    "unmoved" (the plate's features found where they were: the calibration's pose and the
+    identity kept, the shift what those features moved), "none" (no plate).
     """
 
     pose: PlanePose
@@ -78,7 +80,9 @@ def register(
     camera: CameraModel,
     calibrated: PlanePose,
 ) -> Registration:
-    """The support's pose in `photo` and the plate -> photo homography.
+    """The support's pose in `photo` and the plate -> photo homography: the calibration's as it is
+    where the plate's features are found where they were ("unmoved"), else from the board's
+    corners found again, else from the support's own texture.
 
     photo_u, plate_u : undistorted RGB (H, W, 3) uint8. photo : the photo as taken (the board's
     corners are found there, with the lens model, as at calibration).
@@ -91,12 +95,14 @@ def register(
     K = camera.matrix()
     size = (photo_u.shape[1], photo_u.shape[0])
     H_cal = _plane_h(K, calibrated)
-    if plate_u is not None and _unmoved(plate_u, photo_u):
+    still = None if plate_u is None else _unmoved(plate_u, photo_u)
+    if still is not None:
         # A camera that stayed where it was calibrated (a station's, bolted down): the plate's
         # pose and pixels hold as they are. Re-found board corners, fewer where the part hides
         # them, placed the support 0.3-0.6 px off (up to 2 px: renders of a still camera),
-        # enough for the board's squares to show as part.
-        return Registration(calibrated, np.eye(3), 0.0, "unmoved")
+        # enough for the board's squares to show as part. Its shift is what the still features
+        # moved (under _STILL_PX): measured, not assumed 0.
+        return Registration(calibrated, np.eye(3), still, "unmoved")
     view = find_board_corners(photo, board)
     if view is not None and len(view) >= MIN_PLANE_CORNERS:
         pose = board_pose(view, camera)
@@ -136,10 +142,11 @@ _STILL_BLUR = 1.5  # px, Gaussian sigma
 _STILL_SHARE = 0.5  # of the features tracked: the support's, the part and its shadow hide the rest
 
 
-def _unmoved(plate_u: np.ndarray, photo_u: np.ndarray) -> bool:
-    """Whether most of the plate's features are found again where they were (within _STILL_PX):
-    the camera has not moved since calibration. Tracked from where they were (pyramidal
-    Lucas-Kanade), the photo's levels scaled to the plate's (the light's change)."""
+def _unmoved(plate_u: np.ndarray, photo_u: np.ndarray) -> float | None:
+    """How far the plate's features moved (px, the median of those within _STILL_PX) when most of
+    them are found again where they were: the camera has not moved since calibration; None when
+    it has (or too few features to tell). Tracked from where they were (pyramidal Lucas-Kanade),
+    the photo's levels scaled to the plate's (the light's change)."""
     a = cv2.cvtColor(plate_u, cv2.COLOR_RGB2GRAY)
     b = cv2.cvtColor(photo_u, cv2.COLOR_RGB2GRAY)
     ratio = float(np.median(a)) / max(float(np.median(b)), 1.0)
@@ -150,14 +157,17 @@ def _unmoved(plate_u: np.ndarray, photo_u: np.ndarray) -> bool:
     b = cv2.GaussianBlur(cv2.convertScaleAbs(b, alpha=ratio), (0, 0), _STILL_BLUR)
     found = cv2.goodFeaturesToTrack(a, _TRACK_POINTS, 0.05, 20, blockSize=15)
     if found is None or len(found) < _MIN_TRACKED:
-        return False
+        return None
     corners = np.asarray(found, np.float32)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
     ahead, ok, _ = cv2.calcOpticalFlowPyrLK(a, b, corners, corners.copy(), winSize=(21, 21), maxLevel=1,
                                             criteria=criteria, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
     tracked = ok.ravel() == 1
-    still = tracked & (np.linalg.norm((ahead - corners).reshape(-1, 2), axis=1) < _STILL_PX)
-    return int(still.sum()) >= max(_MIN_TRACKED, _STILL_SHARE * int(tracked.sum()))
+    moved = np.linalg.norm((ahead - corners).reshape(-1, 2), axis=1)
+    still = tracked & (moved < _STILL_PX)
+    if int(still.sum()) < max(_MIN_TRACKED, _STILL_SHARE * int(tracked.sum())):
+        return None
+    return float(np.median(moved[still]))
 
 
 _TRACK_POINTS = 400

@@ -115,3 +115,44 @@ def test_the_reading_adopted_or_taken_as_a_rival():
     assert kept.ambiguity_mm[2] == pytest.approx(reading.height_mm - fit.height_mm)
     assert kept.sigma_mm()[2] >= (reading.height_mm - fit.height_mm) / 2 - 1e-9
     assert "may stand" in words
+
+
+def _silhouette(mirrored: bool):
+    from prismcore.station.segment import Silhouette
+
+    return Silhouette(contour=np.zeros((4, 2)), mask=np.zeros((H, W), bool), contrast=60.0, area_px=1,
+                      warnings=[], difference=np.zeros((2, 2), np.float32), tone=IDENTITY_TONE,
+                      shadow_least=0.25, mirrored=mirrored)
+
+
+def _registration():
+    from prismcore.station.calibrate import PlanePose
+    from prismcore.station.registration import Registration
+
+    pose = PlanePose(rvec=[0.0, 0.0, 0.0], tvec=[0.0, 0.0, 600.0], rms_px=0.1, corners=20)
+    return Registration(pose, np.eye(3), 0.0, "unmoved")
+
+
+def test_the_measurement_takes_the_reading_only_where_the_outline_is_suspect():
+    from prismcore.station.measure import _hidden_sides
+
+    photo, plate, top_px, R, t = _scene(0.5, 40.0, mirrored_sides=True)
+    reg = _registration()
+    # no height from the outline: the reading is the measurement
+    flat = _low_fit(top_px, 0.5, R, t)
+    adopted, words = _hidden_sides(photo, plate, reg, _silhouette(False), flat, K, R, t)
+    assert adopted.height_mm == pytest.approx(40.0, rel=0.1) and "only the part's top" in words
+    # a height the outline gave, part of the outline found where the pattern broke: a rival
+    low = _low_fit(top_px, 10.0, R, t)
+    kept, words = _hidden_sides(photo, plate, reg, _silhouette(True), low, K, R, t)
+    assert np.array_equal(kept.params, low.params) and "may stand" in words
+    # nothing suspect about the outline: untouched
+    same, words = _hidden_sides(photo, plate, reg, _silhouette(False), low, K, R, t)
+    assert same is low and words == ""
+    # a fit with no finite size is left to be refused as degenerate, not read
+    for bad in (np.nan, 800.0):
+        broken = OutlineFit(params=np.array([0.0, 0.0, 0.5, np.log(90.0), bad, np.log(1.0)]),
+                            cov=np.eye(6), residual_px=0.5, outline_px=400)
+        with np.errstate(over="ignore", invalid="ignore"):
+            assert _hidden_sides(photo, plate, reg, _silhouette(True), broken, K, R, t) == (broken, "")
+            assert read_hidden_sides(photo, plate, np.eye(3), IDENTITY_TONE, 0.25, broken, K, R, t) is None

@@ -23,7 +23,7 @@ def test_a_camera_that_did_not_move_keeps_its_calibration(seed):
     reg = register(und.image(sc.photo), und.image(plate), sc.photo, station.board, station.camera,
                    station.plane)
     assert reg.source == "unmoved"
-    assert reg.shift_px == 0.0 and np.array_equal(reg.homography, np.eye(3))
+    assert reg.shift_px < 0.25 and np.array_equal(reg.homography, np.eye(3))
     assert reg.pose == station.plane
 
 
