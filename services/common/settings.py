@@ -104,12 +104,26 @@ class Settings(BaseSettings):
     # (las, laz, glb, step, drawing) go to items with a scale only, and an item left with none
     # gets csv and ply.
     default_formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
+    # The cloud's spacing (mm) for an item in mm (a scale or a station) whose spec names none: one
+    # point per voxel of this size (prismcore.scan.spacing). 0.5 mm is about half the sigma of a
+    # 1280x1024 photo's dimensions (0.8-1.0 mm): finer than anything the measurement tells apart,
+    # yet an eighth of a per-pixel cloud's points (stored ~6 MB a photo, not ~25 MB; the outputs
+    # and their storage cost the service 4x the measurement at one point per pixel,
+    # docs/explanation/throughput.md). An item's own "spacing_mm": null asks for one point per
+    # pixel; PRISM_DEFAULT_SPACING_MM=null makes that every item's default.
+    default_spacing_mm: float | None = Field(default=0.5, gt=0)
 
     @field_validator("webhook_secret")
     @classmethod
     def _webhook_key(cls, secret: SecretStr) -> SecretStr:
         signing_key(secret.get_secret_value())  # a malformed whsec_ secret stops the start
         return secret
+
+    @field_validator("default_spacing_mm", mode="before")
+    @classmethod
+    def _per_pixel(cls, value: object) -> object:
+        # PRISM_DEFAULT_SPACING_MM=null (or empty): one point per pixel, as the engine's default
+        return None if isinstance(value, str) and value.strip().lower() in ("", "null", "none") else value
 
     @field_validator("redis_sentinels", mode="before")
     @classmethod
