@@ -1,6 +1,6 @@
 """The cloud spacing an item gets at submit (`prism_api.routes.jobs._spacing`): its own always
 (an explicit null: one point per pixel); else the operator's PRISM_DEFAULT_SPACING_MM (unset:
-0.5 mm) for an item in mm (a scale, or a station's plane); none for an item in pixels or a
+1 mm) for an item in mm (a scale, or a station's plane); none for an item in pixels or a
 joint fit (no cloud). The stored spec, validated again as the worker reads it, keeps it.
 
 The oracle is the rule written out over every combination, not the function's own code.
@@ -40,9 +40,9 @@ def _settings(**env: Any) -> Settings:
     return Settings(api_keys={"t": "k" * 16}, webhook_secret="x" * 16, **env)
 
 
-def test_the_service_default_is_half_a_millimetre(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_service_default_is_a_millimetre(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("PRISM_DEFAULT_SPACING_MM", raising=False)
-    assert _settings().default_spacing_mm == 0.5
+    assert _settings().default_spacing_mm == 1.0
 
 
 @pytest.mark.parametrize("value", ["null", "", "None"])
