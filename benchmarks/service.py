@@ -1,252 +1,336 @@
-"""Service benchmark: photos through the real stack against the engine alone, side by side.
+"""Service benchmark: a batch through the real stack against the engine alone, side by side.
 
-Starts redis-server, SeaweedFS, a Celery worker (2 processes) and the API on loopback, uploads
-N photos of 1280x1024, submits them as jobs at a steady rate, and prints:
-* images per second end to end (first submit to last job final) and for the engine alone on
-  the same images with the same number of processes (decode, scan, CSV + PLY into memory);
-  their ratio shows the service's overhead (target >= 0.7 with 2 processes on 2 cores);
-* the engine again, storing the same outputs (CSV, PLY, preview, report) into the same
-  SeaweedFS with boto3, no queue: the share of the overhead that is object storage itself
-  (on this machine the store's server shares the 2 cores with the workers);
-* submit latency p50/p99 at the steady request rate, and status-poll latency p50/p99;
-* then the same photos again through the same service for each output mode, side by side:
-  CSV + PLY, compact (LAZ + glb: the service's default for items with a scale, as these have)
-  and compact at a 1 mm spacing: images per second and
-  the bytes stored per photo (every object under the jobs' prefixes: the formats, preview.ply,
-  overlay.png, report.json, job.json), against the issue's ceiling of 4 MB for compact.
+For each batch kind, one run prints the engine alone, the service, their ratio, the worker's CPU
+per photo, the bytes stored per photo, p50/p95 time per item and memory:
 
-Run: .venv/bin/python benchmarks/service.py [--images 200] [--per-job 10] [--rate 20]
+* clicked: N one-photo items of 1280x1024 (rendered boxes, `--distinct` scenes repeated), each
+  with its own seven points and a scale (pinhole distance), submitted as ONE job;
+* station: N photos of parts on one station (`benchmarks/station_batch.py`'s renders, cached
+  under --cache), no points, no scale, ONE job.
+
+The engine alone: the same photos (JPEG bytes in memory), the same number of processes, no queue
+and no store: decode, measure (`run_scan`, or `scan_on_station`) and write the same files the
+service writes for the item (the spec as the service stored it: its default formats and spacing
+applied; the preview, overlay and report.json) into memory. Its CPU per photo is the processes'
+own (`time.process_time`), its time per item each item's wall time.
+
+The service: redis-server, SeaweedFS, the API and a Celery worker of --processes processes on
+loopback (`prism_cli.stack`). Every photo is uploaded first, all at once (N uploads in flight,
+asyncio): the API's resident memory (RSS, its process) is sampled meanwhile, its peak printed.
+Then one job of N items is submitted and polled (items left out) until final: photos per second
+from the submit to the job's end; the worker's CPU (main process and pool, psutil) over that
+time per photo; the bytes stored under the job's prefix per photo; each item's time from the
+worker's log (`prism.plan_item ... succeeded in`: a batch item is measured whole in that task);
+the worker's RSS (all its processes) sampled every 0.5 s: after the first tenth of the batch,
+at its end and its peak, and the pool children's peak.
+
+On a machine shared with other work, absolute figures move; the ratios are measured side by
+side (the service, then at once the engine alone with the spec the service stored, on the same
+cores), so they are what to compare.
+
+    .venv/bin/python benchmarks/service.py [--images 1000] [--kinds clicked,station]
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
 import io
 import json
+import multiprocessing
+import re
 import secrets
+import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import boto3
 import cv2
 import httpx
 import numpy as np
+import psutil  # type: ignore[import-untyped]
 from botocore.client import Config
-from rich.console import Console
-from rich.table import Table
 
-from prism_cli.stack import start_api, start_redis, start_s3, start_worker
-from prismcore import ScanSpec, run_scan
-from prismcore.io.images import load_image
-from prismcore.outputs.writers import write_csv, write_ply
-from prismcore.report import report_dict
-from prismcore.scan.cloud import decimate
+from prism_cli.client import ApiClient
+from prism_cli.stack import ManagedProcess, start_api, start_redis, start_s3, start_worker
 from prismsynth import Box, render_oblique_view
 
+sys.path.insert(0, str(Path(__file__).parent))
+from station_batch import render as render_station  # the station's photos and station.json
+
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
-PROCESSES = 2
-STORE_BUCKET = "bench-engine"
-SERVICE_BUCKET = "prismcloud"  # the service's default bucket
-# Output modes: what each item of a run adds to its spec.
-# The first is the one compared with the engine alone (which writes CSV and PLY too).
-MODES = {"csv + ply": {"formats": ["csv", "ply"]},
-         "compact (laz + glb, the default)": {},
-         "compact, 1 mm spacing": {"spacing_mm": 1.0}}
-COMPACT_MAX_BYTES = 4_000_000
+BUCKET = "prismcloud"  # the service's default bucket
+TARGET = 0.8  # service / engine (issue 38)
+CPU_TARGET = 1.5  # worker CPU / engine CPU per photo
+TASK_LINE = re.compile(r"Task prism\.plan_item\[[^\]]+\] succeeded in ([0-9.]+)s")
 
 
-def _scenes(count: int) -> list[tuple[bytes, dict]]:
-    out = []
-    for seed in range(count):
+# -- the photos ---------------------------------------------------------------------------------
+def clicked_work(count: int, distinct: int) -> list[tuple[bytes, dict[str, Any]]]:
+    """(JPEG bytes, the item without its image) per photo: rendered boxes with their points."""
+    scenes = []
+    for seed in range(distinct):
         box = Box(80 + 20 * (seed % 4), 60 + 15 * (seed % 3), 40 + 10 * (seed % 5))
         scene = render_oblique_view(box, seed=seed)
         _, jpeg = cv2.imencode(".jpg", cv2.cvtColor(scene.image, cv2.COLOR_RGB2BGR),
-                                [cv2.IMWRITE_JPEG_QUALITY, 90])
-        item = {"points": [list(map(round, scene.points[n])) for n in NAMES],
-                "focal_px": scene.focal_px,
-                "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm}}
-        out.append((jpeg.tobytes(), item))
-    return out
+                               [cv2.IMWRITE_JPEG_QUALITY, 90])
+        scenes.append((jpeg.tobytes(), {"points": [list(map(round, scene.points[n])) for n in NAMES],
+                                        "focal_px": scene.focal_px,
+                                        "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm}}))
+    return [scenes[i % len(scenes)] for i in range(count)]
 
 
-def _engine_one(args: tuple[bytes, dict]) -> int:
-    data, item = args
-    result = run_scan(ScanSpec.model_validate({"image": "x", **item}), load_image(data))
-    write_csv(io.BytesIO(), result.cloud.points)
-    write_ply(io.BytesIO(), result.cloud.points, result.cloud.colors)
-    return result.report.points or 0
+def station_work(count: int, distinct: int, cache: Path) -> tuple[list[tuple[bytes, dict[str, Any]]], Path]:
+    photos, _ = render_station(distinct, cache)
+    data = [p.read_bytes() for p in photos]
+    return [(data[i % len(data)], {}) for i in range(count)], photos[0].parent.parent / "station.json"
 
 
-_STORE: list = []  # the boto3 client of an engine-and-store process
+# -- the engine alone ---------------------------------------------------------------------------
+class _Memory:
+    """A `prismcore.outputs.sink.Sink` into memory: counts the bytes."""
+
+    def __init__(self) -> None:
+        self.bytes = 0
+
+    def put(self, name: str, data: Any, media_type: str) -> None:
+        if isinstance(data, bytes):
+            self.bytes += len(data)
+            return
+        buf = io.BytesIO()
+        data(buf)
+        self.bytes += buf.tell()
 
 
-def _store_init(endpoint: str, key_id: str, secret: str) -> None:
-    _STORE.append(boto3.client("s3", endpoint_url=endpoint, region_name="us-east-1",
-                               aws_access_key_id=key_id, aws_secret_access_key=secret,
-                               config=Config(signature_version="s3v4",
-                                             s3={"addressing_style": "path"})))
+_STATION: list[Any] = []
 
 
-def _engine_and_store_one(args: tuple[int, bytes, dict]) -> int:
-    n, data, item = args
-    result = run_scan(ScanSpec.model_validate({"image": "x", **item}), load_image(data))
-    preview = decimate(result.cloud)
-    for name, write in (("cloud.csv", lambda f: write_csv(f, result.cloud.points)),
-                        ("cloud.ply", lambda f: write_ply(f, result.cloud.points, result.cloud.colors)),
-                        ("preview.ply", lambda f: write_ply(f, preview.points, preview.colors)),
-                        ("report.json", lambda f: f.write(json.dumps(report_dict(result.report)).encode()))):
-        body = io.BytesIO()
-        write(body)
-        body.seek(0)
-        _STORE[0].put_object(Bucket=STORE_BUCKET, Key=f"engine/{n}/{name}", Body=body)
-    return result.report.points or 0
+def _engine_init(station_file: str | None) -> None:
+    cv2.setNumThreads(1)  # as the worker's pool processes
+    if station_file:
+        from prismcore.station import Station
+
+        _STATION.append(Station.model_validate_json(Path(station_file).read_text()))
 
 
-def engine_alone(work: list[tuple[bytes, dict]], store: tuple[str, str, str] | None = None) -> float:
-    """Images per second with PROCESSES engine processes, no queue; with `store` (endpoint,
-    key id, secret) each process also puts its outputs into that S3 store."""
-    one, init = (_engine_one, None) if store is None else (_engine_and_store_one, _store_init)
-    jobs = list(work) if store is None else [(n, *w) for n, w in enumerate(work)]
-    with ProcessPoolExecutor(PROCESSES, initializer=init, initargs=store or ()) as pool:
-        list(pool.map(one, jobs[:PROCESSES]))  # warm the processes up
+def _engine_one(args: tuple[bytes, dict[str, Any]]) -> tuple[float, float, int]:
+    """What `prism scan` does with the item, into memory: (wall s, CPU s, bytes written)."""
+    data, spec_doc = args
+    try:
+        return _measure_one(data, spec_doc)
+    except Exception as exc:  # as text: an exception that does not pickle would hang the pool
+        raise RuntimeError(f"engine: {exc!r}") from None
+
+
+def _measure_one(data: bytes, spec_doc: dict[str, Any]) -> tuple[float, float, int]:
+    from prismcore import ScanSpec, run_scan
+    from prismcore.io.images import load_image
+    from prismcore.outputs.sink import write_outputs
+    from prismcore.station.scan import scan_on_station
+
+    wall, cpu = time.perf_counter(), time.process_time()
+    photo = load_image(data)
+    sink = _Memory()
+    if _STATION:
+        extra = {k: v for k, v in spec_doc.items() if k in ("formats", "spacing_mm")}
+        done = scan_on_station(photo, _STATION[0], "photo", extra)
+        if done.result is not None and done.spec is not None:
+            write_outputs(done.result, sink, spec=done.spec, images=[photo], preview=True,
+                          overlay_max_side=800)
+    else:
+        spec = ScanSpec.model_validate({**spec_doc, "image": "x"})
+        write_outputs(run_scan(spec, photo), sink, spec=spec, images=[photo], preview=True,
+                      overlay_max_side=800)
+    return time.perf_counter() - wall, time.process_time() - cpu, sink.bytes
+
+
+def engine_alone(work: list[tuple[bytes, dict[str, Any]]], processes: int,
+                 station_file: Path | None) -> dict[str, Any]:
+    # spawned, not forked: this process has threads (the samplers, httpx) whose locks a fork copies
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(processes, mp_context=spawn, initializer=_engine_init,
+                             initargs=(str(station_file) if station_file else None,)) as pool:
+        list(pool.map(_engine_one, work[:processes]))  # warm the processes up
         start = time.perf_counter()
-        list(pool.map(one, jobs))
-        return len(work) / (time.perf_counter() - start)
+        runs = list(pool.map(_engine_one, work, chunksize=4))
+        elapsed = time.perf_counter() - start
+    return {"rate": len(work) / elapsed, "item_s": [r[0] for r in runs],
+            "cpu_s": sum(r[1] for r in runs) / len(work), "bytes": sum(r[2] for r in runs) / len(work)}
 
 
-def through_service(work: list[tuple[bytes, dict]], per_job: int, rate: float, tmp: Path) -> dict:
+# -- the service --------------------------------------------------------------------------------
+def _tree(proc: ManagedProcess) -> list[psutil.Process]:
+    assert proc.proc is not None
+    root = psutil.Process(proc.proc.pid)
+    return [root, *root.children(recursive=True)]
+
+
+def _cpu_s(proc: ManagedProcess) -> float:
+    total = 0.0
+    for p in _tree(proc):
+        try:
+            t = p.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        total += t.user + t.system + t.children_user + t.children_system
+    return total
+
+
+class _Rss(threading.Thread):
+    """Samples a process tree's resident memory (MB): the sum over its processes, and the
+    largest single process but the root (the worker's pool children)."""
+
+    def __init__(self, proc: ManagedProcess, period_s: float) -> None:
+        super().__init__(daemon=True)
+        self.proc, self.period_s = proc, period_s
+        self.samples: list[tuple[float, float, float]] = []  # (time, total MB, largest child MB)
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.is_set():
+            rss = []
+            for p in _tree(self.proc):
+                try:
+                    rss.append(p.memory_info().rss / 2**20)
+                except psutil.NoSuchProcess:
+                    continue
+            self.samples.append((time.perf_counter(), sum(rss), max(rss[1:], default=0.0)))
+            self.done.wait(self.period_s)
+
+    def stop(self) -> list[tuple[float, float, float]]:
+        self.done.set()
+        self.join()
+        return self.samples
+
+
+async def _upload_all(base: str, key: str, work: list[tuple[bytes, dict[str, Any]]]) -> list[str]:
+    """Every photo uploaded at once: len(work) requests in flight."""
+    limits = httpx.Limits(max_connections=len(work), max_keepalive_connections=len(work))
+    async with httpx.AsyncClient(base_url=base, headers={"X-API-Key": key}, timeout=600,
+                                 limits=limits) as http:
+        async def one(n: int, data: bytes) -> str:
+            reply = await http.post("/v1/uploads", files={"file": (f"photo-{n:04d}.jpg", data)})
+            reply.raise_for_status()
+            return str(reply.json()["reference"])
+        return list(await asyncio.gather(*(one(n, data) for n, (data, _) in enumerate(work))))
+
+
+def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tmp: Path,
+                    station_file: Path | None) -> dict[str, Any]:
     key = secrets.token_urlsafe(16)
     creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
-    redis = start_redis(tmp / "redis")
-    s3 = start_s3(tmp / "s3", *creds)
+    procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
     try:
-        endpoint = f"http://127.0.0.1:{s3.port}"
-        _store_init(endpoint, *creds)
-        _STORE.pop().create_bucket(Bucket=STORE_BUCKET)
-        engine_store_rate = engine_alone(work, (endpoint, *creds))
-    except BaseException:
-        s3.stop()
-        redis.stop()
-        raise
-    env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
-           "PRISM_REDIS_URL": f"redis://127.0.0.1:{redis.port}/0",
-           "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{s3.port}",
-           "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
-    procs = [redis, s3, start_api(tmp / "api", env), start_worker(tmp / "w", env, PROCESSES)]
-    try:
-        http = httpx.Client(base_url=f"http://127.0.0.1:{procs[2].port}", timeout=60,
-                            headers={"X-API-Key": key})
-        refs = [http.post("/v1/uploads", files={"file": ("p.jpg", data)}).json()["reference"]
-                for data, _ in work]
-        _store_init(endpoint, *creds)
-        s3_client = _STORE.pop()
-        runs = {}
-        for mode, extra in MODES.items():
-            runs[mode] = _run(http, refs, work, per_job, rate, extra)
-            runs[mode]["bytes_per_photo"] = sum(
-                _stored_bytes(s3_client, job_id) for job_id in runs[mode]["jobs"]) / len(work)
-            if mode == next(iter(MODES)):  # the first mode's task figures, before others mix in
-                runs[mode]["tasks"] = _task_means(http.get("/metrics").text)
-        return {**runs[next(iter(MODES))], "modes": runs, "engine_store_rate": engine_store_rate}
+        env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
+               "PRISM_REDIS_URL": f"redis://127.0.0.1:{procs[0].port}/0",
+               "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{procs[1].port}",
+               "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+        procs.append(start_api(tmp / "api", env))
+        procs.append(start_worker(tmp / "w", env, processes))
+        api, worker = procs[2], procs[3]
+        base = f"http://127.0.0.1:{api.port}"
+        api_rss = _Rss(api, 0.1)
+        api_rss.start()
+        t = time.perf_counter()
+        refs = asyncio.run(_upload_all(base, key, work))
+        upload_s = time.perf_counter() - t
+        api_upload = api_rss.stop()
+        with ApiClient(base, key, timeout=600) as client:
+            extra = {"station": client.create_station(station_file, name="bench").id} if station_file else {}
+            items = [{"image": ref, **item, **extra} for ref, (_, item) in zip(refs, work, strict=True)]
+            worker_rss = _Rss(worker, 0.5)
+            worker_rss.start()
+            others0 = [_cpu_s(p) for p in procs[:3]]  # redis, the store, the API
+            cpu0, start = _cpu_s(worker), time.perf_counter()
+            job_id = client.submit({"items": items}).id
+            final = client.wait(job_id, timeout=6 * 3600, poll_s=0.5)
+            elapsed, cpu = time.perf_counter() - start, _cpu_s(worker) - cpu0
+            others = [(_cpu_s(p) - c) / len(work) for p, c in zip(procs[:3], others0, strict=True)]
+            rss = worker_rss.stop()
+        s3 = boto3.client("s3", endpoint_url=env["PRISM_S3_ENDPOINT_URL"], region_name="us-east-1",
+                          aws_access_key_id=creds[0], aws_secret_access_key=creds[1],
+                          config=Config(signature_version="s3v4", s3={"addressing_style": "path"}))
+        stored = sum(obj["Size"] for page in s3.get_paginator("list_objects_v2").paginate(
+            Bucket=BUCKET, Prefix=f"jobs/{job_id}/") for obj in page.get("Contents", []))
+        # the item's spec as stored (the service's defaults applied): the job's final document
+        job_doc = json.loads(s3.get_object(Bucket=BUCKET, Key=f"jobs/{job_id}/job.json")["Body"].read())
+        spec = job_doc["items"][0]["spec"]
+        log = (tmp / "w" / "server.log").read_text(errors="replace")
+        return {"rate": len(work) / elapsed, "cpu_s": cpu / len(work), "bytes": stored / len(work),
+                "item_s": [float(m) for m in TASK_LINE.findall(log)], "failed": final.items_failed,
+                "done": final.items_done, "upload_s": upload_s, "api_rss": api_upload,
+                "worker_rss": rss, "spec": spec, "redis_cpu_s": others[0], "store_cpu_s": others[1],
+                "api_cpu_s": others[2]}
     finally:
         for proc in reversed(procs):
             proc.stop()
 
 
-def _run(http: httpx.Client, refs: list[str], work: list[tuple[bytes, dict]], per_job: int,
-         rate: float, extra: dict) -> dict:
-    """Submit every photo (`extra` added to each item) at a steady rate, wait for every job."""
-    jobs, submit_ms = [], []
-    start = time.perf_counter()
-    for n, first in enumerate(range(0, len(work), per_job)):
-        time.sleep(max(0.0, start + n / rate - time.perf_counter()))  # steady rate
-        items = [{"image": ref, **item, **extra} for ref, (_, item) in
-                 zip(refs[first:first + per_job], work[first:first + per_job], strict=True)]
-        t = time.perf_counter()
-        response = http.post("/v1/jobs", json={"items": items})
-        submit_ms.append((time.perf_counter() - t) * 1000)
-        jobs.append(response.json()["id"])
-    poll_ms, pending = [], set(jobs)
-    while pending:
-        for job_id in list(pending):
-            t = time.perf_counter()
-            state = http.get(f"/v1/jobs/{job_id}").json()["state"]
-            poll_ms.append((time.perf_counter() - t) * 1000)
-            if state in ("succeeded", "failed", "cancelled"):
-                pending.discard(job_id)
-        time.sleep(1.0)  # a client polls each job about once a second
-    elapsed = time.perf_counter() - start
-    failed = sum(item["state"] != "succeeded" for job_id in jobs
-                 for item in http.get(f"/v1/jobs/{job_id}").json()["items"])
-    return {"images_per_s": len(work) / elapsed, "submit_ms": submit_ms, "poll_ms": poll_ms,
-            "failed_items": failed, "jobs": jobs}
+def _engine_spec(stored: dict[str, Any]) -> dict[str, Any]:
+    """What the service's defaults added to the item (its formats and spacing), for the engine."""
+    return {k: stored[k] for k in ("formats", "spacing_mm") if stored.get(k) is not None}
 
 
-def _stored_bytes(s3_client, job_id: str) -> int:
-    """Bytes of every object under the job's prefix in the service's bucket."""
-    total = 0
-    for page in s3_client.get_paginator("list_objects_v2").paginate(Bucket=SERVICE_BUCKET,
-                                                                   Prefix=f"jobs/{job_id}/"):
-        total += sum(obj["Size"] for obj in page.get("Contents", []))
-    return total
+# -- the report ---------------------------------------------------------------------------------
+def _pct(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q)) * 1000 if values else float("nan")
 
 
-def _task_means(metrics: str) -> dict[str, tuple[int, float]]:
-    """{task: (runs, mean ms)} from the API's Prometheus text."""
-    sums, counts = {}, {}
-    for line in metrics.splitlines():
-        if line.startswith("prism_task_duration_seconds_sum"):
-            sums[line.split('"')[1]] = float(line.split()[-1])
-        elif line.startswith("prism_task_duration_seconds_count"):
-            counts[line.split('"')[1]] = float(line.split()[-1])
-    return {t: (int(counts[t]), 1000 * sums[t] / counts[t]) for t in sums if counts.get(t)}
+def report(kind: str, n: int, processes: int, engine: dict[str, Any], service: dict[str, Any]) -> None:
+    spec = service["spec"]
+    ratio, cpu_ratio = service["rate"] / engine["rate"], service["cpu_s"] / engine["cpu_s"]
+    rss = service["worker_rss"]
+    t0, t1 = rss[0][0], rss[-1][0]
+    early = next(s for s in rss if s[0] >= t0 + 0.1 * (t1 - t0))
+    print(f"\n{kind}: {n} photos of 1280x1024, one job, {processes} worker processes; outputs "
+          f"{spec.get('formats')} at spacing_mm {spec.get('spacing_mm')} (the service's defaults)")
+    print(f"  engine alone          {engine['rate']:7.2f} photos/s   "
+          f"CPU {1000 * engine['cpu_s']:5.0f} ms a photo   {engine['bytes'] / 1e6:6.2f} MB written   "
+          f"item p50/p95 {_pct(engine['item_s'], 50):.0f} / "
+          f"{_pct(engine['item_s'], 95):.0f} ms")
+    print(f"  through the service   {service['rate']:7.2f} photos/s   "
+          f"CPU {1000 * service['cpu_s']:5.0f} ms a photo   {service['bytes'] / 1e6:6.2f} MB stored    "
+          f"item p50/p95 {_pct(service['item_s'], 50):.0f} / "
+          f"{_pct(service['item_s'], 95):.0f} ms ({len(service['item_s'])} tasks)")
+    print(f"  service / engine      {ratio:7.2f}   (target >= {TARGET})")
+    print(f"  worker CPU / engine   {cpu_ratio:7.2f}   (target <= {CPU_TARGET}; worker, all processes)")
+    print("  besides the worker    CPU ms a photo: the store's server "
+          f"{1000 * service['store_cpu_s']:.0f}, Redis {1000 * service['redis_cpu_s']:.0f}, "
+          f"the API {1000 * service['api_cpu_s']:.0f} (same cores)")
+    print(f"  items done / failed   {service['done']} / {service['failed']}")
+    print(f"  worker RSS MB         after a tenth {early[1]:.0f}, at the end {rss[-1][1]:.0f}, peak "
+          f"{max(s[1] for s in rss):.0f} (all processes); largest pool process peak "
+          f"{max(s[2] for s in rss):.0f}, after a tenth {early[2]:.0f}, at the end {rss[-1][2]:.0f}")
+    api = service["api_rss"]
+    print(f"  API RSS MB            {api[0][1]:.0f} before, peak {max(s[1] for s in api):.0f} "
+          f"with {n} uploads in flight ({service['upload_s']:.0f} s for all), {api[-1][1]:.0f} after")
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--images", type=int, default=200)
-    parser.add_argument("--per-job", type=int, default=10)
-    parser.add_argument("--rate", type=float, default=20.0, help="job submissions per second")
-    parser.add_argument("--distinct", type=int, default=8, help="distinct rendered scenes")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--images", type=int, default=1000)
+    parser.add_argument("--kinds", default="clicked,station")
+    parser.add_argument("--distinct", type=int, default=8, help="distinct photos of each kind")
+    parser.add_argument("--processes", type=int, default=2, help="engine processes and worker pool")
+    parser.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "prism-station-batch")
     args = parser.parse_args()
-    scenes = _scenes(args.distinct)
-    work = [scenes[i % len(scenes)] for i in range(args.images)]
-    engine_rate = engine_alone(work)
-    with tempfile.TemporaryDirectory() as tmp:
-        service = through_service(work, args.per_job, args.rate, Path(tmp))
-    table = Table(title=f"{args.images} photos of 1280x1024, {PROCESSES} processes on "
-                        f"{PROCESSES} workers")
-    for col in ("measure", "value"):
-        table.add_column(col)
-    table.add_row("engine alone, images/s", f"{engine_rate:.2f}")
-    table.add_row("through the service, images/s", f"{service['images_per_s']:.2f}")
-    table.add_row("service / engine (target >= 0.7)", f"{service['images_per_s'] / engine_rate:.2f}")
-    store_rate = service["engine_store_rate"]
-    table.add_row("engine + outputs into the same S3 store, no queue, images/s", f"{store_rate:.2f}")
-    table.add_row("  of which storage: (engine + store) / engine", f"{store_rate / engine_rate:.2f}")
-    table.add_row("  the queue's own: service / (engine + store)",
-                  f"{service['images_per_s'] / store_rate:.2f}")
-    for name in ("submit_ms", "poll_ms"):
-        values = np.array(service[name])
-        table.add_row(f"{name[:-3]} latency p50 / p99 ms ({len(values)} requests)",
-                      f"{np.percentile(values, 50):.1f} / {np.percentile(values, 99):.1f}")
-    table.add_row("failed items", str(service["failed_items"]))
-    for task, (runs, mean_ms) in sorted(service["tasks"].items()):
-        table.add_row(f"worker task {task}: runs, mean ms", f"{runs}, {mean_ms:.0f}")
-    Console().print(table)
-    modes = Table(title="Output modes through the same service, one run each (bytes stored per photo: "
-                        f"every object of its jobs; compact ceiling {COMPACT_MAX_BYTES / 1e6:g} MB)")
-    for col in ("outputs", "images/s", "MB stored per photo", "failed items"):
-        modes.add_column(col)
-    for mode, run in service["modes"].items():
-        too_big = run["bytes_per_photo"] > COMPACT_MAX_BYTES and "compact" in mode
-        over = " (over the ceiling)" if too_big else ""
-        modes.add_row(mode, f"{run['images_per_s']:.2f}", f"{run['bytes_per_photo'] / 1e6:.2f}{over}",
-                      str(run["failed_items"]))
-    Console().print(modes)
-
+    kinds = args.kinds.split(",")
+    if unknown := set(kinds) - {"clicked", "station"}:
+        raise SystemExit(f"unknown kinds {sorted(unknown)}: clicked, station")
+    # Every photo first: a fork after the samplers' threads ran could deadlock the render pool.
+    works = {"clicked": (clicked_work(args.images, args.distinct), None) if "clicked" in kinds else None,
+             "station": station_work(args.images, args.distinct, args.cache) if "station" in kinds else None}
+    for kind in kinds:
+        work, station_file = works[kind]  # type: ignore[misc]
+        with tempfile.TemporaryDirectory() as tmp:
+            service = through_service(work, args.processes, Path(tmp), station_file)
+        spec = _engine_spec(service["spec"])
+        engine = engine_alone([(data, {**item, **spec}) for data, item in work], args.processes, station_file)
+        report(kind, args.images, args.processes, engine, service)
 
 if __name__ == "__main__":
     main()

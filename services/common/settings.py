@@ -104,12 +104,26 @@ class Settings(BaseSettings):
     # (las, laz, glb, step, drawing) go to items with a scale only, and an item left with none
     # gets csv and ply.
     default_formats: list[OutputFormat] = Field(default_factory=lambda: list(_DEFAULT_FORMATS), min_length=1)
+    # The cloud's spacing (mm) for an item in mm (a scale or a station) whose spec names none: one
+    # point per voxel of this size (prismcore.scan.spacing). 1 mm is about the sigma of a 1280x1024
+    # photo's dimensions (0.8-1.0 mm): the cloud is as fine as the measurement it comes with, at a
+    # twentieth of a per-pixel cloud's points (1.9 MB stored a photo, not 24.8 MB: at one point
+    # per pixel the outputs and their storage held the service to 0.25 of the engine,
+    # docs/explanation/throughput.md). An item's own "spacing_mm": null asks for one point per
+    # pixel; PRISM_DEFAULT_SPACING_MM=null makes that every item's default.
+    default_spacing_mm: float | None = Field(default=1.0, gt=0)
 
     @field_validator("webhook_secret")
     @classmethod
     def _webhook_key(cls, secret: SecretStr) -> SecretStr:
         signing_key(secret.get_secret_value())  # a malformed whsec_ secret stops the start
         return secret
+
+    @field_validator("default_spacing_mm", mode="before")
+    @classmethod
+    def _per_pixel(cls, value: object) -> object:
+        # PRISM_DEFAULT_SPACING_MM=null (or empty): one point per pixel, as the engine's default
+        return None if isinstance(value, str) and value.strip().lower() in ("", "null", "none") else value
 
     @field_validator("redis_sentinels", mode="before")
     @classmethod

@@ -271,7 +271,8 @@ class ScanSpec(_Strict):
         "prism scan and the engine write csv and ply.")
     spacing_mm: PositiveMm | None = Field(
         default=None, description="Thin the cloud so neighbouring points are about this far apart, "
-        "mm (one point per voxel of this size); default: one point per pixel. Needs a scale.")
+        "mm (one point per voxel of this size); default: one point per pixel (the service's: 1 mm, "
+        "PRISM_DEFAULT_SPACING_MM, where in mm; null: per pixel). Needs a scale.")
     nominal: tuple[PositiveMm, PositiveMm, PositiveMm] | None = Field(
         default=None, description="Nominal width, height and depth of the part, mm: the report's "
         "quality block gives each dimension's deviation and a pass/fail/uncertain verdict. Needs "

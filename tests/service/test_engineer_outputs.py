@@ -21,7 +21,7 @@ import pytest
 
 from prism_cli.main import main
 from prism_cli.stack import start_api, start_worker
-from prismcore import ScanSpec, run_scan
+from prismcore import run_scan
 from prismcore.io.images import load_image
 from prismcore.outputs.writers import write_format
 from prismcore.report import report_dict
@@ -29,6 +29,7 @@ from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS
 from .servers import service_env
+from .worker_env import as_stored
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -112,7 +113,7 @@ def test_laz_and_glb_download_and_read_back_as_the_engine_writes_them(finished, 
     job, items = finished
     item = job["items"][0]
     assert set(item["downloads"]) == {"laz", "glb", "preview", "overlay", "report"}
-    spec = ScanSpec.model_validate(items[0])
+    spec = as_stored(items[0])  # the service's default spacing applied
     local = run_scan(spec, load_image(photo))
     laz = httpx.get(item["downloads"]["laz"]).content
     las = laspy.read(io.BytesIO(laz))
@@ -146,7 +147,7 @@ def test_default_formats_apply_only_where_the_spec_names_none(finished):
 
 def test_verdicts_per_item_and_counted_on_the_job(stack, finished, photo):
     job, items = finished
-    local = run_scan(ScanSpec.model_validate(items[0]), load_image(photo))
+    local = run_scan(as_stored(items[0]), load_image(photo))
     first, wide, plain = (i["result"]["quality"] for i in job["items"])
     assert first == report_dict(local.report)["quality"] and first["verdict"] in ("pass", "uncertain")
     assert wide["verdict"] == "fail" and wide["dimensions"]["width"]["verdict"] == "fail"

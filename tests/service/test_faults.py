@@ -31,6 +31,7 @@ from prismsynth import Box, render_oblique_view
 
 from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene
+from .worker_env import as_stored
 
 TILES_PER_FACE = 4
 RETRY_WAITS = re.compile(r"Task \S+\[([0-9a-f-]+)\] retry: Retry in (\d+(?:\.\d+)?)s")  # task id, wait
@@ -71,7 +72,7 @@ def test_worker_sigkilled_mid_tiles_gives_exactly_the_outputs(stack, figures):
     job = stack.wait([job_id], timeout=120)[job_id]
     assert job["state"] == "succeeded" and [i["state"] for i in job["items"]] == ["succeeded"] * 3, job
 
-    spec = ScanSpec.model_validate(spec_dict)
+    spec = as_stored(spec_dict)  # the service's default spacing applied
     local = run_scan(spec, load_image(photo))
     expected = {}
     for kind in ("csv", "ply"):

@@ -14,11 +14,12 @@ from collections import Counter
 
 import pytest
 
-from prismcore import ScanSpec, run_scan
+from prismcore import run_scan
 from prismcore.io.images import load_image
 
 from .conftest import API_KEYS
 from .faultstack import FaultStack, item, png, tiny_scene
+from .worker_env import as_stored
 
 JOBS, CLIENTS, KILL_AFTER = 1000, 4, 300
 OUTPUTS = {"cloud.csv", "cloud.ply", "overlay.jpg", "report.json"}  # the default outputs
@@ -54,7 +55,7 @@ def test_soak(stack, figures):
         corrupt = stack.upload(damaged, "cut.png", tenant)  # whole, but its pixel data corrupt
         bad[tenant] = {"corrupt": {**specs[tenant][0], "image": corrupt},
                        "points": {**specs[tenant][1], "max_points": 10}}
-    points = [run_scan(ScanSpec.model_validate(s), load_image(p)).report.points
+    points = [run_scan(as_stored(s), load_image(p)).report.points
               for s, p in zip(specs["acme"], photos, strict=True)]
     # idempotency key -> (kind, photo, tenant, items); client c sends keys[c::CLIENTS]
     plan: dict[str, tuple[str, int, str, list[dict]]] = {}

@@ -21,7 +21,7 @@ from prism_common.public import JobPublic
 
 from prism_cli.client import ApiClient
 from prism_cli.stack import ManagedProcess, start_api, start_worker
-from prismcore import ScanSpec, run_scan
+from prismcore import run_scan
 from prismcore.io.images import load_image
 from prismcore.report import report_dict
 from prismcore.spec import frame_folder
@@ -29,7 +29,7 @@ from prismsynth import Box, render_clip, render_oblique_view, write_video
 
 from .conftest import API_KEYS
 from .servers import service_env
-from .worker_env import wait_no_task
+from .worker_env import as_stored, wait_no_task
 
 BOX = Box(120.0, 80.0, 60.0)
 NAMES = ("p1", "p2", "p3", "p4", "p5", "p6", "p7")
@@ -115,13 +115,13 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
         dims = item["result"]["dimensions"]
         assert abs(dims["width"] / box.width_mm - 1) < 0.02, dims
         assert abs(dims["depth"] / box.depth_mm - 1) < 0.02, dims
-    # The service's result is exactly the engine's own on the same input.
+    # The service's result is exactly the engine's own on the same input (as stored: its spacing).
     first, other = job["items"]
     assert set(first["downloads"]) == {"laz", "glb", "preview", "overlay", "report"}
     assert set(other["downloads"]) == {"csv", "ply", "preview", "overlay", "report"}
     las = laspy.read(io.BytesIO(httpx.get(first["downloads"]["laz"]).content))
     report = httpx.get(first["downloads"]["report"]).json()
-    local = run_scan(ScanSpec.model_validate(_item("x", scene)), load_image(photo))
+    local = run_scan(as_stored(_item("x", scene)), load_image(photo))
     assert report["points"] == report_dict(local.report)["points"] == las.header.point_count
     assert report["dimensions"] == report_dict(local.report)["dimensions"]
     # LAS's axes written out here (metres, Z up: x, z, -y), to its 0.1 mm grid.
@@ -133,7 +133,7 @@ def test_two_image_batch_outputs_download_and_match_the_engine(stack, scene):
     np.testing.assert_array_equal(rgb, local.cloud.colors)
     csv = np.loadtxt(io.BytesIO(httpx.get(other["downloads"]["csv"]).content), delimiter=",")
     ply = PlyData.read(io.BytesIO(httpx.get(other["downloads"]["ply"]).content))["vertex"]
-    local = run_scan(ScanSpec.model_validate(_item("x", scene2)), load_image(second))
+    local = run_scan(as_stored(_item("x", scene2)), load_image(second))
     assert other["result"]["points"] == report_dict(local.report)["points"] == csv.shape[0] == ply.count
     np.testing.assert_array_equal(np.column_stack([ply["x"], ply["y"], ply["z"]]),
                                   local.cloud.points)

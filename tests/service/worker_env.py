@@ -166,3 +166,14 @@ def spec_for(reference: str, scene, **extra) -> ScanSpec:
         "image": reference, "points": [list(map(round, scene.points[n])) for n in NAMES],
         "focal_px": scene.focal_px, "scale": {"kind": "pinhole", "distance_mm": scene.distance_mm},
         **extra})
+
+
+DEFAULT_SPACING_MM = Settings.model_fields["default_spacing_mm"].default
+
+
+def as_stored(item: dict) -> ScanSpec:
+    """The item's spec as the API stores it when no PRISM_DEFAULT_SPACING_MM is set: an item with
+    a scale and no spacing of its own gets the service's default spacing (routes/jobs._spacing)."""
+    if "spacing_mm" not in item and ("scale" in item or "station" in item):
+        item = {**item, "spacing_mm": DEFAULT_SPACING_MM}
+    return ScanSpec.model_validate(item)

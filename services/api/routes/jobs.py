@@ -108,11 +108,12 @@ def create_job(job_in: JobCreate, response: Response, tenant: TenantDep, setting
 
 
 def _record(index: int, spec: ScanSpec, settings: Settings, uploads: dict[str, str | None]) -> ItemRecord:
-    """The item as stored: its spec (the service's pixel cap and formats applied) and the name its
-    image was sent under (an upload's; an https URL's last segment)."""
-    return ItemRecord(index=index, spec=spec.model_copy(
-        update={"max_pixels": min(spec.max_pixels, settings.max_pixels),
-                "formats": _formats(spec, settings.default_formats)}), file_name=_file_name(spec, uploads))
+    """The item as stored: its spec (the service's pixel cap, formats and spacing applied) and the
+    name its image was sent under (an upload's; an https URL's last segment)."""
+    update = {"max_pixels": min(spec.max_pixels, settings.max_pixels),
+              "formats": _formats(spec, settings.default_formats),
+              "spacing_mm": _spacing(spec, settings.default_spacing_mm)}
+    return ItemRecord(index=index, spec=spec.model_copy(update=update), file_name=_file_name(spec, uploads))
 
 
 def _file_name(item: ScanSpec, uploads: dict[str, str | None]) -> str | None:
@@ -135,6 +136,15 @@ def _formats(spec: ScanSpec, defaults: list[OutputFormat]) -> list[OutputFormat]
     scaled = spec.scale is not None or spec.station is not None  # a station's plane gives the mm
     usable = [f for f in defaults if scaled or f not in METRIC_FORMATS]
     return usable or ["csv", "ply"]
+
+
+def _spacing(spec: ScanSpec, default: float | None) -> float | None:
+    """The item's cloud spacing (mm): its own (an explicit null: one point per pixel), else the
+    operator's default for an item in mm (a scale, or a station's plane), else none. A joint fit
+    makes no cloud and keeps the spec's own (the spec allows no other)."""
+    if "spacing_mm" in spec.model_fields_set or KINDS[spec.kind].own_formats:
+        return spec.spacing_mm
+    return default if spec.scale is not None or spec.station is not None else None
 
 
 def _location(base_url: str | None, job_id: str) -> str:
