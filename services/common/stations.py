@@ -6,7 +6,7 @@ public summary (`StationPublic`), small enough to be read for a listing or a job
 without the plate. The summary is written last, so a station is listed (and usable) only once
 both are stored; deleting removes the summary first. Keys hold the tenant's hash: another
 tenant's id names nothing. Stations are not swept by the retention: they stay until deleted.
-``verifications/{date}-{id}.json`` beside them keep the station's verifications with a reference
+``verifications/{date}-{ns}-{id}.json`` beside them keep the station's verifications with a reference
 part (`VerificationPublic`, its history), the last one also in station.json and, in short, the
 summary; deleting the station deletes them.
 
@@ -17,6 +17,7 @@ The API writes and deletes stations (`prism_api.routes.stations`); the worker re
 from __future__ import annotations
 
 import re
+import time
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -177,8 +178,9 @@ def verification_prefix(tenant: str, station_id: str) -> str:
 
 def put_verification(objects: ObjectStore, tenant: str, station_id: str,
                      verification: VerificationPublic) -> None:
-    """Keep a verification in the station's history (named by its date, so listed in order)."""
-    name = f"{verification.date:%Y%m%dT%H%M%S}-{verification.id}.json"
+    """Keep a verification in the station's history (named by its date, then the moment it was
+    stored: two made within one second, the date's resolution, are still listed in order)."""
+    name = f"{verification.date:%Y%m%dT%H%M%S}-{time.time_ns():020d}-{verification.id}.json"
     key = verification_prefix(tenant, station_id) + name
     objects.put_bytes(key, verification.model_dump_json(indent=2).encode(), "application/json")
 
