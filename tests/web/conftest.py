@@ -60,9 +60,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     report: pytest.TestReport = yield
     stack = getattr(item, "funcargs", {}).get("stack")
     if report.failed and call.when == "call" and isinstance(stack, Stack):
-        stack.worker.dump_stacks()  # where a task that never ended stands (prism_worker.app)
+        # where a task that never ended stands (prism_worker.app); the end kept long enough to show
+        # the tasks before the dump too (a dump alone is ~6,000 characters)
+        stack.worker.dump_stacks()
         for name, process in (("worker", stack.worker), ("API", stack.api)):
-            report.sections.append((f"the {name}'s log, its end", process.log[-6000:]))
+            report.sections.append((f"the {name}'s log, its end", process.log[-30000:]))
     return report
 
 

@@ -253,6 +253,11 @@ def _apart(others: list[tuple[float, ...]], fit: OutlineFit, K: np.ndarray, R: n
     return specks
 
 
+def _mm_per_px_at_footprint(fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> float:
+    """Millimetres a pixel spans at the fitted footprint's centre (its distance over the focal)."""
+    return float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t) / K[0, 0])
+
+
 def _hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, reg: Registration, sil: Silhouette,
                   fit: OutlineFit, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> tuple[OutlineFit, str]:
     """`fit` with the height read where the support's pattern is hidden below its top
@@ -265,7 +270,7 @@ def _hidden_sides(photo_u: np.ndarray, plate_u: np.ndarray, reg: Registration, s
         sizes = (fit.length_mm, fit.width_mm, fit.height_mm)
     if sil.tone is None or not np.all(np.isfinite(fit.params)) or not np.all(np.isfinite(sizes)):
         return fit, ""  # a fit with no finite size is refused as degenerate, as it was
-    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
+    mm_px = _mm_per_px_at_footprint(fit, K, R, t)
     flat = fit.height_mm < _MIN_SIDE_PX * mm_px  # no height (a thin footprint is refused as it was)
     if not (flat or sil.mirrored or fit.weak_fraction > _WARN_WEAK):
         return fit, ""
@@ -337,7 +342,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
             "not quite a box, or resting tilted; the dimensions may be off"
         )
     L, W, H = fit.length_mm, fit.width_mm, fit.height_mm
-    mm_px = float(np.linalg.norm(R @ np.array([fit.params[0], fit.params[1], 0.0]) + t)) / K[0, 0]
+    mm_px = _mm_per_px_at_footprint(fit, K, R, t)
     if min(L, W, H) < _MIN_SIDE_PX * mm_px or not np.all(np.isfinite([L, W, H])):
         raise PartRefusedError(
             f"the fitted box is degenerate ({L:.1f} x {W:.1f} x {H:.1f} mm, a side under "
