@@ -44,11 +44,11 @@ def png(image: np.ndarray) -> bytes:
 
 
 def item(reference: str, s: Scene) -> dict:
-    # CSV and PLY named (the service's default, but a deployment may set another): the oracle
-    # compares the PLY, the engine's exact cloud.
+    # CSV and PLY, and the cloud's spacing, named (the service's defaults, but a deployment may
+    # set others): the oracle compares the PLY, the engine's exact cloud for this very spec.
     return {"image": reference, "points": [list(map(round, s.points[n])) for n in NAMES],
             "focal_px": s.focal_px, "scale": {"kind": "pinhole", "distance_mm": s.distance_mm},
-            "formats": ["csv", "ply"]}
+            "formats": ["csv", "ply"], "spacing_mm": 1.0}
 
 
 class Api:
