@@ -213,7 +213,7 @@ def pbr_stations(name: str, n: int, parts: int) -> Iterator[StationCase]:
             assert sc.part is not None
             photos.append(
                 Photo(
-                    f"pbr seed {sc.part.seed} ({sc.part.material}, {sc.table})",
+                    f"pbr seed {sc.part.seed} ({sc.part.material}, {sc.table}, edges r {sc.part.radius_mm:.1f} mm)",
                     render_scene(sc),
                     sc.part.dimensions,
                     sc.part.material,
@@ -283,7 +283,8 @@ def run_handheld(cases: Iterator[tuple[BoardSpec, Photo]], dump: object | None) 
 def _dump(dump: object | None, mode: str, ph: Photo, outcome: StationMeasurement | str) -> None:
     if dump is None:
         return
-    rec: dict[str, object] = {"mode": mode, "photo": ph.label, "true": ph.true, "board_shown": ph.board_shown}
+    rec: dict[str, object] = {"mode": mode, "photo": ph.label, "material": ph.material, "true": ph.true,
+                              "board_shown": ph.board_shown}
     if isinstance(outcome, str):
         rec["refused"] = outcome
     else:
