@@ -135,14 +135,14 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     side_face = check_points(spec, front.shape, images[side_index].shape)
     if exif_focal_px is not None and not (math.isfinite(exif_focal_px) and exif_focal_px > 0):
         raise InputError(f"the EXIF focal length must be a positive number of pixels, got {exif_focal_px!r}")
-    cameras = camera_models(spec, images)
+    cameras = camera_models(spec.camera, images)
     points = spec.points
     undistorted = bool(cameras is not None and cameras[0].has_distortion)
     if undistorted:
         assert cameras is not None
-        images = prepare_images(spec, images)
+        images = prepare_images(spec.camera, images)
         front = images[0]
-        points = undistorted_points(spec, cameras)
+        points = undistorted_points(spec.points, cameras, two_photo=spec.two_photo)
     work = spec.model_copy(update={"points": points})
     with _timed(timings, "refine"):
         marked, _ = marked_quads(work, side_face, front.shape, images[side_index].shape)
@@ -152,7 +152,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         if spec.method == "default":
             quads, fits, uses = refine_faces(spec, images, marked, warnings)
     with _timed(timings, "measure"):
-        focal = resolve_focal(spec, images, cameras, exif_focal_px, pooled_focal)
+        focal = resolve_focal(images, cameras, focal_px=spec.focal_px, principal_point=spec.principal_point,
+                              exif_focal_px=exif_focal_px, pooled=pooled_focal)
         if isinstance(spec.scale, Pinhole) and focal.focal_px is None and not (
                 spec.method == "default" and quads.front_complete and quads.side_complete
                 and not spec.two_photo):
@@ -283,7 +284,7 @@ def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, 
              pooled_focal: PooledFocal | None = None) -> ScanResult:
     """Plan, scan every face in `tiles` row bands and assemble, in this process."""
     plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal)
-    images = prepare_images(spec, [front] + ([side] if spec.two_photo and side is not None else []))
+    images = prepare_images(spec.camera, [front] + ([side] if spec.two_photo and side is not None else []))
     with _timed(plan.timings_ms, "scan"):
         scans = [scan_face(images[f.image], f, tiles) for f in plan.faces]
     return finish_scan(plan, images, scans)
