@@ -120,6 +120,15 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         that mark no second face (or not the spec's `side_face`), or a video spec (one with
         `frames`: each frame has its own spec, see `video.frame_spec`).
     """
+    return _plan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal,
+                 rough_points=rough_points, click_noise_rules=click_noise_rules)[0]
+
+
+def _plan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None, *, exif_focal_px: float | None,
+          pooled_focal: PooledFocal | None, rough_points: bool, click_noise_rules: bool
+          ) -> tuple[ScanPlan, list[np.ndarray]]:
+    """`plan_scan`'s plan, and the images its coordinates refer to (`prepare_images`'s): `run_scan`
+    scans those, not the photos undistorted a second time."""
     if spec.is_video or spec.points is None:
         raise InputError(f"{spec.image!r} is a video spec: measure each frame with the spec "
                          "prismcore.video.frames.frame_spec gives for it")
@@ -194,7 +203,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         window = window_for([region, mark], images[index].shape)
         faces.append(FacePlan(name, index, region, mark, window, spec.method, seed, spec.tolerance))
     return ScanPlan(spec, (faces[0], faces[1]), dims, fits,
-                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings, camera, fit)
+                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings, camera, fit), images
 
 
 def scan_face(image: np.ndarray, face: FacePlan, tiles: int = 1) -> FaceScan:
@@ -283,8 +292,8 @@ def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, 
              tiles: int = 1, exif_focal_px: float | None = None,
              pooled_focal: PooledFocal | None = None) -> ScanResult:
     """Plan, scan every face in `tiles` row bands and assemble, in this process."""
-    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal)
-    images = prepare_images(spec.camera, [front] + ([side] if spec.two_photo and side is not None else []))
+    plan, images = _plan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal,
+                         rough_points=False, click_noise_rules=True)
     with _timed(plan.timings_ms, "scan"):
         scans = [scan_face(images[f.image], f, tiles) for f in plan.faces]
     return finish_scan(plan, images, scans)
