@@ -83,7 +83,7 @@ def table_batch(images: list[Path], table: Path, out: Path, *, spec_flags: dict[
     """A points table's photos, each measured alone with its row's points (and options)."""
     from prismcore.io import is_video
 
-    from .scan_command import spec_from_flags
+    from .scan_flags import spec_from_flags
 
     def spec_for(path: Path, row: dict[str, str]) -> ScanSpec:
         if is_video(path):

@@ -11,7 +11,7 @@ import typer
 from prismcore.errors import InputError
 
 from .console import rich_console as console
-from .scan_command import one_line, read_spec_json, spec_from_flags
+from .scan_flags import one_line, read_spec_json, spec_from_flags
 
 if TYPE_CHECKING:
     from prism_common.public import JobPublic, ResultPublic

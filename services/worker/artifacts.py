@@ -270,7 +270,7 @@ def cached_prepared(ctx: WorkerContext, key: str, max_pixels: int, spec: ScanSpe
     if spec.camera is None or not spec.camera.has_distortion:
         return decoded
     if (key, max_pixels) not in _prepared:
-        undistorted = prepare_images(spec, [decoded])[0]
+        undistorted = prepare_images(spec.camera, [decoded])[0]
         undistorted.flags.writeable = False
         _prepared[key, max_pixels] = undistorted
         while len(_prepared) > _IMAGES:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
-from prism_cli.scan_command import one_line
+from prism_cli.scan_flags import one_line
 from prismcore import ScanSpec
 
 VIEW = {"points": [[1.0, 1.0]] * 7}

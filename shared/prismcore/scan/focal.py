@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prismcore.errors import InputError
-from prismcore.spec import ReferencePoints, ScanSpec
+from prismcore.spec import ReferencePoints
 
 if TYPE_CHECKING:
     from prismcore.camera import CameraModel
@@ -65,20 +65,22 @@ def check_principal(centre: tuple[float, float], width: int, height: int, what: 
                          f"(here about ({(width - 1) / 2:g}, {(height - 1) / 2:g}))")
 
 
-def resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list[CameraModel] | None,
-                   exif_focal_px: float | None, pooled: PooledFocal | None = None) -> Focal:
-    """Order of trust: given > camera profile > EXIF > pooled over the camera's photos >
-    (fitted later)."""
+def resolve_focal(images: list[np.ndarray], cameras: list[CameraModel] | None, *,
+                  focal_px: float | None, principal_point: tuple[float, float] | None,
+                  exif_focal_px: float | None, pooled: PooledFocal | None = None) -> Focal:
+    """Order of trust: given (`focal_px`, the spec's) > camera profile > EXIF > pooled over the
+    camera's photos > (fitted later). The principal point: the spec's `principal_point`, else the
+    camera model's, else each image's centre."""
     centres = [((img.shape[1] - 1) / 2, (img.shape[0] - 1) / 2) for img in images]
     if cameras is not None:
         centres = [(c.cx, c.cy) for c in cameras]
-    if spec.principal_point is not None:
-        centres = [tuple(spec.principal_point)] * len(images)  # type: ignore[list-item]
+    if principal_point is not None:
+        centres = [principal_point] * len(images)
     for img, centre in zip(images, centres, strict=True):
-        check_principal(centre, img.shape[1], img.shape[0], "principal_point" if spec.principal_point
+        check_principal(centre, img.shape[1], img.shape[0], "principal_point" if principal_point
                          is not None else "the camera model's cx, cy")
-    if spec.focal_px is not None:
-        return Focal(float(spec.focal_px), "given", centres)
+    if focal_px is not None:
+        return Focal(float(focal_px), "given", centres)
     if cameras is not None:
         return Focal(float(np.sqrt(cameras[0].fx * cameras[0].fy)), "camera", centres)
     if exif_focal_px is not None:
@@ -89,31 +91,33 @@ def resolve_focal(spec: ScanSpec, images: list[np.ndarray], cameras: list[Camera
     return Focal(None, "none", centres)
 
 
-def camera_models(spec: ScanSpec, images: list[np.ndarray]) -> list[CameraModel] | None:
-    """The spec's camera model for each image's size, or None."""
-    if spec.camera is None:
+def camera_models(camera: CameraModel | None, images: list[np.ndarray]) -> list[CameraModel] | None:
+    """The camera model (the spec's) for each image's size, or None."""
+    if camera is None:
         return None
-    return [spec.camera.for_size(img.shape[1], img.shape[0]) for img in images]
+    return [camera.for_size(img.shape[1], img.shape[0]) for img in images]
 
 
-def undistorted_points(spec: ScanSpec, cameras: list[CameraModel]) -> ReferencePoints:
+def undistorted_points(points: ReferencePoints, cameras: list[CameraModel], *,
+                       two_photo: bool) -> ReferencePoints:
+    """The points with each photo's lens distortion taken out (in two photos, p4, p5 and p7 are
+    the side photo's)."""
     from prismcore.camera import undistort_points
 
-    assert spec.points is not None
     moved = {}
-    for name, xy in spec.points.as_dict().items():
-        cam = cameras[1 if spec.two_photo and name in ("p4", "p5", "p7") else 0]
+    for name, xy in points.as_dict().items():
+        cam = cameras[1 if two_photo and name in ("p4", "p5", "p7") else 0]
         moved[name] = tuple(float(v) for v in undistort_points(np.array([xy]), cam)[0])
     return ReferencePoints.model_validate(moved)
 
 
-def prepare_images(spec: ScanSpec, images: list[np.ndarray]) -> list[np.ndarray]:
-    """The images the plan's coordinates refer to: undistorted when the spec's camera has lens
-    distortion, else the images themselves. Scan the tiles and finish on these.
+def prepare_images(camera: CameraModel | None, images: list[np.ndarray]) -> list[np.ndarray]:
+    """The images the plan's coordinates refer to: undistorted when the camera model (the spec's)
+    has lens distortion, else the images themselves. Scan the tiles and finish on these.
 
     images : list of (H, W, 3) RGB arrays, front first.
     """
-    cameras = camera_models(spec, images)
+    cameras = camera_models(camera, images)
     if cameras is None or not cameras[0].has_distortion:
         return images
     from prismcore.camera import undistort_image

@@ -120,6 +120,15 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         that mark no second face (or not the spec's `side_face`), or a video spec (one with
         `frames`: each frame has its own spec, see `video.frame_spec`).
     """
+    return _plan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal,
+                 rough_points=rough_points, click_noise_rules=click_noise_rules)[0]
+
+
+def _plan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None, *, exif_focal_px: float | None,
+          pooled_focal: PooledFocal | None, rough_points: bool, click_noise_rules: bool
+          ) -> tuple[ScanPlan, list[np.ndarray]]:
+    """`plan_scan`'s plan, and the images its coordinates refer to (`prepare_images`'s): `run_scan`
+    scans those, not the photos undistorted a second time."""
     if spec.is_video or spec.points is None:
         raise InputError(f"{spec.image!r} is a video spec: measure each frame with the spec "
                          "prismcore.video.frames.frame_spec gives for it")
@@ -135,14 +144,14 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
     side_face = check_points(spec, front.shape, images[side_index].shape)
     if exif_focal_px is not None and not (math.isfinite(exif_focal_px) and exif_focal_px > 0):
         raise InputError(f"the EXIF focal length must be a positive number of pixels, got {exif_focal_px!r}")
-    cameras = camera_models(spec, images)
+    cameras = camera_models(spec.camera, images)
     points = spec.points
     undistorted = bool(cameras is not None and cameras[0].has_distortion)
     if undistorted:
         assert cameras is not None
-        images = prepare_images(spec, images)
+        images = prepare_images(spec.camera, images)
         front = images[0]
-        points = undistorted_points(spec, cameras)
+        points = undistorted_points(spec.points, cameras, two_photo=spec.two_photo)
     work = spec.model_copy(update={"points": points})
     with _timed(timings, "refine"):
         marked, _ = marked_quads(work, side_face, front.shape, images[side_index].shape)
@@ -152,7 +161,8 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         if spec.method == "default":
             quads, fits, uses = refine_faces(spec, images, marked, warnings)
     with _timed(timings, "measure"):
-        focal = resolve_focal(spec, images, cameras, exif_focal_px, pooled_focal)
+        focal = resolve_focal(images, cameras, focal_px=spec.focal_px, principal_point=spec.principal_point,
+                              exif_focal_px=exif_focal_px, pooled=pooled_focal)
         if isinstance(spec.scale, Pinhole) and focal.focal_px is None and not (
                 spec.method == "default" and quads.front_complete and quads.side_complete
                 and not spec.two_photo):
@@ -193,7 +203,7 @@ def plan_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None,
         window = window_for([region, mark], images[index].shape)
         faces.append(FacePlan(name, index, region, mark, window, spec.method, seed, spec.tolerance))
     return ScanPlan(spec, (faces[0], faces[1]), dims, fits,
-                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings, camera, fit)
+                    [(img.shape[1], img.shape[0]) for img in images], warnings, timings, camera, fit), images
 
 
 def scan_face(image: np.ndarray, face: FacePlan, tiles: int = 1) -> FaceScan:
@@ -282,8 +292,8 @@ def run_scan(spec: ScanSpec, front: np.ndarray, side: np.ndarray | None = None, 
              tiles: int = 1, exif_focal_px: float | None = None,
              pooled_focal: PooledFocal | None = None) -> ScanResult:
     """Plan, scan every face in `tiles` row bands and assemble, in this process."""
-    plan = plan_scan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal)
-    images = prepare_images(spec, [front] + ([side] if spec.two_photo and side is not None else []))
+    plan, images = _plan(spec, front, side, exif_focal_px=exif_focal_px, pooled_focal=pooled_focal,
+                         rough_points=False, click_noise_rules=True)
     with _timed(plan.timings_ms, "scan"):
         scans = [scan_face(images[f.image], f, tiles) for f in plan.faces]
     return finish_scan(plan, images, scans)
