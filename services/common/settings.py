@@ -66,10 +66,11 @@ class Settings(BaseSettings):
 
     upload_max_bytes: int = 100 * 2**20
     # Uploads one API process takes at once (POST /v1/uploads, from the key check to the answer);
-    # one more is refused at once with 503 and Retry-After, its body unread (0: no limit). Each
-    # holds a few parts of 8 MiB at most while it streams to the store; without a cap the API's
-    # memory grew with whatever clients sent at once. 32 leaves 8 of the process's 40 threads to
-    # the other calls.
+    # one more is refused at once with 503 and Retry-After, its body dropped (0: no limit). Each
+    # holds a few parts of 8 MiB at most while it streams to the store; without a cap, waiting
+    # uploads grew the API's memory with whatever clients sent at once. 32 leaves 8 of the
+    # process's 40 threads to the other calls. (Open connections cost up to ~0.3 MB each in
+    # uvicorn's buffers besides: uvicorn's --limit-concurrency bounds those.)
     uploads_at_once: int = Field(default=32, ge=0)
     # Any other request body (a job's JSON is read whole before the key is checked); a 5000-item
     # job is about 3 MB.

@@ -59,7 +59,10 @@ def _taken(at_once: int) -> anyio.CapacityLimiter | None:
 
     Refused rather than queued: a waiting upload holds its connection and what has come of its
     body, so queued ones grow the API's memory with whatever clients send at once. Taken without
-    waiting only, so one limiter serves any event loop."""
+    waiting only, so one limiter serves any event loop. The connection is kept (no
+    `Connection: close`, unlike a 401 or 413: those refuse a client that should not send again):
+    uvicorn drops the rest of the body as it comes rather than holding it, whereas a socket closed
+    with data unread is reset, and a client still sending may see the reset, not this answer."""
     if at_once <= 0:
         return None
     limiter = _limiters.setdefault(at_once, anyio.CapacityLimiter(at_once))
@@ -68,7 +71,7 @@ def _taken(at_once: int) -> anyio.CapacityLimiter | None:
     except anyio.WouldBlock:
         raise Problem("at-capacity", f"{at_once} uploads are being taken by this API process "
                       "(PRISM_UPLOADS_AT_ONCE); nothing was stored: send it again shortly",
-                      headers={"Retry-After": "1", "Connection": "close"}) from None
+                      headers={"Retry-After": "1"}) from None
     return limiter
 
 
