@@ -15,8 +15,9 @@ applied; the preview, overlay and report.json) into memory. Its CPU per photo is
 own (`time.process_time`), its time per item each item's wall time.
 
 The service: redis-server, SeaweedFS, the API and a Celery worker of --processes processes on
-loopback (`prism_cli.stack`). Every photo is uploaded first, all at once (N uploads in flight,
-asyncio): the API's resident memory (RSS, its process) is sampled meanwhile, its peak printed.
+loopback (`prism_cli.stack`). Every photo is uploaded first, all sent at once (N uploads in flight,
+asyncio; one refused as at capacity, past PRISM_UPLOADS_AT_ONCE, is sent again after its
+Retry-After): the API's resident memory (RSS, its process) is sampled meanwhile, its peak printed.
 Then one job of N items is submitted and polled (items left out) until final: photos per second
 from the submit to the job's end; the worker's CPU (main process and pool, psutil) over that
 time per photo; the bytes stored under the job's prefix per photo; each item's time from the
@@ -29,6 +30,7 @@ side (the service, then at once the engine alone with the spec the service store
 cores), so they are what to compare.
 
     .venv/bin/python benchmarks/service.py [--images 1000] [--kinds clicked,station]
+    .venv/bin/python benchmarks/service.py --images 1000 --uploads-only  # the API's memory alone
 """
 
 from __future__ import annotations
@@ -207,16 +209,64 @@ class _Rss(threading.Thread):
         return self.samples
 
 
-async def _upload_all(base: str, key: str, work: list[tuple[bytes, dict[str, Any]]]) -> list[str]:
-    """Every photo uploaded at once: len(work) requests in flight."""
+async def _upload_all(base: str, key: str, work: list[tuple[bytes, dict[str, Any]]]
+                      ) -> tuple[list[str], int, int]:
+    """Every photo sent at once: len(work) requests in flight. One the API refuses as at
+    capacity (503, PRISM_UPLOADS_AT_ONCE) is sent again after its Retry-After, as a client
+    should; so is one whose connection failed (most likely a kept-alive connection the server
+    closed as it was reused; the same file sent again is the same upload). (The references, how
+    many refusals, how many connection errors.)"""
     limits = httpx.Limits(max_connections=len(work), max_keepalive_connections=len(work))
+    refused = failed = 0
     async with httpx.AsyncClient(base_url=base, headers={"X-API-Key": key}, timeout=600,
                                  limits=limits) as http:
         async def one(n: int, data: bytes) -> str:
-            reply = await http.post("/v1/uploads", files={"file": (f"photo-{n:04d}.jpg", data)})
-            reply.raise_for_status()
-            return str(reply.json()["reference"])
-        return list(await asyncio.gather(*(one(n, data) for n, (data, _) in enumerate(work))))
+            nonlocal refused, failed
+            for _ in range(100):
+                try:
+                    reply = await http.post("/v1/uploads", files={"file": (f"photo-{n:04d}.jpg", data)})
+                except httpx.TransportError:
+                    failed += 1
+                    await asyncio.sleep(1.0)
+                    continue
+                if reply.status_code != 503:
+                    reply.raise_for_status()
+                    return str(reply.json()["reference"])
+                refused += 1
+                await asyncio.sleep(float(reply.headers.get("Retry-After", "1")))
+            raise RuntimeError(f"photo {n}: not taken after 100 tries")
+        refs = list(await asyncio.gather(*(one(n, data) for n, (data, _) in enumerate(work))))
+    return refs, refused, failed
+
+
+def _stack_env(procs: list[ManagedProcess], key: str, creds: tuple[str, str]) -> dict[str, str]:
+    return {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
+            "PRISM_REDIS_URL": f"redis://127.0.0.1:{procs[0].port}/0",
+            "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{procs[1].port}",
+            "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+
+
+def _uploads(api: ManagedProcess, key: str, work: list[tuple[bytes, dict[str, Any]]]) -> dict[str, Any]:
+    """Every photo uploaded at once, the API's RSS sampled meanwhile."""
+    api_rss = _Rss(api, 0.1)
+    api_rss.start()
+    t = time.perf_counter()
+    refs, refused, failed = asyncio.run(_upload_all(f"http://127.0.0.1:{api.port}", key, work))
+    return {"refs": refs, "refused": refused, "upload_errors": failed, "upload_s": time.perf_counter() - t,
+            "api_rss": api_rss.stop()}
+
+
+def uploads_only(work: list[tuple[bytes, dict[str, Any]]], tmp: Path) -> dict[str, Any]:
+    """The upload phase alone (redis-server, SeaweedFS and the API; no worker, no job)."""
+    key = secrets.token_urlsafe(16)
+    creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
+    procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
+    try:
+        procs.append(start_api(tmp / "api", _stack_env(procs, key, creds)))
+        return _uploads(procs[2], key, work)
+    finally:
+        for proc in reversed(procs):
+            proc.stop()
 
 
 def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tmp: Path,
@@ -225,20 +275,13 @@ def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tm
     creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
     procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
     try:
-        env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
-               "PRISM_REDIS_URL": f"redis://127.0.0.1:{procs[0].port}/0",
-               "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{procs[1].port}",
-               "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+        env = _stack_env(procs, key, creds)
         procs.append(start_api(tmp / "api", env))
         procs.append(start_worker(tmp / "w", env, processes))
         api, worker = procs[2], procs[3]
         base = f"http://127.0.0.1:{api.port}"
-        api_rss = _Rss(api, 0.1)
-        api_rss.start()
-        t = time.perf_counter()
-        refs = asyncio.run(_upload_all(base, key, work))
-        upload_s = time.perf_counter() - t
-        api_upload = api_rss.stop()
+        uploaded = _uploads(api, key, work)
+        refs = uploaded["refs"]
         with ApiClient(base, key, timeout=600) as client:
             extra = {"station": client.create_station(station_file, name="bench").id} if station_file else {}
             items = [{"image": ref, **item, **extra} for ref, (_, item) in zip(refs, work, strict=True)]
@@ -262,9 +305,10 @@ def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tm
         log = (tmp / "w" / "server.log").read_text(errors="replace")
         return {"rate": len(work) / elapsed, "cpu_s": cpu / len(work), "bytes": stored / len(work),
                 "item_s": [float(m) for m in TASK_LINE.findall(log)], "failed": final.items_failed,
-                "done": final.items_done, "upload_s": upload_s, "api_rss": api_upload,
-                "worker_rss": rss, "spec": spec, "redis_cpu_s": others[0], "store_cpu_s": others[1],
-                "api_cpu_s": others[2]}
+                "done": final.items_done, "upload_s": uploaded["upload_s"], "api_rss": uploaded["api_rss"],
+                "refused": uploaded["refused"], "upload_errors": uploaded["upload_errors"], "worker_rss": rss,
+                "spec": spec, "redis_cpu_s": others[0],
+                "store_cpu_s": others[1], "api_cpu_s": others[2]}
     finally:
         for proc in reversed(procs):
             proc.stop()
@@ -305,9 +349,15 @@ def report(kind: str, n: int, processes: int, engine: dict[str, Any], service: d
     print(f"  worker RSS MB         after a tenth {early[1]:.0f}, at the end {rss[-1][1]:.0f}, peak "
           f"{max(s[1] for s in rss):.0f} (all processes); largest pool process peak "
           f"{max(s[2] for s in rss):.0f}, after a tenth {early[2]:.0f}, at the end {rss[-1][2]:.0f}")
-    api = service["api_rss"]
+    print_uploads(n, service)
+
+
+def print_uploads(n: int, uploaded: dict[str, Any]) -> None:
+    api = uploaded["api_rss"]
     print(f"  API RSS MB            {api[0][1]:.0f} before, peak {max(s[1] for s in api):.0f} "
-          f"with {n} uploads in flight ({service['upload_s']:.0f} s for all), {api[-1][1]:.0f} after")
+          f"with {n} uploads sent at once ({uploaded['upload_s']:.0f} s for all; "
+          f"{uploaded['refused']} refused as at capacity and {uploaded['upload_errors']} connection errors, "
+          f"each sent again), {api[-1][1]:.0f} after")
 
 
 def main() -> None:
@@ -317,7 +367,16 @@ def main() -> None:
     parser.add_argument("--distinct", type=int, default=8, help="distinct photos of each kind")
     parser.add_argument("--processes", type=int, default=2, help="engine processes and worker pool")
     parser.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "prism-station-batch")
+    parser.add_argument("--uploads-only", action="store_true",
+                        help="only send the clicked photos at once to the API (no worker, no job, "
+                        "no engine): its memory with every upload in flight")
     args = parser.parse_args()
+    if args.uploads_only:
+        with tempfile.TemporaryDirectory() as tmp:
+            uploaded = uploads_only(clicked_work(args.images, args.distinct), Path(tmp))
+        print(f"uploads: {args.images} photos of 1280x1024 sent at once to one API process")
+        print_uploads(args.images, uploaded)
+        return
     kinds = args.kinds.split(",")
     if unknown := set(kinds) - {"clicked", "station"}:
         raise SystemExit(f"unknown kinds {sorted(unknown)}: clicked, station")

@@ -7,8 +7,9 @@ SeaweedFS, a Celery worker with 2 processes and the API, all on loopback), then 
 * workers: W processes / worker CPU seconds per image (the tasks' CPU, from the processes'
   own CPU time: scan, encode, upload);
 * the store: bandwidth / bytes stored per image (every object of the jobs), for a few link
-  speeds and both output modes (the default with a scale, compact LAZ + glb, as measured; CSV
-  + PLY from the bytes ratio of the two in benchmarks/service.py);
+  speeds and two output modes: the service's defaults (csv + ply at PRISM_DEFAULT_SPACING_MM,
+  1 mm), as measured; csv + ply at one point per pixel from the bytes ratio of the two in
+  benchmarks/service.py;
 * Redis: one core (redis-server runs commands on one thread) / Redis CPU seconds per image,
   and its commands per image;
 * the API: its processes / API CPU seconds per image (submit and one poll a second).
@@ -50,10 +51,11 @@ API_PROCESSES = 4
 POLLS_PER_IMAGE = 1.0  # status requests per image (a client polling its 10-image job once a second)
 PROCESSES_PER_NODE = 2  # worker processes per worker pod/host (each node's main process polls Redis)
 IDLE_S = 10.0
-# Compact outputs (LAZ + glb, the default with a scale) against CSV + PLY per 1280x1024 photo:
-# README, benchmarks/service.py's output modes (3.45 MB against 25.31 MB).
-COMPACT_BYTES_RATIO = 3.45 / 25.31
-MODES = (("compact", 1.0), ("csv+ply", 1.0 / COMPACT_BYTES_RATIO))  # bytes against those measured
+# The service's default outputs (csv + ply at 1 mm spacing) against csv + ply at one point per
+# pixel, stored per 1280x1024 clicked photo (benchmarks/service.py --images 100 --kinds clicked,
+# the second with PRISM_DEFAULT_SPACING_MM=null: 1.9 MB against 24.8 MB).
+PER_PIXEL_BYTES_RATIO = 24.8 / 1.9
+MODES = (("default", 1.0), ("per-pixel", PER_PIXEL_BYTES_RATIO))  # bytes against those measured
 
 
 def _cpu_s(proc: ManagedProcess) -> float:
@@ -179,10 +181,11 @@ def model(costs: dict[str, float]) -> list[dict[str, object]]:
 
 
 def print_report(costs: dict[str, float]) -> None:
-    print(f"Measured per image (1280x1024 photo, default outputs: LAZ + glb; {costs['images']:.0f} images, "
+    print(f"Measured per image (1280x1024 photo, the service's default outputs: csv + ply at 1 mm; "
+          f"{costs['images']:.0f} images, "
           f"{PROCESSES} worker processes, {costs['measured_images_per_s']:.2f} images/s end to end here):")
     print(f"  worker CPU {costs['worker_cpu_s'] * 1000:.0f} ms; stored {costs['bytes_stored'] / 1e6:.1f} MB "
-          f"(csv + ply ~{costs['bytes_stored'] / COMPACT_BYTES_RATIO / 1e6:.1f} MB); "
+          f"(one point per pixel ~{costs['bytes_stored'] * PER_PIXEL_BYTES_RATIO / 1e6:.1f} MB); "
           f"store server CPU {costs['store_cpu_s'] * 1000:.0f} ms")
     print(f"  Redis {costs['redis_commands']:.0f} commands, {costs['redis_cpu_s'] * 1000:.2f} ms CPU "
           f"(one core: {1 / costs['redis_cpu_s']:.0f} images/s), and idle "

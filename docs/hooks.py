@@ -300,7 +300,8 @@ PROBLEM_WHEN = {
     "rate-limited": "The key's rate limit, or the address's refused-key budget (`Retry-After`).",
     "internal-error": "A fault of the service; nothing of it is disclosed, it is logged.",
     "at-capacity": "The scans queue is full: no job was created; or `PRISM_STATION_CALIBRATIONS_AT_ONCE` "
-                   "stations are being calibrated: no station was created (`Retry-After`).",
+                   "stations are being calibrated: no station was created; or `PRISM_UPLOADS_AT_ONCE` "
+                   "uploads are being taken: nothing was stored (`Retry-After`).",
     "backend-unavailable": "Redis, the object store or the job queue does not answer (`Retry-After`).",
 }
 

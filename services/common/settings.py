@@ -15,9 +15,10 @@ from .webhook_secret import signing_key
 __all__ = ["Settings", "get_settings"]
 
 # Typed, so that mypy checks these against OutputFormat's names. The text cloud and PLY, as the
-# design promises (about 25 MB stored per 1280x1024 photo); PRISM_DEFAULT_FORMATS='["laz","glb"]'
-# (about 3.5 MB) for the compact ones, which go to items with a scale only (they are in mm: an
-# item without one gets csv and ply, prism_api.routes.jobs._formats).
+# design promises (1.9 MB stored per 1280x1024 photo at the default 1 mm spacing, about 25 MB at
+# one point per pixel); PRISM_DEFAULT_FORMATS='["laz","glb"]' (1.4 MB at 1 mm, 3.5 MB per pixel)
+# for the compact ones, which go to items with a scale only (they are in mm: an item without one
+# gets csv and ply, prism_api.routes.jobs._formats).
 _DEFAULT_FORMATS: tuple[OutputFormat, ...] = ("csv", "ply")
 
 
@@ -64,6 +65,13 @@ class Settings(BaseSettings):
     webhook_allow_private: bool = False  # allow-listed hosts may resolve to loopback/private addresses
 
     upload_max_bytes: int = 100 * 2**20
+    # Uploads one API process takes at once (POST /v1/uploads, from the key check to the answer);
+    # one more is refused at once with 503 and Retry-After, its body dropped (0: no limit). Each
+    # holds a few parts of 8 MiB at most while it streams to the store; without a cap, waiting
+    # uploads grew the API's memory with whatever clients sent at once. 32 leaves 8 of the
+    # process's 40 threads to the other calls. (Open connections cost up to ~0.3 MB each in
+    # uvicorn's buffers besides: uvicorn's --limit-concurrency bounds those.)
+    uploads_at_once: int = Field(default=32, ge=0)
     # Any other request body (a job's JSON is read whole before the key is checked); a 5000-item
     # job is about 3 MB.
     request_max_bytes: int = 16 * 2**20

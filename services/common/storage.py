@@ -11,6 +11,7 @@ import re
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import boto3
+from boto3.s3.transfer import TransferConfig
 from botocore.client import Config
 from botocore.exceptions import ClientError
 from botocore.response import StreamingBody
@@ -24,6 +25,12 @@ if TYPE_CHECKING:  # boto3-stubs[s3] (test extra): the client's types, not neede
 __all__ = ["ObjectStore", "is_missing", "object_key"]
 
 SINGLE_PUT_BYTES = 64 * 2**20
+# A stream of unknown size (an upload read off its request) goes up in parts of 8 MiB; s3transfer
+# holds up to 10 of them in memory by default (80 MiB an upload). Two let one part go up while the
+# next is read from a client, which is slower than the store; with the API's cap on uploads at
+# once (PRISM_UPLOADS_AT_ONCE) this bounds what uploads hold.
+_STREAM = TransferConfig()
+_STREAM.max_in_memory_upload_chunks = 2  # s3transfer's own setting, which boto3's __init__ omits
 _SEGMENT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
 
 
@@ -101,7 +108,8 @@ class ObjectStore:
                 self.client.put_object(Bucket=self.bucket, Key=key, Body=stream,
                                        ContentLength=size, ContentType=content_type)
                 return
-        self.client.upload_fileobj(stream, self.bucket, key, ExtraArgs={"ContentType": content_type})
+        self.client.upload_fileobj(stream, self.bucket, key, ExtraArgs={"ContentType": content_type},
+                                   Config=_STREAM)
 
     def put_json(self, key: str, value: object) -> None:
         self.put_bytes(key, (json.dumps(value, indent=2) + "\n").encode(), "application/json")

@@ -16,6 +16,9 @@ from uuid import uuid4
 import anyio
 from fastapi import APIRouter, HTTPException, Request, Response, status
 from fastapi.concurrency import run_in_threadpool
+from prism_common.settings import Settings
+from prism_common.storage import ObjectStore
+from prism_common.store import JobStore
 from prism_common.upload_keys import upload_key
 
 from ..deps import ObjectsDep, SettingsDep, StoreDep, TenantDep
@@ -48,6 +51,30 @@ def _watch_photos(first: bytes, max_pixels: int) -> ImageEnd | None:
     return None if is_video_head(first) else ImageEnd(first, max_pixels=max_pixels)
 
 
+_limiters: dict[int, anyio.CapacityLimiter] = {}
+
+
+def _taken(at_once: int) -> anyio.CapacityLimiter | None:
+    """One of this process's `at_once` uploads taken (None when there is no cap), or 503.
+
+    Refused rather than queued: a waiting upload holds its connection and what has come of its
+    body, so queued ones grow the API's memory with whatever clients send at once. Taken without
+    waiting only, so one limiter serves any event loop. The connection is kept (no
+    `Connection: close`, unlike a 401 or 413: those refuse a client that should not send again):
+    uvicorn drops the rest of the body as it comes rather than holding it, whereas a socket closed
+    with data unread is reset, and a client still sending may see the reset, not this answer."""
+    if at_once <= 0:
+        return None
+    limiter = _limiters.setdefault(at_once, anyio.CapacityLimiter(at_once))
+    try:
+        limiter.acquire_nowait()
+    except anyio.WouldBlock:
+        raise Problem("at-capacity", f"{at_once} uploads are being taken by this API process "
+                      "(PRISM_UPLOADS_AT_ONCE); nothing was stored: send it again shortly",
+                      headers={"Retry-After": "1"}) from None
+    return limiter
+
+
 def _probe(upload: MultipartFile) -> dict[str, Any]:
     """What the stored file is (in a worker thread: OpenCV may decode a whole video)."""
     head = bytes(upload.head)
@@ -62,7 +89,6 @@ def _probe(upload: MultipartFile) -> dict[str, Any]:
     return probe
 
 
-
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadPublic,
              openapi_extra=_BODY, responses={
                  200: {"description": "The same content was uploaded before: that upload",
@@ -72,18 +98,33 @@ def _probe(upload: MultipartFile) -> dict[str, Any]:
                        "`detail` and `detected_type` name what it is"},
                  422: {"description": "No non-empty multipart `file` (validation), or a photo cut "
                        "short (damaged-file: `detail` says so)",
-                       "x-problem-types": ["validation", "damaged-file"]}})
+                       "x-problem-types": ["validation", "damaged-file"]},
+                 503: {"description": "The API process is taking as many uploads as it may at once "
+                       "(at-capacity, PRISM_UPLOADS_AT_ONCE: send it again after `Retry-After`), or "
+                       "a store is down"}})
 
 async def create_upload(request: Request, response: Response, tenant: TenantDep, settings: SettingsDep,
                         store: StoreDep, objects: ObjectsDep) -> UploadPublic:
-    """Stream the multipart field `file` into object storage; refused past the size limit (413)
-    and when it is neither a photo nor a video (415) or is a photo cut short (422). The answer
-    says what the file is."""
+    """Stream the multipart field `file` into object storage; refused past the size limit (413),
+    when it is neither a photo nor a video (415) or is a photo cut short (422), and while this API
+    process takes PRISM_UPLOADS_AT_ONCE others (503, Retry-After). The answer says what the file is."""
     limit = settings.upload_max_bytes
     length = request.headers.get("content-length", "")
     if length.isdigit() and int(length) > limit + MULTIPART_OVERHEAD:
         raise HTTPException(status.HTTP_413_CONTENT_TOO_LARGE,  # refused unread
                             f"the upload is larger than {limit} bytes", headers={"Connection": "close"})
+    taken = _taken(settings.uploads_at_once)
+    try:
+        return await _stored(request, response, tenant, settings, store, objects)
+    finally:
+        if taken is not None:
+            taken.release()
+
+
+async def _stored(request: Request, response: Response, tenant: str, settings: Settings,
+                  store: JobStore, objects: ObjectStore) -> UploadPublic:
+    """The upload read off the request, stored, probed and recorded (or found stored before)."""
+    limit = settings.upload_max_bytes
     upload = MultipartFile(request, "file", limit, spool_when=_spool_videos,
                            watch_when=partial(_watch_photos, max_pixels=settings.max_pixels))
     upload_id = uuid4().hex
