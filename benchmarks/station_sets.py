@@ -213,7 +213,8 @@ def pbr_stations(name: str, n: int, parts: int) -> Iterator[StationCase]:
             assert sc.part is not None
             photos.append(
                 Photo(
-                    f"pbr seed {sc.part.seed} ({sc.part.material}, {sc.table}, edges r {sc.part.radius_mm:.1f} mm)",
+                    f"pbr seed {sc.part.seed} ({sc.part.material}, {sc.table}, "
+                    f"edges r {sc.part.radius_mm:.1f} mm)",
                     render_scene(sc),
                     sc.part.dimensions,
                     sc.part.material,
