@@ -6,9 +6,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
-from service.servers import service_env
+from service.servers import API_KEYS, service_env
 
 from prism_api.webapp import STATIC_DIR
 from prism_cli.stack import ManagedProcess, start_api, start_worker
@@ -91,4 +92,22 @@ def page(browser, stack) -> Iterator[Page]:
     page.goto("/")
     yield page
     context.close()
+    _cancel_left_jobs(stack)
     assert not problems, problems
+
+
+def _cancel_left_jobs(stack: Stack) -> None:
+    """Cancel every job a test left queued or running: the stack's one worker (concurrency 1) is
+    shared by the page tests, and a job left behind (a station folder's batch, a job the test did
+    not wait for) made the next test's job wait "Queued" behind its items until that test's 120 s
+    ran out (CI; the worker's stack dump showed it busy finishing other jobs' items)."""
+    with httpx.Client(base_url=stack.url, timeout=30) as http:
+        for key in API_KEYS.values():
+            headers = {"X-API-Key": key}
+            for state in ("queued", "running"):
+                listed = http.get("/v1/jobs", params={"state": state, "items": "false", "limit": 200},
+                                  headers=headers)
+                listed.raise_for_status()
+                for job in listed.json()["jobs"]:
+                    done = http.post(f"/v1/jobs/{job['id']}/cancel", headers=headers)
+                    assert done.status_code in (200, 409), done.text  # 409: it ended meanwhile
