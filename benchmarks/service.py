@@ -46,7 +46,10 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -239,11 +242,34 @@ async def _upload_all(base: str, key: str, work: list[tuple[bytes, dict[str, Any
     return refs, refused, failed
 
 
-def _stack_env(procs: list[ManagedProcess], key: str, creds: tuple[str, str]) -> dict[str, str]:
-    return {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
-            "PRISM_REDIS_URL": f"redis://127.0.0.1:{procs[0].port}/0",
-            "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{procs[1].port}",
-            "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+@dataclass
+class _Stack:
+    """The service's processes on loopback: redis-server, SeaweedFS, the API and, given a number
+    of processes, a worker; the API key and the store's credentials they were started with."""
+
+    procs: list[ManagedProcess]
+    key: str
+    creds: tuple[str, str]
+    env: dict[str, str]
+
+
+@contextmanager
+def _stack(tmp: Path, processes: int | None) -> Iterator[_Stack]:
+    key = secrets.token_urlsafe(16)
+    creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
+    procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
+    try:
+        env = {"PRISM_API_KEYS": json.dumps({"bench": key}), "PRISM_WEBHOOK_SECRET": "x" * 16,
+               "PRISM_REDIS_URL": f"redis://127.0.0.1:{procs[0].port}/0",
+               "PRISM_S3_ENDPOINT_URL": f"http://127.0.0.1:{procs[1].port}",
+               "PRISM_S3_ACCESS_KEY_ID": creds[0], "PRISM_S3_SECRET_ACCESS_KEY": creds[1]}
+        procs.append(start_api(tmp / "api", env))
+        if processes is not None:
+            procs.append(start_worker(tmp / "w", env, processes))
+        yield _Stack(procs, key, creds, env)
+    finally:
+        for proc in reversed(procs):
+            proc.stop()
 
 
 def _uploads(api: ManagedProcess, key: str, work: list[tuple[bytes, dict[str, Any]]]) -> dict[str, Any]:
@@ -258,26 +284,14 @@ def _uploads(api: ManagedProcess, key: str, work: list[tuple[bytes, dict[str, An
 
 def uploads_only(work: list[tuple[bytes, dict[str, Any]]], tmp: Path) -> dict[str, Any]:
     """The upload phase alone (redis-server, SeaweedFS and the API; no worker, no job)."""
-    key = secrets.token_urlsafe(16)
-    creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
-    procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
-    try:
-        procs.append(start_api(tmp / "api", _stack_env(procs, key, creds)))
-        return _uploads(procs[2], key, work)
-    finally:
-        for proc in reversed(procs):
-            proc.stop()
+    with _stack(tmp, None) as stack:
+        return _uploads(stack.procs[2], stack.key, work)
 
 
 def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tmp: Path,
                     station_file: Path | None) -> dict[str, Any]:
-    key = secrets.token_urlsafe(16)
-    creds = ("bench-key", "bench-secret-" + secrets.token_hex(8))
-    procs = [start_redis(tmp / "redis"), start_s3(tmp / "s3", *creds)]
-    try:
-        env = _stack_env(procs, key, creds)
-        procs.append(start_api(tmp / "api", env))
-        procs.append(start_worker(tmp / "w", env, processes))
+    with _stack(tmp, processes) as stack:
+        procs, key, creds, env = stack.procs, stack.key, stack.creds, stack.env
         api, worker = procs[2], procs[3]
         base = f"http://127.0.0.1:{api.port}"
         uploaded = _uploads(api, key, work)
@@ -309,9 +323,6 @@ def through_service(work: list[tuple[bytes, dict[str, Any]]], processes: int, tm
                 "refused": uploaded["refused"], "upload_errors": uploaded["upload_errors"], "worker_rss": rss,
                 "spec": spec, "redis_cpu_s": others[0],
                 "store_cpu_s": others[1], "api_cpu_s": others[2]}
-    finally:
-        for proc in reversed(procs):
-            proc.stop()
 
 
 def _engine_spec(stored: dict[str, Any]) -> dict[str, Any]:
