@@ -41,6 +41,10 @@ from prismcore.station.handheld import measure_on_board
 from prismcore.station.measure import StationMeasurement
 
 TRUE = dict[str, float]
+# A dimension whose sigma is over this share of its value is within 3 sigma of almost anything: the
+# share of such dimensions is printed beside "within 3 sigma", so that a wide sigma cannot pass
+# for an honest one unseen.
+VAGUE = 0.25
 
 
 @dataclass
@@ -53,6 +57,7 @@ class Tally:
     in3: int = 0
     total: int = 0
     silent_big: int = 0
+    vague: int = 0  # dimensions found with a sigma over VAGUE of their value: measured in name only
     reasons: Counter[str] = field(default_factory=Counter)
     worst: list[tuple[float, str]] = field(default_factory=list)
     seg_fit_ms: list[float] = field(default_factory=list)
@@ -92,6 +97,7 @@ class Tally:
             mat[1] += 1
             mat[2] += ok
             self.in3 += abs(err) <= 3 * m.uncertainty[key]
+            self.vague += not m.uncertainty[key] <= VAGUE * t
             self.silent_big += abs(err) > 0.05 * t and not warned
             self.worst.append(
                 (
@@ -119,6 +125,7 @@ class Tally:
             "within max(1 %, 1 mm)": f"{self.within / t:.1%}",
             "within 3 sigma": f"{self.in3 / t:.1%}",
             "> 5 % off, no warning": f"{self.silent_big}",
+            f"sigma over {VAGUE:.0%} (vague)": f"{self.vague / t:.1%}",
             "seg + fit CPU ms (med / p90)": ms,
         }
 

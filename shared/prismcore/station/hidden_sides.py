@@ -89,7 +89,8 @@ def _box_under(top_px: np.ndarray, height: float, K: np.ndarray, R: np.ndarray, 
     width = (np.linalg.norm(b) + np.linalg.norm(top[2] - top[1])) / 2
     centre = top[:, :2].mean(axis=0)
     yaw = float(np.arctan2(a[1] + (top[2] - top[3])[1], a[0] + (top[2] - top[3])[0]))
-    params = np.array([centre[0], centre[1], yaw, np.log(length), np.log(width), np.log(height)])
+    with np.errstate(divide="ignore"):  # a fit that gave no height: log 0 is its -inf, as the fit's
+        params = np.array([centre[0], centre[1], yaw, np.log(length), np.log(width), np.log(height)])
     foot = top.copy()
     foot[:, 2] = 0.0
     return params, np.vstack([top_px, project(foot, K, R, t)])

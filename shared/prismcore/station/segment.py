@@ -336,7 +336,13 @@ def segment_part(
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
     noise = float(np.median(outside)) * 1.4826 + 1.0 if outside.size > 100 else noise_s
-    mask = _mask(resid, noise, 1.0)
+    # Where the support's pattern is broken near the part, the part is there even if no pixel
+    # differs enough: a dark part reads as a deep shadow of white paper pixel by pixel, but a
+    # shadow keeps the step from a black square to the white, and a part does not. The coarse
+    # pass counts it; so does this one, or a part found coarse was lost here ("no part found").
+    broken = pattern_broken(pattern_match(P, bg, _NCC_FULL), _NCC_SHRINK) & (near > 0)
+    plain = _mask(resid, noise, 1.0)
+    mask = _mask(np.maximum(resid, _BROKEN_LEVEL, where=broken, out=resid.copy()), noise, 1.0)
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise PartRefusedError(_NO_PART, photo_u)
@@ -357,8 +363,8 @@ def segment_part(
     # Where the support's pattern is broken near the part but no pixel differs enough (a face that
     # mirrors the board): the part reaches there too. A box's silhouette is convex: the outline is
     # then the hull of both.
-    broken = pattern_broken(pattern_match(P, bg, _NCC_FULL), _NCC_SHRINK) & (near > 0) & (part == 0)
-    mirrored = int(broken.sum()) > _MIRRORED * max(int(part.sum()), 1)
+    broken &= part == 0
+    mirrored = int((broken | (part > plain)).sum()) > _MIRRORED * max(int(part.sum()), 1)
     if mirrored:
         part |= broken.astype(np.uint8)
         warnings.append("part of the part's outline was found only where it breaks the support's pattern "

@@ -31,6 +31,9 @@ _INK_MM = 1.5  # strokes thinner than this on the paper are its print: a ruler, 
 _PAPER_LIGHT = 0.88  # paper: within this share of the white squares' light near that side, or its
 # inverse (a metal table mirroring a lamp is brighter than paper, a grey one darker)...
 _PAPER_HUE = 0.06  # ...and its colour's direction within this of theirs (a table is seldom as grey)
+_LAG_MM = 2.0  # outward, paper is judged against the paper this far before it (a sheet's edge is sharper)
+_SOFT_STEP = 0.06  # ...changed by no more than this share of it (a soft light's fall is gentler)
+_SOFT_LEAST = 0.5  # ...and a soft shadow darkens it to this share of the white squares' light at most
 _STARTS = 0.3  # a side shows paper where this share of its positions do next to the board
 _GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
 _EDGE_STEP = 0.04  # ... and its colour steps by this share of the white's light across that end
@@ -41,6 +44,28 @@ _LEAVES = 0.8  # ...unless this share of those positions' paper runs out of the 
 
 def _hue(rgb: np.ndarray) -> np.ndarray:
     return cast("np.ndarray", rgb / (np.linalg.norm(rgb, axis=-1, keepdims=True) + 1.0))
+
+
+def _paper(lines: np.ndarray, ok: np.ndarray, level: np.ndarray, lag: int) -> np.ndarray:
+    """Where each position's line (positions, distance out, 3) shows paper, (positions, distance)
+    bool: paper of the white squares' colour (`level`, (3,)), as light as they are at the board's
+    edge, then, outward, as light as the paper seen `lag` steps before it on the same line, and no
+    darker than _SOFT_LEAST of them. Soft light (an area light, a window, the part's own shadow)
+    darkens the margin smoothly away from the board, past a fixed share of the white's light,
+    while the sheet's edge is a step within `lag`: read against the white squares' light alone,
+    a margin in a soft shadow ended a millimetre out, was modelled as the table, and was found as
+    part. Its colour is the white squares' in any light, so a table as light as the paper but of
+    another colour is no paper however gradually it comes."""
+    light = np.linalg.norm(lines, axis=-1)
+    white = float(np.linalg.norm(level))
+    paper: np.ndarray = (ok & (np.linalg.norm(_hue(lines) - _hue(level), axis=-1) <= _PAPER_HUE)
+                         & (light >= _SOFT_LEAST * white) & (light <= white / _PAPER_LIGHT))
+    paper[:, :lag] &= light[:, :lag] >= _PAPER_LIGHT * white
+    ref = np.full(len(lines), white, np.float32)
+    for d in range(lag, lines.shape[1]):
+        ref = np.where(paper[:, d - lag], light[:, d - lag], ref)
+        paper[:, d] &= np.abs(light[:, d] - ref) <= _SOFT_STEP * ref
+    return paper
 
 
 def sheet_margins(
@@ -108,14 +133,12 @@ def sheet_margins(
         whites = near[sel]
         norms = np.linalg.norm(whites, axis=1)
         level = np.median(whites[norms >= np.median(norms)], axis=0)
-        light, hue = float(np.linalg.norm(level)), _hue(level)
+        light = float(np.linalg.norm(level))
         lines = closed_t[o - ds, o : o + art_t.shape[1]].transpose(1, 0, 2)
         ok = seen_t[o - ds, o : o + art_t.shape[1]].T
         # lines: (position along the side, distance out, 3); each position's paper ends where
         # `gone` of it in a row is seen and is not paper
-        ratio = np.linalg.norm(lines, axis=2) / light
-        paper = ok & (ratio >= _PAPER_LIGHT) & (ratio <= 1 / _PAPER_LIGHT) & (
-            np.linalg.norm(_hue(lines) - hue, axis=2) <= _PAPER_HUE)
+        paper = _paper(lines, ok, level, max(1, round(_LAG_MM * q / step)))
         run = max(1, gone // step)
         # (out of the photo is no end: the photo's edge near a side would read as the sheet's)
         window = np.asarray(np.lib.stride_tricks.sliding_window_view(

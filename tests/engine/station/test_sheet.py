@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from prismcore.errors import InputError
+from prismcore.station.board import board_image, default_board
 from prismcore.station.calibrate import board_pose
 from prismcore.station.handheld import _board_view, board_camera
 from prismcore.station.sheet import MAX_MARGIN_MM, ink_strokes, sheet_margins
@@ -86,3 +87,36 @@ def test_the_print_on_the_paper_is_ink_and_a_part_is_not() -> None:
     assert ink[45:62, 20:160][text].mean() > 0.9
     assert not ink[125:255, 205:355].any()
     assert ink[100:, :].mean() < 0.02
+
+
+@pytest.mark.parametrize("fall", [0.0, 0.15, 0.3])
+@pytest.mark.parametrize("side", ["left", "top", "right", "bottom"])
+def test_a_margin_in_soft_shadow_is_read_to_the_sheets_edge(side: str, fall: float) -> None:
+    """A sheet lit from one side (an area light, a window, the part's own soft shadow) darkens
+    smoothly away from the board, here by `fall` of its light across the margin, to 30 % below
+    the white squares: the margins are still read to the sheet's edge, a step to the table.
+    (Read against the white squares' light alone, a margin 12 % darker than they ended there.)"""
+    board = default_board("A4")
+    q = 3.0  # px per mm of the drawn photo: the board's plane seen square on
+    margins = {"left": 30.0, "top": 20.0, "right": 25.0, "bottom": 40.0}
+    bw, bh = board.size_mm
+    pad = 70.0
+    size = (round((bw + 2 * pad) * q), round((bh + 2 * pad) * q))
+    photo = np.empty((size[1], size[0], 3), np.float32)
+    photo[:] = (95, 70, 60)  # a brown table
+    x0, y0 = round((pad - margins["left"]) * q), round((pad - margins["top"]) * q)
+    x1, y1 = round((pad + bw + margins["right"]) * q), round((pad + bh + margins["bottom"]) * q)
+    photo[y0:y1, x0:x1] = 235.0
+    art = board_image(board, q).astype(np.float32)
+    bx, by = round(pad * q), round(pad * q)
+    photo[by:by + art.shape[0], bx:bx + art.shape[1]] = (art * (235 / 255))[..., None]
+    # the light falls off past the board's edge on `side`, smoothly, to `fall` at the sheet's edge
+    yy, xx = np.mgrid[0:size[1], 0:size[0]].astype(np.float32)
+    out = {"left": bx - xx, "top": by - yy, "right": xx - (bx + art.shape[1]),
+           "bottom": yy - (by + art.shape[0])}[side]
+    photo *= (1 - fall * np.clip(out / (margins[side] * q), 0, 1))[..., None]
+    rng = np.random.default_rng(3)
+    photo = np.clip(photo + rng.normal(0, 4, photo.shape), 0, 255).astype(np.uint8)
+    pose_h = np.array([[q, 0, bx - 0.5], [0, q, by - 0.5], [0, 0, 1.0]])
+    got = dict(zip(("left", "top", "right", "bottom"), sheet_margins(photo, board, pose_h), strict=True))
+    assert all(abs(got[k] - margins[k]) <= 1.0 for k in margins), got
