@@ -49,22 +49,24 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
 def _paper(lines: np.ndarray, ok: np.ndarray, level: np.ndarray, lag: int) -> np.ndarray:
     """Where each position's line (positions, distance out, 3) shows paper, (positions, distance)
     bool: paper of the white squares' colour (`level`, (3,)), as light as they are at the board's
-    edge, then, outward, as light as the paper seen `lag` steps before it on the same line, and no
-    darker than _SOFT_LEAST of them. Soft light (an area light, a window, the part's own shadow)
-    darkens the margin smoothly away from the board, past a fixed share of the white's light,
-    while the sheet's edge is a step within `lag`: read against the white squares' light alone,
-    a margin in a soft shadow ended a millimetre out, was modelled as the table, and was found as
-    part. Its colour is the white squares' in any light, so a table as light as the paper but of
-    another colour is no paper however gradually it comes."""
+    edge, then, outward, as light as the paper `lag` steps before it on the same line (each
+    averaged over `lag` steps: a photo's noise), and no darker than _SOFT_LEAST of them. Soft
+    light (an area light, a window, the part's own shadow) darkens or lightens the margin
+    smoothly away from the board, past a fixed share of the white's light, while the sheet's
+    edge is a step within `lag`: read against the white squares' light alone, a margin in a soft
+    shadow, or lit more than the board's middle, ended a millimetre out, was modelled as the
+    table, and was found as part. Its colour is the white squares' in any light, so a table as
+    light as the paper but of another colour is no paper however gradually it comes."""
     light = np.linalg.norm(lines, axis=-1)
     white = float(np.linalg.norm(level))
     paper: np.ndarray = (ok & (np.linalg.norm(_hue(lines) - _hue(level), axis=-1) <= _PAPER_HUE)
-                         & (light >= _SOFT_LEAST * white) & (light <= white / _PAPER_LIGHT))
-    paper[:, :lag] &= light[:, :lag] >= _PAPER_LIGHT * white
+                         & (light >= _SOFT_LEAST * white))
+    paper[:, :lag] &= (light[:, :lag] >= _PAPER_LIGHT * white) & (light[:, :lag] <= white / _PAPER_LIGHT)
+    mean = cv2.blur(light.astype(np.float32), (lag, 1), borderType=cv2.BORDER_REPLICATE)
     ref = np.full(len(lines), white, np.float32)
     for d in range(lag, lines.shape[1]):
-        ref = np.where(paper[:, d - lag], light[:, d - lag], ref)
-        paper[:, d] &= np.abs(light[:, d] - ref) <= _SOFT_STEP * ref
+        ref = np.where(paper[:, d - lag], mean[:, d - lag], ref)
+        paper[:, d] &= np.abs(mean[:, d] - ref) <= _SOFT_STEP * ref
     return paper
 
 
