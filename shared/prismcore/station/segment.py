@@ -224,12 +224,42 @@ _TONE_BETTER = 0.8  # the tone curve is taken where the support's median residua
 _SPLIT_GAP_PX = 3.0  # coarse px
 _SPLIT_GAP = 0.3  # of the part's size (the square root of its area)
 _COARSE = 4  # the part is first found in a photo this many times smaller
+_THIN = 0.5  # a blob apart from the part narrower than this share of the part (mean widths)...
+_LONG = 6.0  # ...and this many times longer than thick is a line, not a part
 
 
 def _blobs(labels: np.ndarray, ids: list[int], size: tuple[int, int]) -> np.ndarray:
     """The coarse `labels`' blobs `ids` at the photo's `size` (w, h): (H, W) bool."""
     return cast("np.ndarray", cv2.resize(np.isin(labels, ids).astype(np.uint8), size,
                                          interpolation=cv2.INTER_NEAREST) > 0)
+
+
+def _width_and_length(labels: np.ndarray, stats: np.ndarray, i: int) -> tuple[float, float]:
+    """Blob `i`'s mean width and length (px of `labels`): for a strip, its area over half its
+    outline's length, and half that length; a disc's "length" is then under twice its width."""
+    x, y, bw, bh = (int(v) for v in stats[i, :4])
+    inside = np.pad(labels[y:y + bh, x:x + bw] == i, 1).astype(np.uint8)
+    contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    half = max(sum(cv2.arcLength(c, True) for c in contours) / 2, 1.0)
+    return float(stats[i, cv2.CC_STAT_AREA]) / half, half
+
+
+def _thin(labels: np.ndarray, stats: np.ndarray, blobs: list[int]) -> list[int]:
+    """The `blobs` that are thin and long and apart from the widest of them (a cable, a ruler's
+    edge, a printed line, a sheet's edge: no box, whose silhouette is convex and as wide as its
+    smaller side): under _THIN of its mean width, over _LONG times as long as they are wide, and
+    farther from it than a piece of the part split off would lie (`_SPLIT_GAP`)."""
+    if len(blobs) < 2:
+        return []
+    shapes = {i: _width_and_length(labels, stats, i) for i in blobs}
+    widest = max(shapes, key=lambda i: shapes[i][0])
+    narrow = [i for i, (width, length) in shapes.items()
+              if width < _THIN * shapes[widest][0] and length > _LONG * width]
+    if not narrow:
+        return []
+    gap = cv2.distanceTransform((labels != widest).astype(np.uint8), cv2.DIST_L2, 3)
+    reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(stats[widest, cv2.CC_STAT_AREA])))
+    return [i for i in narrow if float(gap[labels == i].min()) > reach]
 
 
 def segment_part(
@@ -289,6 +319,8 @@ def segment_part(
     on = None if rests_on is None else cv2.resize(rests_on.view("u1"), small, interpolation=cv2.INTER_AREA)
     off_support = [] if on is None else [i for i in big if not on[labels == i].any()]
     big = [i for i in big if i not in off_support]
+    thin = _thin(labels, stats, big)  # left out, and said
+    big = [i for i in big if i not in thin]
     if not big:
         raise PartRefusedError(_NO_PART + f" ({len(off_support)} off the board left out)" * bool(off_support),
                           photo_u, _blobs(labels, off_support, (w, h)))
@@ -347,6 +379,9 @@ def segment_part(
     if count < 2:
         raise PartRefusedError(_NO_PART, photo_u)
     warnings = [] if light_warning is None else [light_warning]
+    if thin:
+        warnings.append(f"{len(thin)} thin thing(s) apart from the part left out (a cable, a ruler, a "
+                        "printed line, a sheet's edge)")
     if off_support:
         warnings.append(f"{len(off_support)} thing(s) apart from the board left out (a table's pattern, "
                         "an object beside it)")

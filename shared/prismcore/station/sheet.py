@@ -32,7 +32,7 @@ _PAPER_LIGHT = 0.88  # paper: within this share of the white squares' light near
 # inverse (a metal table mirroring a lamp is brighter than paper, a grey one darker)...
 _PAPER_HUE = 0.06  # ...and its colour's direction within this of theirs (a table is seldom as grey)
 _LAG_MM = 2.0  # outward, paper is judged against the paper this far before it (a sheet's edge is sharper)
-_SOFT_STEP = 0.06  # ...changed by no more than this share of it (a soft light's fall is gentler)
+_SOFT_STEP = 0.08  # ...changed by no more than this share of it (a soft light's fall is gentler)
 _SOFT_LEAST = 0.5  # ...and a soft shadow darkens it to this share of the white squares' light at most
 _STARTS = 0.3  # a side shows paper where this share of its positions do next to the board
 _GONE_MM = 2.0  # the paper ends where lines this deep in a row are not paper
