@@ -255,11 +255,16 @@ def _thin(labels: np.ndarray, stats: np.ndarray, blobs: list[int]) -> list[int]:
     widest = max(shapes, key=lambda i: shapes[i][0])
     narrow = [i for i, (width, length) in shapes.items()
               if width < _THIN * shapes[widest][0] and length > _LONG * width]
-    if not narrow:
-        return []
-    gap = cv2.distanceTransform((labels != widest).astype(np.uint8), cv2.DIST_L2, 3)
-    reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(stats[widest, cv2.CC_STAT_AREA])))
-    return [i for i in narrow if float(gap[labels == i].min()) > reach]
+    return _apart_from(labels, stats, widest, narrow) if narrow else []
+
+
+def _apart_from(labels: np.ndarray, stats: np.ndarray, part: int, blobs: list[int]) -> list[int]:
+    """The `blobs` farther from blob `part` than a piece of it split off would lie: a band of its
+    colour meeting the support's splits a part by a small gap (_SPLIT_GAP_PX, _SPLIT_GAP of its
+    size, the square root of its area)."""
+    gap = cv2.distanceTransform((labels != part).astype(np.uint8), cv2.DIST_L2, 3)
+    reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(stats[part, cv2.CC_STAT_AREA])))
+    return [i for i in blobs if float(gap[labels == i].min()) > reach]
 
 
 def segment_part(
@@ -330,9 +335,7 @@ def segment_part(
     # much smaller than the part may be a piece of it, a small part or a speck: judged by the
     # caller against the fitted box and sized on the plane (`Silhouette.others`), never dropped
     # unsaid.
-    gap = cv2.distanceTransform((labels != first).astype(np.uint8), cv2.DIST_L2, 3)
-    reach = max(_SPLIT_GAP_PX, _SPLIT_GAP * float(np.sqrt(areas[first - 1])))
-    far = [i for i in big[1:] if float(gap[labels == i].min()) > reach]
+    far = _apart_from(labels, stats, first, big[1:])
     others = [i for i in far if areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     joined = [i for i in big[1:] if i not in far and areas[i - 1] >= _SECOND_PART * areas[first - 1]]
     if others:
@@ -373,8 +376,10 @@ def segment_part(
     # shadow keeps the step from a black square to the white, and a part does not. The coarse
     # pass counts it; so does this one, or a part found coarse was lost here ("no part found").
     broken = pattern_broken(pattern_match(P, bg, _NCC_FULL), _NCC_SHRINK) & (near > 0)
+    # (the mask without that evidence tells what it alone added: the same mask where none is near)
     plain = _mask(resid, noise, 1.0)
-    mask = _mask(np.maximum(resid, _BROKEN_LEVEL, where=broken, out=resid.copy()), noise, 1.0)
+    mask = _mask(np.maximum(resid, _BROKEN_LEVEL, where=broken, out=resid.copy()), noise, 1.0) \
+        if broken.any() else plain
     count, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if count < 2:
         raise PartRefusedError(_NO_PART, photo_u)

@@ -156,3 +156,15 @@ def test_the_measurement_takes_the_reading_only_where_the_outline_is_suspect():
         with np.errstate(over="ignore", invalid="ignore"):
             assert _hidden_sides(photo, plate, reg, _silhouette(True), broken, K, R, t) == (broken, "")
             assert read_hidden_sides(photo, plate, np.eye(3), IDENTITY_TONE, 0.25, broken, K, R, t) is None
+
+
+def test_a_top_with_no_height_under_it_is_a_box_of_log_height_minus_infinity_unwarned() -> None:
+    """The heights tried start at the fit's own, which is 0 for a fit that gave none: that box's
+    log height is -inf (as the fit's), with no "divide by zero" warning (warnings are errors
+    here)."""
+    R, t = _pose(45.0, 800.0)
+    top_px = project(box_corners(np.array([0.0, 0.0, 0.3, np.log(80.0), np.log(50.0), np.log(1e-9)]))[4:],
+                     K, R, t)
+    params, corners = _box_under(top_px, 0.0, K, R, t)
+    assert params[5] == -np.inf and np.all(np.isfinite(params[:5]))
+    assert np.allclose(corners[:4], corners[4:], atol=1e-6)  # the footprint is the top
