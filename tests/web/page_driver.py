@@ -119,8 +119,14 @@ class PageDriver:
         return (float(x), float(y)) if x and y else None
 
     def submit_and_wait(self, timeout_ms: float = 120_000) -> str:
-        self.page.get_by_role("button", name="Submit job").click()
+        """Submit, and the new job's final state as the page shows it. The last job's state stays
+        on the page until the new job's is shown: waited for first, or a "Done" left from the last
+        job passed the wait and the new job was read "Queued" (a second submit in one test failed
+        so, 1 run in 2 alone, while the worker had finished that job in under a second)."""
         state = self.page.locator("#job-state")
+        before = state.text_content() or ""
+        self.page.get_by_role("button", name="Submit job").click()
+        expect(state).not_to_have_text(before, timeout=timeout_ms)
         expect(state).to_contain_text(re.compile(r"Done|Failed|Cancelled"), timeout=timeout_ms)
         return state.text_content()
 
