@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import re
 import secrets
@@ -105,7 +106,10 @@ def render(count: int, cache: Path) -> tuple[list[Path], list[dict[str, float]]]
     if todo:
         print(f"rendering {len(todo)} photos into {folder} ...", flush=True)
         started = time.perf_counter()
-        with ProcessPoolExecutor(PROCESSES) as pool, truth_file.open("a") as out:
+        # spawned, not forked: a caller that ran OpenCV or numpy first holds their threads' locks,
+        # which a fork copies locked (benchmarks/service.py's render pool hung on them)
+        spawn = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(PROCESSES, mp_context=spawn) as pool, truth_file.open("a") as out:
             for row in pool.map(_render_one, todo, chunksize=4):
                 known[row["seed"]] = row
                 out.write(json.dumps(row) + "\n")

@@ -94,6 +94,11 @@ class Settings(BaseSettings):
     # of 1920x1080 frames; lower it for larger frames (8.3 MB each at 3840x2160). prism scan's
     # cap is the same 300 (prismcore.video.span.TRACKED_MAX_SPAN).
     tracked_max_span: int = Field(default=300, ge=1)
+    # Threads each worker pool process lets OpenCV use. The pool is the worker's parallelism (a
+    # process per core, --concurrency); OpenCV's own threads on top of it spent CPU on handing
+    # work between threads, not on measuring (benchmarks/service.py on 2 idle cores: the worker
+    # 1.45x the engine's CPU a photo with OpenCV's default, a thread per core in each process).
+    engine_threads: int = Field(default=1, ge=1)
     tiles_per_face: int = 4
     items_in_flight_per_job: int = 4  # a big batch cannot starve the jobs queued after it
     visibility_timeout_s: int = 300  # a task not acked by then is redelivered (worker lost)

@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # boto3-stubs[s3] (test extra): the client's types, not neede
 __all__ = ["ObjectStore", "is_missing", "object_key"]
 
 SINGLE_PUT_BYTES = 64 * 2**20
+_AS_BYTES = 8 * 2**20  # a seekable stream up to this size is read and sent whole
 # A stream of unknown size (an upload read off its request) goes up in parts of 8 MiB; s3transfer
 # holds up to 10 of them in memory by default (80 MiB an upload). Two let one part go up while the
 # next is read from a client, which is slower than the store; with the API's cap on uploads at
@@ -104,6 +105,12 @@ class ObjectStore:
             start = stream.tell()
             size = stream.seek(0, 2) - start
             stream.seek(start)
+            if size <= _AS_BYTES:
+                # as bytes: http.client sends a file object 8 KiB at a time, a read and a send
+                # for each (a 1 MB cloud: 128 of them, besides the checksum's and signature's
+                # passes over the file)
+                self.put_bytes(key, stream.read(size), content_type)
+                return
             if size <= SINGLE_PUT_BYTES:
                 self.client.put_object(Bucket=self.bucket, Key=key, Body=stream,
                                        ContentLength=size, ContentType=content_type)

@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import faulthandler
 import logging
+import os
 import signal
 import threading
 import time
 from typing import Any
 
+import cv2
 from celery import Celery, Task
 from celery.signals import (
     task_postrun,
@@ -86,7 +88,10 @@ def _main_started(**_: Any) -> None:
 
 @worker_process_init.connect
 def _process_started(**_: Any) -> None:
-    _build()  # the child's own clients, not the ones it inherited from the main process
+    ctx = _build()  # the child's own clients, not the ones it inherited from the main process
+    cv2.setNumThreads(ctx.settings.engine_threads)
+    log.info("pool process %d: OpenCV uses %d thread(s) (PRISM_ENGINE_THREADS)", os.getpid(),
+             cv2.getNumThreads())
     _print_stacks_on_signal()
 
 

@@ -129,6 +129,14 @@ def test_two_item_job_succeeds_and_matches_the_engine(env, scene, tmp_path):
     assert durations["prism.scan_tile"]["count"] >= 16 and durations["prism.finish_item"]["count"] >= 2
 
 
+def test_each_pool_process_lets_opencv_use_one_thread(env):
+    # The pool is the worker's parallelism; OpenCV's threads on top of it spent CPU on handing
+    # work between threads (PRISM_ENGINE_THREADS, 1 unless set).
+    lines = [line for line in env.worker.log.splitlines() if "OpenCV uses" in line]
+    assert lines, env.worker.log[-3000:]
+    assert all("OpenCV uses 1 thread(s)" in line for line in lines), lines
+
+
 def test_a_calibrated_camera_inline_and_exif_reach_the_tiled_scan(env):
     # A photo through a lens with barrel distortion, its camera given inline: the plan undistorts
     # it and every tile scans the undistorted photo; the same photo's EXIF alone gives the focal.

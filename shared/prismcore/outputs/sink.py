@@ -97,7 +97,7 @@ def write_outputs(result: ScanResult, sink: Sink, *, spec: ScanSpec, images: Seq
         sink.put(names[kind], write, media_type(kind))
         result.report.timings_ms[f"write_{kind}"] = round(spent[0], 3)
     if preview:
-        _put_preview(result, sink, names)
+        _put_preview(result, sink, names, spec)
     started = time.perf_counter()
     two = spec.two_photo and (result.report.inputs or {}).get("side_image") and len(images) > 1
     for kind, photo in (("overlay", "front"), ("overlay_side", "side"))[:2 if two else 1]:
@@ -113,12 +113,18 @@ def write_outputs(result: ScanResult, sink: Sink, *, spec: ScanSpec, images: Seq
     return names
 
 
-def _put_preview(result: ScanResult, sink: Sink, names: dict[str, str]) -> None:
-    """preview.ply: at most `prismcore.scan.cloud.PREVIEW_POINTS` points, by an even stride."""
+def _put_preview(result: ScanResult, sink: Sink, names: dict[str, str], spec: ScanSpec) -> None:
+    """preview.ply: at most `prismcore.scan.cloud.PREVIEW_POINTS` points, by an even stride. A
+    cloud that small is its own preview: where cloud.ply was put (binary), the preview is that
+    file, not the same bytes put again (a 1 mm cloud's 0.3-0.7 MB, a sixth of a service item's
+    requests and a quarter of its bytes)."""
     from prismcore.outputs.writers import write_ply
     from prismcore.scan.cloud import decimate
 
     thinned = decimate(result.cloud)
+    if thinned is result.cloud and "ply" in names and not spec.ply_ascii:
+        names["preview"] = names["ply"]
+        return
     names["preview"] = FILE_NAMES["preview"]
     sink.put(names["preview"], lambda f: write_ply(f, thinned.points, thinned.colors), media_type("preview"))
 
