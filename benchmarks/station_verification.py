@@ -5,7 +5,8 @@ part (70 x 45 x 30 mm) placed 7 times across the board (`prism sample --station`
 `verify_placements` at +-T on the correct station, on stations whose scale is 1 % off (the board
 described 1 % larger or smaller than printed: every length, the plane's distance among them, 1 %
 off) and on one whose focal length is 1 % off (given at calibration, the plane's pose fitted with
-it); then a photo after the camera turned by 5, 10 and 20 px, measured with `scan.certify`.
+it); then a photo after the camera turned by 5, 10 and 20 px, measured with `scan.certify`. The photos
+are JPEGs of quality 85 with the colour at half resolution (4:2:0) unless --chroma 444.
 
     .venv/bin/python benchmarks/station_verification.py --seeds 1-12 --tolerance 2
 """
@@ -50,11 +51,11 @@ def scaled(board: BoardSpec, factor: float) -> BoardSpec:
                                     "marker_mm": board.marker_mm * factor})
 
 
-def stations(seed: int) -> tuple[StationSetup, dict[str, Station]]:
+def stations(seed: int, chroma: str = "420") -> tuple[StationSetup, dict[str, Station]]:
     """The setup and its stations: correct, scale 1 % high and low, focal length 1 % high."""
     board = default_board()
     setup = station_setup(seed, board=board)
-    plate = station_scene(seed, setup, parts=0).plate
+    plate = station_scene(seed, setup, parts=0, chroma=chroma).plate
     cam = camera_of(setup)
     return setup, {
         "correct": calibrate_station(board, plate, camera=cam, plate=plate),
@@ -64,11 +65,11 @@ def stations(seed: int) -> tuple[StationSetup, dict[str, Station]]:
     }
 
 
-def placements(seed: int, setup: StationSetup) -> list[np.ndarray]:
+def placements(seed: int, setup: StationSetup, chroma: str = "420") -> list[np.ndarray]:
     photos = []
     for i, box in enumerate(reference_placements(setup), 1):
         try:
-            photos.append(station_scene(1000 * seed + i, setup, box=box).photo)
+            photos.append(station_scene(1000 * seed + i, setup, box=box, chroma=chroma).photo)
         except ValueError:  # that placement is out of this camera's view
             continue
     return photos
@@ -109,9 +110,10 @@ def moved_setup(setup: StationSetup, shift_px: float, seed: int) -> StationSetup
     return replace(setup, R=dR @ setup.R, t=dR @ setup.t)
 
 
-def moved_photo(seed: int, setup: StationSetup, shift_px: float) -> np.ndarray:
+def moved_photo(seed: int, setup: StationSetup, shift_px: float, chroma: str = "420") -> np.ndarray:
     box = reference_placements(setup)[2]  # the board's centre
-    return station_scene(7000 + seed, moved_setup(setup, shift_px, seed), box=box, nudge=False).photo
+    return station_scene(7000 + seed, moved_setup(setup, shift_px, seed), box=box, nudge=False,
+                         chroma=chroma).photo
 
 
 def _seeds(text: str) -> list[int]:
@@ -126,13 +128,16 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="1-6")
     parser.add_argument("--tolerance", type=float, default=2.0)
+    parser.add_argument("--chroma", choices=("420", "444"), default="420",
+                        help="the JPEGs' colour sampling: 420 halves the colour's resolution (phones, "
+                             "most cameras), 444 keeps it whole (a machine-vision camera's setting)")
     args = parser.parse_args()
     verdicts: dict[str, list[bool]] = {}
     covered = []
     flagged = []
     for seed in _seeds(args.seeds):
-        setup, kinds = stations(seed)
-        photos = placements(seed, setup)
+        setup, kinds = stations(seed, args.chroma)
+        photos = placements(seed, setup, args.chroma)
         for name, station in kinds.items():
             done = verification(station, photos, args.tolerance, still=name == "correct")
             if isinstance(done, str):
@@ -149,7 +154,7 @@ def main() -> None:
         correct = kinds["correct"]
         for shift in MOVES_PX:
             try:
-                m = measure_on_station(moved_photo(seed, setup, shift), correct)
+                m = measure_on_station(moved_photo(seed, setup, shift, args.chroma), correct)
             except InputError as exc:
                 print(f"seed {seed:3d} moved {shift:4.0f} px: refused ({exc})")
                 flagged.append(True)  # refused is flagged too: nothing measured unsaid

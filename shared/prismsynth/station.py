@@ -312,9 +312,15 @@ def _fill_exact(img: np.ndarray, poly: np.ndarray, colour: np.ndarray) -> None:
     region += cover * np.asarray(colour, np.float32)
 
 
-def _jpeg(image: np.ndarray, quality: int) -> np.ndarray:
+# A JPEG's colour sampling: "420" halves the colour's resolution both ways (phones, most cameras'
+# default), "444" keeps it whole (a machine-vision camera's setting).
+_SAMPLING = {"420": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420, "444": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444}
+
+
+def _jpeg(image: np.ndarray, quality: int, chroma: str = "420") -> np.ndarray:
     ok, data = cv2.imencode(
-        ".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality]
+        ".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
+        [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, _SAMPLING[chroma]],
     )
     assert ok
     decoded = cast("np.ndarray", cv2.imdecode(data, cv2.IMREAD_COLOR))  # None only for bad bytes
@@ -360,6 +366,7 @@ def station_scene(
     near_table_colour: bool | None = None,
     max_size_mm: float = 400.0,
     quality: int = 85,
+    chroma: str = "420",
     inside_board: bool = False,
     box: StationBox | None = None,
 ) -> StationScene:
@@ -370,6 +377,7 @@ def station_scene(
     near_table_colour : the part's colour within 10 RGB levels of the table's mean (default: 10 %).
     inside_board : the part's footprint on the board, 15 mm from its edges (hand-held photos).
     box : the one part, placed as given (a reference part's placements); it must be in view.
+    quality, chroma : the JPEG's quality and colour sampling ("420" or "444") of the plate and photo.
     """
     rng = np.random.default_rng([seed, 31])
     setup = setup if setup is not None else station_setup(seed)
@@ -401,7 +409,7 @@ def station_scene(
     az = rng.uniform(0, 2 * np.pi)
     tilt = np.radians(rng.uniform(15, 45))
     light = np.array([np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), np.cos(tilt)])
-    plate = _jpeg(_render(setup, setup.R, setup.t, [], light, 1.0, rng, shadow=0.0), quality)
+    plate = _jpeg(_render(setup, setup.R, setup.t, [], light, 1.0, rng, shadow=0.0), quality, chroma)
     gain = float(rng.uniform(0.8, 1.2))
     R, t = setup.R, setup.t
     nudge_px = 0.0
@@ -415,7 +423,7 @@ def station_scene(
         dR = cv2.Rodrigues(axis)[0]
         R, t = dR @ setup.R, dR @ setup.t
     photo = _jpeg(
-        _render(setup, R, t, boxes, light, gain, rng, shadow=float(rng.uniform(0.3, 0.55))), quality
+        _render(setup, R, t, boxes, light, gain, rng, shadow=float(rng.uniform(0.3, 0.55))), quality, chroma
     )
     return StationScene(
         plate=plate,

@@ -7,8 +7,9 @@ over several station setups (prismsynth seeds):
   the rule accepts and within the station's own stated one sigma of the truth. The bias's 95 %
   t interval holds the truth (0) for 3 of 18 dimensions over benchmarks/station_verification.py's
   6 stations: the footprint reads 0.03-0.08 mm long, the height 0.09-0.20 mm, a systematic bias
-  7 placements resolve (the outline's top sides lie ~0.15 px outside the truth, its footprint's
-  ~0.2 px inside, on these renders with their shadows); the rule accepts it as under 10 % of 2T.
+  7 placements resolve, which comes with the photos' JPEG colour at half resolution (4:2:0): with
+  it whole (4:4:4) the interval holds 0 for 16 of 18 (test_verify_colour_sampling.py). The rule
+  accepts it as under 10 % of 2T.
   (Until the renderer painted each pixel by the share of it a part covers, every side was drawn
   ~0.45 px too large and the bias was 0.08-0.28 mm, its interval holding 0 for none);
 * a station whose scale is 1 % off (its board described 1 % larger or smaller than printed: the
