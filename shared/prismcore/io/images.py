@@ -155,6 +155,10 @@ class ImageInfo:
         PNG and TIFF, returned as float32) or 32 (32-bit TIFF, which :func:`load_image` refuses).
     orientation : int
         EXIF orientation 1..8 (1 = upright; anything missing or invalid counts as 1).
+    chroma : str or None
+        A colour JPEG's colour sampling: "4:4:4" (whole), "4:2:2" (halved across) or "4:2:0"
+        (halved both ways: a phone's and most cameras' default); None for another format, a grey
+        JPEG or another layout.
     """
 
     width: int
@@ -163,6 +167,7 @@ class ImageInfo:
     mode: str
     bit_depth: int
     orientation: int = 1
+    chroma: str | None = None
 
     @property
     def pixels(self) -> int:
@@ -506,7 +511,11 @@ def _inspect(
         depth = 8 if bits <= 8 else 16 if bits <= 16 else 32
         if 274 in tags and tags[274].size:
             orientation = _valid_orientation(int(tags[274][0]))
-    return ImageInfo(width, height, fmt, im.mode, depth, orientation), im, tags
+    chroma = _CHROMA.get(JpegImagePlugin.get_sampling(im)) if fmt == "JPEG" and im.mode == "RGB" else None
+    return ImageInfo(width, height, fmt, im.mode, depth, orientation, chroma), im, tags
+
+
+_CHROMA = {0: "4:4:4", 1: "4:2:2", 2: "4:2:0"}  # Pillow's numbers for a JPEG's colour sampling
 
 
 # --------------------------------------------------------------------------------------------

@@ -759,9 +759,19 @@ def test_probe_reports_header_fields() -> None:
     assert probe_image(pil_bytes(RGBA, "WEBP", lossless=True)) == ImageInfo(W, H, "WEBP", "RGBA", 8, 1)
     assert probe_image(pil_bytes(RGB, "WEBP", quality=80)).mode == "RGB"
     jpeg = probe_image(pil_bytes(RGB, "JPEG", exif=exif_block(6)), name="a.jpg")
-    assert jpeg == ImageInfo(W, H, "JPEG", "RGB", 8, 6)
+    assert jpeg == ImageInfo(W, H, "JPEG", "RGB", 8, 6, "4:2:0")  # Pillow's default sampling
     assert jpeg.shape == (W, H, 3) and jpeg.dtype == np.uint8 and jpeg.pixels == W * H
     assert probe_image(_palette_case()[0]).mode == "P"
+
+
+@pytest.mark.parametrize(("sampling", "chroma"), [(cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444, "4:4:4"),
+                                                  (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422, "4:2:2"),
+                                                  (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420, "4:2:0")])
+def test_probe_reads_a_jpegs_colour_sampling(sampling: int, chroma: str) -> None:
+    data = cv2_bytes(".jpg", RGB, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling)
+    assert probe_image(data).chroma == chroma
+    assert probe_image(cv2_bytes(".jpg", RGB[..., 0])).chroma is None  # grey: no colour to sample
+    assert probe_image(cv2_bytes(".png", RGB)).chroma is None
 
 
 def test_thirty_two_bit_tiff_is_refused() -> None:
