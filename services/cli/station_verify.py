@@ -107,27 +107,10 @@ def verify(
     done = verify_station(station, [(str(p), load_image(p)) for p in photos], size, tolerance,
                           datetime.now(UTC).replace(microsecond=0))
     _print(done)
-    _halved_colour_note(done, photos)
     path.write_text(station.model_copy(update={"verification": done}).model_dump_json(indent=2) + "\n")
     console().print(f"stored in {path} (verification, {done.date:%Y-%m-%d %H:%M} UTC)", markup=False)
     if not done.verified:
         raise typer.Exit(1)
-
-
-def _halved_colour_note(done: Verification, photos: list[Path]) -> None:
-    """Says so where a significant bias may come with the photos' JPEG colour at half resolution:
-    on renders a correct station then reads a part 0.03-0.2 mm long, the height most, and with the
-    colour whole it does not (docs/how-to/certify-station.md)."""
-    from prismcore.io import probe_image
-
-    significant = [n for n, d in done.dimensions.items() if not d.bias_ci95_mm[0] <= 0 <= d.bias_ci95_mm[1]]
-    halved = [p for p in photos if probe_image(p).chroma in ("4:2:0", "4:2:2")]
-    if significant and halved:
-        console().print(
-            f"note: {len(halved)} of the {len(photos)} photos are JPEGs with their colour at half "
-            "resolution (4:2:0 or 4:2:2), which alone reads a part 0.03-0.2 mm long on renders, the "
-            f"height most ({', '.join(significant)} biased here); for a station's camera, save PNG or "
-            "JPEG 4:4:4", markup=False)
 
 
 def _print(done: Verification | VerificationPublic) -> None:

@@ -5,11 +5,8 @@ over several station setups (prismsynth seeds):
 * a correct station's verification with the sample's reference part (70 x 45 x 30 mm, placed 7
   times as `prism sample --station` places it) passes at +-2 mm, its bias within the 10 % of 2T
   the rule accepts and within the station's own stated one sigma of the truth. The bias's 95 %
-  t interval holds the truth (0) for 3 of 18 dimensions over benchmarks/station_verification.py's
-  6 stations: the footprint reads 0.03-0.08 mm long, the height 0.09-0.20 mm, a systematic bias
-  7 placements resolve, which comes with the photos' JPEG colour at half resolution (4:2:0): with
-  it whole (4:4:4) the interval holds 0 for 16 of 18 (test_verify_colour_sampling.py). The rule
-  accepts it as under 10 % of 2T.
+  t interval holds the truth (0) for 16 of 18 dimensions over benchmarks/station_verification.py's
+  6 stations (test_verify_colour_sampling.py; 3 of 18 before the outline's step was read twice).
   (Until the renderer painted each pixel by the share of it a part covers, every side was drawn
   ~0.45 px too large and the bias was 0.08-0.28 mm, its interval holding 0 for none);
 * a station whose scale is 1 % off (its board described 1 % larger or smaller than printed: the

@@ -1,18 +1,17 @@
 """A correct station's bias, on photos with their colour whole and halved.
 
 The station verified with the sample's reference part (70 x 45 x 30 mm, placed 7 times as
-`prism sample --station` places it) on 6 station setups (prismsynth seeds). With the photos'
-colour at full resolution (JPEG 4:4:4, as a machine-vision camera saves, or PNG) the station is
+`prism sample --station` places it) on 6 station setups (prismsynth seeds), once with the photos'
+JPEG colour at full resolution (4:4:4, as a machine-vision camera saves) and once at half
+resolution both ways (4:2:0, a phone's and most cameras' default). Either way the station is
 unbiased within what 7 placements resolve: the bias's 95 % t interval holds the truth for 16 of
-the 18 dimensions (a 95 % interval is expected to miss about 1). With the colour at half
-resolution both ways (JPEG 4:2:0, a phone's and most cameras' default) the same scenes read
-+0.03 to +0.20 mm long, the height most, and the interval holds the truth for 3 of 18: the part's
-outline is read 0.1-0.2 px outward along its near-horizontal sides (against its true silhouette;
-along the near-vertical ones within 0.05 px), and only the part's photo's sampling matters (the
-plate's does not). Why the halved colour moves those sides and not the others was not taken
-further. The verification is right to call that bias significant; under 10 % of 2T, the rule
-accepts it.
-(benchmarks/station_verification.py --chroma 444 and without it: the same figures.)
+the 18 dimensions (a 95 % interval is expected to miss about 1).
+
+Until the outline's step was read a second time from where the first reading put it
+(`prismcore.station.edges.refine_outline`), the 4:2:0 photos read the part 0.03-0.20 mm long,
+the height most, and the interval held the truth for 3 of 18: the threshold's outline lies further
+out on them, and the part's and the support's levels, read 3-4 px either side of it, were read off
+centre. (benchmarks/station_verification.py, with --chroma 444 and without: the same figures.)
 """
 
 from __future__ import annotations
@@ -49,26 +48,28 @@ def _verification(seed: int, chroma: str) -> Verification:
     return verify_station(station, photos, REFERENCE, 2.0, DATE)
 
 
-def test_on_full_colour_photos_the_bias_interval_holds_the_truth():
+@pytest.mark.parametrize("chroma", ["444", "420"])
+def test_the_bias_interval_holds_the_truth(chroma):
     held, biases = 0, []
     for seed in SEEDS:
-        done = _verification(seed, "444")
+        done = _verification(seed, chroma)
         assert done.verified, (seed, done.decided_by)
         for name in DIMENSIONS:
             low, high = done.dimensions[name].bias_ci95_mm
             held += low <= 0.0 <= high
             biases.append(done.dimensions[name].bias_mm)
-    # 16 of 18 here; a 95 % interval holding the truth is not expected to hold it every time
+    # 16 of 18 both ways here; a 95 % interval holding the truth is not expected to hold it every time
     assert held >= 15, held
     assert max(np.abs(biases)) < 0.08, biases
 
 
 @pytest.mark.parametrize("seed", SEEDS[:3])
-def test_photos_with_half_resolution_colour_read_the_part_long(seed):
+def test_halving_the_colour_moves_no_bias_beyond_chance(seed):
+    # the two biases, each a mean of 7 placements, differ by under 3 standard errors of their
+    # difference (before the second reading the height moved by +0.12 to +0.14 mm, over 5)
     whole, halved = _verification(seed, "444"), _verification(seed, "420")
-    assert halved.verified, halved.decided_by  # a bias under 10 % of 2T
-    longer = {k: halved.dimensions[k].bias_mm - whole.dimensions[k].bias_mm for k in DIMENSIONS}
-    assert 0.05 <= longer["height"] <= 0.3, longer
-    assert all(-0.05 <= v <= 0.2 for v in longer.values()), longer
-    low, high = halved.dimensions["height"].bias_ci95_mm
-    assert low > 0, (low, high)  # significant: the verification says so
+    for k in DIMENSIONS:
+        a, b = whole.dimensions[k], halved.dimensions[k]
+        moved = b.bias_mm - a.bias_mm
+        se = float(np.hypot(a.repeatability_mm, b.repeatability_mm)) / np.sqrt(len(a.errors_mm))
+        assert abs(moved) <= 3 * se, (k, moved, se)
