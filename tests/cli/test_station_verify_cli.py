@@ -175,7 +175,7 @@ def test_a_wrong_reference_is_not_verified_exit_1(sample: Path):
         cwd=sample,
     )
     assert run.returncode == 1, run.stdout + run.stderr
-    assert "\nnot verified on " in run.stdout and "width: bias -1.8" in run.stdout, run.stdout
+    assert "\nnot verified on " in run.stdout and "width: bias -1.9" in run.stdout, run.stdout
     stored = json.loads((sample / "station.json").read_text())["verification"]
     assert stored["verified"] is False and stored["reference_mm"]["width"] == 72.0
     assert all(d.startswith("width: ") for d in stored["decided_by"]), stored["decided_by"]
