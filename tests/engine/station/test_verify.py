@@ -132,6 +132,20 @@ def test_grr_over_30_percent_and_a_placement_outside_3_sigma_each_fail():
     assert "placement 4 off by more than 3" in done.failures[1]
     unbiased = verify_dimension(45.0 + errors, np.full(7, 0.2), 45.0, tolerance=None)
     assert unbiased.verified  # mean 0: not significant; no tolerance, no %GRR
+    assert "alone" not in done.failures[0]  # no one placement makes that spread
+
+
+def test_grr_over_30_percent_by_one_placement_names_it():
+    # a correct station's 7 readings, one of them vague (stated sigma 2.3 mm) and 0.79 mm off
+    errors = np.array([-0.035, 0.79, -0.014, 0.022, -0.053, -0.004, -0.035])
+    sigmas = np.array([0.38, 2.29, 0.34, 0.35, 0.41, 0.35, 0.33])
+    done = verify_dimension(45.0 + errors, sigmas, 45.0, tolerance=2.0)
+    without = 6 * np.std(np.delete(errors, 1), ddof=1) / 4 * 100
+    assert done.grr_percent > 30 and without < 30 and not done.verified
+    assert done.failures == [
+        f"%GRR {done.grr_percent:.1f} % is over 30 % (placement 2 alone: off by +0.790 mm, its stated "
+        f"sigma 2.290 mm; {without:.1f} % without it: place it again)"
+    ]
 
 
 def _placements(errors: np.ndarray) -> dict[str, object]:
