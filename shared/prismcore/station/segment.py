@@ -267,6 +267,16 @@ def _apart_from(labels: np.ndarray, stats: np.ndarray, part: int, blobs: list[in
     return [i for i in blobs if float(gap[labels == i].min()) > reach]
 
 
+def _unseen(plate_shape: tuple[int, ...], homography: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: where the plate, warped by `homography` into an image of `size` (W, H), does not
+    reach, and a pixel around. There the warp's replicated border invents a support (the camera
+    moved since the plate was taken and the photo shows more of the scene): nothing read there is
+    evidence of a part."""
+    reach = cv2.warpPerspective(np.full(plate_shape, 255, np.uint8), homography, size,
+                                flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return cv2.dilate((reach < 255).view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+
+
 def segment_part(
     photo_u: np.ndarray, plate_u: np.ndarray, homography: np.ndarray, *, skip_inside: bool = True,
     rests_on: np.ndarray | None = None,
@@ -290,11 +300,10 @@ def segment_part(
     to_small = np.array([[small[0] / w, 0, 0.5 * small[0] / w - 0.5],
                          [0, small[1] / h, 0.5 * small[1] / h - 0.5], [0, 0, 1.0]])
     Ps = cv2.resize(photo_u, small, interpolation=cv2.INTER_AREA).astype(np.float32)
-    Bs8 = cv2.warpPerspective(
-        cv2.resize(plate_u, small, interpolation=cv2.INTER_AREA),
-        to_small @ homography @ np.linalg.inv(to_small),
-        small, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE,
-    )
+    plate_s = cv2.resize(plate_u, small, interpolation=cv2.INTER_AREA)
+    Hs = to_small @ homography @ np.linalg.inv(to_small)
+    Bs8 = cv2.warpPerspective(plate_s, Hs, small, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    unseen_s = _unseen(plate_s.shape[:2], Hs, small)
     Bs = Bs8.astype(np.float32)
     gain, light_warning = _gain(Ps, Bs)
     # The part first against the plate under the light's gain, then the camera's tone curve fitted
@@ -303,6 +312,7 @@ def segment_part(
     linear = np.minimum(np.arange(256, dtype=np.float32)[None] * gain[:, None], 255.0)
     white_s = Bs8 >= _AT_WHITE
     resid_g = _residual(Ps, toned(Bs8, linear), clipped=white_s)
+    resid_g[unseen_s] = 0.0
     first = _mask(resid_g, float(np.median(resid_g)) * 1.4826 + 1.0, 1 / _COARSE) > 0
     support = cv2.dilate(first.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
     lut = tone_curve(Ps, Bs, gain, ~support)
@@ -315,6 +325,7 @@ def segment_part(
     resid_s = _residual(Ps, Bs, shadow=shadow, clipped=white_s)
     broken_s = pattern_broken(coarse_match)
     resid_s[broken_s] = np.maximum(resid_s[broken_s], _BROKEN_LEVEL)
+    resid_s[unseen_s] = 0.0
     noise_s = float(np.median(resid_s)) * 1.4826 + 1.0
     mask_s = _mask(resid_s, noise_s, 1 / _COARSE)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask_s, connectivity=8)
@@ -351,6 +362,13 @@ def segment_part(
     if x0 <= 0 or y0 <= 0 or x0 + bw >= small[0] or y0 + bh >= small[1]:
         raise PartRefusedError("the part is cut by the photo's edge: move it into view", photo_u,
                           _blobs(labels, pieces, (w, h)))
+    # (the unseen band's residual is nought: a part reaching into it stops at its border)
+    if (cv2.dilate(np.isin(labels, pieces).view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+            & unseen_s).any():
+        raise PartRefusedError(
+            "the part reaches the photo's edge where the empty support's photo shows nothing (the "
+            "camera has moved since calibration): move the part away from the edge, or calibrate "
+            "again", photo_u, _blobs(labels, pieces, (w, h)))
     # The part's window at full size, with a margin of support around it.
     m = 6
     X0, Y0 = max(0, (x0 - m) * _COARSE), max(0, (y0 - m) * _COARSE)
@@ -367,6 +385,7 @@ def segment_part(
     core = cv2.erode(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * _CORE + 1,) * 2))
     resid = _residual(P, bg, core[np.ix_(rows, cols)] > 0 if skip_inside else None, shadow,
                       clipped=bg8 >= _AT_WHITE)
+    resid[_unseen(plate_u.shape[:2], window_h, (X1 - X0, Y1 - Y0))] = 0.0
     near: np.ndarray = blob[np.ix_(rows, cols)]
     near = cv2.dilate(near, np.ones((9, 9), np.uint8))
     outside = resid[near == 0]
