@@ -23,6 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from prismcore import InputError
@@ -39,7 +40,7 @@ from prismsynth.station import station_scene, station_setup
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "services"))
 from cli.sample_command import reference_placements
-from station_verification import _seeds, camera_of
+from station_verification import camera_of, seed_list
 
 KINDS = ("foot", "top", "vertical")
 REFERENCE_MM = {"width": 70.0, "depth": 45.0, "height": 30.0}
@@ -47,7 +48,6 @@ REFERENCE_MM = {"width": 70.0, "depth": 45.0, "height": 30.0}
 
 def true_hull(corners_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The true silhouette's vertices (M, 2) px in order round it and their corner indices (M,)."""
-    import cv2
 
     idx = cv2.convexHull(corners_px.astype(np.float32), returnPoints=False).ravel()
     return corners_px[idx], idx
@@ -83,7 +83,7 @@ def main() -> None:
     found: dict[str, dict[str, list[np.ndarray]]] = {"threshold": {k: [] for k in KINDS},
                                                      "refined": {k: [] for k in KINDS}}
     errors = []
-    for seed in _seeds(args.seeds):
+    for seed in seed_list(args.seeds):
         board = default_board()
         setup = station_setup(seed, board=board)
         cam = camera_of(setup)

@@ -2,11 +2,12 @@
 
 For each seed: a station calibrated with its true camera on its plane photo; the sample's reference
 part (70 x 45 x 30 mm) placed 7 times across the board (`prism sample --station`'s placements);
-`verify_placements` at +-T on the correct station, on stations whose scale is 1 % off (the board
-described 1 % larger or smaller than printed: every length, the plane's distance among them, 1 %
-off) and on one whose focal length is 1 % off (given at calibration, the plane's pose fitted with
-it); then a photo after the camera turned by 5, 10 and 20 px, measured with `scan.certify`. The photos
-are JPEGs of quality 85 with the colour at half resolution (4:2:0) unless --chroma 444.
+verified as `prism station verify` does (`verify_measured`) at +-T on the correct station, on
+stations whose scale is 1 % off (the board described 1 % larger or smaller than printed: every
+length, the plane's distance among them, 1 % off) and on one whose focal length is 1 % off (given
+at calibration, the plane's pose fitted with it); then a photo after the camera turned by 5, 10
+and 20 px, measured with `scan.certify`. The photos are JPEGs of quality 85 with the colour at
+half resolution (4:2:0) unless --chroma 444.
 
     .venv/bin/python benchmarks/station_verification.py --seeds 1-12 --tolerance 2
 """
@@ -26,10 +27,10 @@ from prismcore import InputError
 from prismcore.camera import CameraModel
 from prismcore.station.board import BoardSpec, default_board
 from prismcore.station.calibrate import Station, calibrate_station
-from prismcore.station.certify import MOVED_PX
+from prismcore.station.certify import MOVED_PX, verify_measured
 from prismcore.station.measure import measure_on_station
 from prismcore.station.scan import certify
-from prismcore.station.verify import DIMENSIONS, Verification, verify_placements
+from prismcore.station.verify import DIMENSIONS, Verification
 from prismsynth.station import StationSetup, station_scene, station_setup
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "services"))
@@ -80,23 +81,18 @@ STILL_SHIFTS: list[float] = []  # the correct stations' placements: the camera n
 
 def verification(station: Station, photos: list[np.ndarray], tolerance: float,
                  still: bool = False) -> Verification | str:
-    rows, sigmas, positions, yaws = [], [], [], []
-    for photo in photos:
+    measured = []
+    for i, photo in enumerate(photos):
         try:
             m = measure_on_station(photo, station)
         except InputError as exc:
             return f"refused: {exc}"
         if still:
             STILL_SHIFTS.append(m.registration.shift_px)
-        rows.append([m.dimensions[k] for k in DIMENSIONS])
-        sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
-        positions.append(m.position_mm)
-        yaws.append(m.yaw_deg)
+        measured.append((str(i), m))
     try:
-        return verify_placements(rows, sigmas, (70.0, 45.0, 30.0), tolerance, positions_mm=positions,
-                                 yaws_deg=yaws, board_size_mm=station.board.size_mm,
-                                 photos=[str(i) for i in range(len(rows))],
-                                 date=datetime(2026, 1, 1, tzinfo=UTC))
+        return verify_measured(station, measured, (70.0, 45.0, 30.0), tolerance,
+                               datetime(2026, 1, 1, tzinfo=UTC))
     except InputError as exc:
         return f"refused: {exc}"
 
@@ -116,7 +112,8 @@ def moved_photo(seed: int, setup: StationSetup, shift_px: float, chroma: str = "
                          chroma=chroma).photo
 
 
-def _seeds(text: str) -> list[int]:
+def seed_list(text: str) -> list[int]:
+    """Seeds as "A-B" (both ends) or "A,B,C"."""
     if "-" in text:
         a, b = text.split("-")
         return list(range(int(a), int(b) + 1))
@@ -135,7 +132,7 @@ def main() -> None:
     verdicts: dict[str, list[bool]] = {}
     covered = []
     flagged = []
-    for seed in _seeds(args.seeds):
+    for seed in seed_list(args.seeds):
         setup, kinds = stations(seed, args.chroma)
         photos = placements(seed, setup, args.chroma)
         for name, station in kinds.items():

@@ -35,7 +35,7 @@ _PLACES = (
     (0.75, 0.72, 65),
     (0.5, 0.15, 155),
     (0.5, 0.85, 35),
-)  # board fractions x, y; yaw from the camera's azimuth
+)  # board fractions x, y; yaw from the azimuth of the camera's sight line to the placement
 
 
 def sample(
@@ -93,19 +93,23 @@ def sample(
 
 def reference_placements(setup: StationSetup) -> list[StationBox]:
     """The reference part's placements on the sample's board: spread over it, each turned 25-65
-    degrees off the camera's line of sight (two sides seen, as a user is told to place it)."""
+    degrees off the camera's line of sight to where it stands (two sides seen, as a user is told
+    to place it)."""
     import numpy as np
 
     from prismsynth.station import StationBox
 
-    centre = -setup.R.T @ setup.t  # the camera in the board's frame
+    camera = -setup.R.T @ setup.t  # the camera in the board's frame
     bw, bh = setup.board.size_mm
-    azimuth = float(np.degrees(np.arctan2(centre[1] - bh / 2, centre[0] - bw / 2)))
     width, depth, height = REFERENCE_MM
-    return [
-        StationBox(width, depth, height, fx * bw, fy * bh, (azimuth + yaw) % 180, (205.0, 70.0, 45.0))
-        for fx, fy, yaw in _PLACES
-    ]
+    boxes = []
+    for fx, fy, yaw in _PLACES:
+        x, y = fx * bw, fy * bh
+        # the sight line to this placement, not to the board's centre: near a board's edge the two
+        # part by 10-20 degrees, and a part turned 25 degrees off the one showed one side only
+        azimuth = float(np.degrees(np.arctan2(camera[1] - y, camera[0] - x)))
+        boxes.append(StationBox(width, depth, height, x, y, (azimuth + yaw) % 180, (205.0, 70.0, 45.0)))
+    return boxes
 
 
 def turned(setup: StationSetup, shift_px: float) -> StationSetup:

@@ -81,8 +81,8 @@ def verify(
     (AIAG MSA; the tolerance's full width 2T; repeatability alone: one station, one operator).
     Verified when each dimension's bias is not significant (its 95 % interval holds 0) or at most
     10 % of 2T, its %GRR is at most 30 %, and every placement lies within its 3 sigma. Exit 0
-    verified, 1 not verified, 2 bad input (fewer than 5 placements, or placements not spread over
-    the support, refused with the reason)."""
+    verified, 1 not verified, 2 bad input (fewer than 5 placements, placements not spread over the
+    support, or a placement showing the camera one side of the part only, refused with the reason)."""
     from prismcore.io import load_image
     from prismcore.station import check_count, verify_station
 

@@ -136,8 +136,9 @@ def _verify(document: bytes, photos: list[tuple[str, bytes]], reference: str, to
                         404: {"description": "No such station"},
                         415: {"description": "Not sent as multipart/form-data"},
                         422: {"description": "A bad reference or tolerance, a photo the station cannot "
-                                             "measure, fewer than 5 placements or placements not spread "
-                                             "over the support: `errors` points at the field"}})
+                                             "measure, fewer than 5 placements, placements not spread "
+                                             "over the support, or a placement showing the camera one "
+                                             "side of the part only: `errors` points at the field"}})
 async def create_verification(station_id: str, request: Request, response: Response, tenant: TenantDep,
                               objects: ObjectsDep, settings: SettingsDep) -> VerificationPublic:
     """Verify the station with a reference part: its photos in several placements (multipart

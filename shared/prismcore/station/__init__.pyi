@@ -13,6 +13,7 @@ from .capability import capability as capability
 from .capability import capability_lines as capability_lines
 from .certify import parse_reference as parse_reference
 from .certify import verification_status as verification_status
+from .certify import verify_measured as verify_measured
 from .certify import verify_station as verify_station
 from .measure import StationMeasurement as StationMeasurement
 from .measure import measure_on_station as measure_on_station

@@ -16,19 +16,23 @@ the camera moved since calibration (drift) and what that move may cost.
   own 3 sigma interval: then a move costing more than one sigma is warned).
 
 Pure functions over the station, its registration of the photo and the measurement; and
-``verify_station``, the reference part's photos measured and verified (the CLI and the API run it).
+``verify_station``, the reference part's photos measured and verified (the CLI and the API run it;
+``verify_measured`` verifies placements already measured).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from datetime import datetime
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from prismcore.station.calibrate import PlanePose, Station
 from prismcore.station.verify import DIMENSIONS, Verification
+
+if TYPE_CHECKING:
+    from prismcore.station.measure import StationMeasurement
 
 __all__ = [
     "COST_SHARE",
@@ -41,6 +45,7 @@ __all__ = [
     "parse_reference",
     "plane_homography",
     "verification_status",
+    "verify_measured",
     "verify_station",
 ]
 
@@ -232,29 +237,60 @@ def verify_station(
     date: datetime,
 ) -> Verification:
     """Measure each (name, RGB photo) of the reference part on `station` and verify it
-    (`verify.verify_placements`): what `prism station verify` and the service's
+    (``verify_measured``): what `prism station verify` and the service's
     ``POST /v1/stations/{id}/verifications`` both run.
 
     Raises
     ------
     InputError
         Fewer than ``verify.MIN_PLACEMENTS`` photos, a photo the station cannot measure (its name
-        first), or placements ``verify_placements`` refuses.
+        first), or placements ``verify_measured`` refuses.
     """
     from prismcore.errors import InputError
     from prismcore.station.measure import measure_on_station
-    from prismcore.station.verify import check_count, verify_placements
+    from prismcore.station.verify import check_count
 
     check_count(len(photos))
-    measured, sigmas, positions, yaws = [], [], [], []
+    measured = []
     for name, photo in photos:
         try:
-            m = measure_on_station(photo, station)
+            measured.append((name, measure_on_station(photo, station)))
         except InputError as exc:
             raise InputError(f"{name}: {exc}") from None
-        measured.append([m.dimensions[k] for k in DIMENSIONS])
-        sigmas.append([m.uncertainty[k] for k in DIMENSIONS])
-        positions.append(m.position_mm)
-        yaws.append(m.yaw_deg)
-    return verify_placements(measured, sigmas, reference, tolerance, positions_mm=positions, yaws_deg=yaws,
-                             board_size_mm=station.board.size_mm, photos=[n for n, _ in photos], date=date)
+    return verify_measured(station, measured, reference, tolerance, date)
+
+
+def verify_measured(
+    station: Station,
+    measured: Sequence[tuple[str, StationMeasurement]],
+    reference: Sequence[float],
+    tolerance: float | None,
+    date: datetime,
+) -> Verification:
+    """The verification (`verify.verify_placements`) of the reference part's placements, each
+    (name, its measurement on `station`).
+
+    Raises
+    ------
+    InputError
+        A placement the station saw one side of only (one footprint side read on the top face,
+        foreshortened: its error is the view's, not the station's; the user is told to turn the
+        part, as the measurement's own warning says), or placements ``verify_placements`` refuses.
+    """
+    from prismcore.errors import InputError
+    from prismcore.station.verify import verify_placements
+
+    for name, m in measured:
+        if m.top_only is not None:
+            raise InputError(
+                f"{name}: the station sees one side of the part only (its {m.top_only} read on the "
+                "top face alone): turn the part so two of its sides face the camera, and photograph "
+                "it again"
+            )
+    return verify_placements(
+        [[m.dimensions[k] for k in DIMENSIONS] for _, m in measured],
+        [[m.uncertainty[k] for k in DIMENSIONS] for _, m in measured],
+        reference, tolerance,
+        positions_mm=[m.position_mm for _, m in measured], yaws_deg=[m.yaw_deg for _, m in measured],
+        board_size_mm=station.board.size_mm, photos=[name for name, _ in measured], date=date,
+    )

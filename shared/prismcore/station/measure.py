@@ -93,6 +93,8 @@ class StationMeasurement:
     support), mm. uncertainty : their one-sigma, mm. position_mm : the footprint's centre in the
     station's frame. yaw_deg : the footprint's longer side against the frame's x axis.
     points : (7, 2) reference points in the photo as taken (P1..P7), side_face : their second face.
+    top_only : "width" or "depth" where one side face only was seen and that footprint side was
+    read on the top face alone (its sigma widened, a warning given); None when two were seen.
     """
 
     dimensions: dict[str, float]
@@ -109,6 +111,7 @@ class StationMeasurement:
     timings_ms: dict[str, float] = field(default_factory=dict)
     cpu_ms: dict[str, float] = field(default_factory=dict)  # each stage's CPU time (this thread's)
     camera: CameraModel | None = None  # the camera measured with (a hand-held photo's, found)
+    top_only: str | None = None
 
     def report(self) -> dict[str, object]:
         """The station's part of report.json."""
@@ -414,6 +417,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
     # the points in the photo as taken: the same corners through the lens
     lookup = {tuple(np.round(p, 6)): i for i, p in enumerate(project(corners, K, R, t))}
     points = np.array([image_pts[lookup[tuple(np.round(p, 6))]] for p in points])
+    along: str | None = None
     if _sides_seen(corners, project(corners, K, R, t), -R.T @ t) < 2:
         # One side face towards the camera: the footprint's other side is read on the top face
         # alone, foreshortened (seen 13 % off on renders with a sigma of 0.3 mm): say so, and
@@ -438,6 +442,7 @@ def measure_registered(photo_u: np.ndarray, plate_u: np.ndarray, cam: CameraMode
         side_face=side,
         camera=cam,
         warnings=warnings,
+        top_only=along,
         timings_ms=timings,
         cpu_ms=cpu,
     )

@@ -202,6 +202,29 @@ def test_a_correct_station_is_verified_and_a_station_1_percent_off_is_not(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS[:2])
+def test_a_placement_showing_one_side_only_is_refused_naming_it(seed):
+    """A placement square to the camera's sight line shows one side face: its other footprint side
+    is read on the top face, foreshortened, and the measurement says so (`top_only`); a
+    verification refuses it by name rather than let that view's error judge the station."""
+    setup, _ = _setup(seed)
+    camera = -setup.R.T @ setup.t  # in the board's frame
+    boxes = reference_placements(setup)
+    centre = boxes[2]
+    sight = float(np.degrees(np.arctan2(camera[1] - centre.y_mm, camera[0] - centre.x_mm)))
+    square = replace(centre, yaw_deg=(sight + 90.0) % 180)  # the long side square to the sight line
+    photo = station_scene(1000 * seed + 3, setup, box=square).photo
+    station = _station(seed, "correct")
+    m = measure_on_station(photo, station)
+    assert m.top_only == "depth" and any("top face only" in w for w in m.warnings), m.warnings
+    assert measure_on_station(_placements(seed)[2][1], station).top_only is None
+    photos = list(_placements(seed))
+    photos[2] = ("reference-3", photo)
+    with pytest.raises(InputError, match=r"^reference-3: the station sees one side of the part only "
+                                         r"\(its depth read on the top face alone\): turn the part"):
+        verify_station(station, photos, REFERENCE, TOLERANCE, DATE)
+
+
+@pytest.mark.parametrize("seed", SEEDS[:2])
 def test_a_focal_length_1_percent_off_is_absorbed_by_the_planes_pose(seed):
     """The plane's pose fitted with the wrong focal length keeps the board's corners where they are:
     the support comes out about 1 % farther (focal over distance, the photo's scale, unchanged), so
