@@ -208,7 +208,9 @@ def _distort_map(setup: StationSetup) -> tuple[np.ndarray, np.ndarray]:
     return ideal[..., 0].astype(np.float32), ideal[..., 1].astype(np.float32)
 
 
-_MAPS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+# The last lens's map, keyed on what it is made of: keyed on id(setup), a setup freed and another
+# made at the same address (the next seed's) was rendered through the previous camera's lens.
+_MAPS: dict[tuple[bytes, bytes, tuple[int, ...]], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def _render(
@@ -275,7 +277,8 @@ def _render(
             _fill_exact(img, _project(setup, Fc, R, t, _SS), colour)
     img *= gain
     img = cv2.GaussianBlur(img, (0, 0), 0.6 * _SS)
-    key = id(setup)
+    key = (np.asarray(setup.K, np.float64).tobytes(), np.asarray(setup.dist, np.float64).tobytes(),
+           tuple(setup.image_size))
     if key not in _MAPS:
         _MAPS.clear()
         _MAPS[key] = _distort_map(setup)
