@@ -39,16 +39,16 @@ from prismsynth.station import station_scene, station_setup
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "services"))
+from cli.sample_command import REFERENCE_MM as SAMPLE_REFERENCE_MM
 from cli.sample_command import reference_placements
 from station_verification import camera_of, seed_list
 
 KINDS = ("foot", "top", "vertical")
-REFERENCE_MM = {"width": 70.0, "depth": 45.0, "height": 30.0}
+REFERENCE_MM = dict(zip(("width", "depth", "height"), SAMPLE_REFERENCE_MM, strict=True))
 
 
 def true_hull(corners_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The true silhouette's vertices (M, 2) px in order round it and their corner indices (M,)."""
-
     idx = cv2.convexHull(corners_px.astype(np.float32), returnPoints=False).ravel()
     return corners_px[idx], idx
 

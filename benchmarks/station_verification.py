@@ -34,7 +34,7 @@ from prismcore.station.verify import DIMENSIONS, Verification
 from prismsynth.station import StationSetup, station_scene, station_setup
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "services"))
-from cli.sample_command import reference_placements
+from cli.sample_command import REFERENCE_MM, reference_placements
 
 MOVES_PX = (5.0, 10.0, 20.0)
 
@@ -91,7 +91,7 @@ def verification(station: Station, photos: list[np.ndarray], tolerance: float,
             STILL_SHIFTS.append(m.registration.shift_px)
         measured.append((str(i), m))
     try:
-        return verify_measured(station, measured, (70.0, 45.0, 30.0), tolerance,
+        return verify_measured(station, measured, REFERENCE_MM, tolerance,
                                datetime(2026, 1, 1, tzinfo=UTC))
     except InputError as exc:
         return f"refused: {exc}"

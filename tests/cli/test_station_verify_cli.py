@@ -215,3 +215,32 @@ def test_bad_input_exits_2_in_one_line(sample: Path, args: list[str], says: str)
     assert run.stderr.startswith("prism: error: ") and run.stderr.strip().count("\n") == 0, run.stderr
     assert says in run.stderr, run.stderr
     assert (sample / "station.json").read_text() == before  # nothing stored
+
+
+def test_a_placement_showing_one_side_exits_2_naming_it(sample: Path):
+    """The reference part square to the camera's sight line (one side face seen): refused by name,
+    the user told to turn it; nothing stored."""
+    from dataclasses import replace
+
+    import cv2
+    import numpy as np
+
+    from prism_cli.sample_command import _STATION_SEED, reference_placements
+    from prismcore.station import default_board
+    from prismsynth.station import station_scene, station_setup
+
+    setup = station_setup(_STATION_SEED, board=default_board())  # the sample's, as it renders it
+    centre = reference_placements(setup)[2]
+    camera = -setup.R.T @ setup.t
+    sight = float(np.degrees(np.arctan2(camera[1] - centre.y_mm, camera[0] - centre.x_mm)))
+    photo = station_scene(103, setup, box=replace(centre, yaw_deg=(sight + 90.0) % 180)).photo
+    assert cv2.imwrite(str(sample / "s" / "square.jpg"), cv2.cvtColor(photo, cv2.COLOR_RGB2BGR),
+                       [cv2.IMWRITE_JPEG_QUALITY, 95])
+    before = (sample / "station.json").read_text()
+    args = ["--reference", REFERENCE, *[f"s/reference/{k}.jpg" for k in (1, 2, 4, 5)], "s/square.jpg"]
+    run = prism("station", "verify", "station.json", *args, cwd=sample)
+    assert run.returncode == 2, run.stdout + run.stderr
+    assert run.stderr.startswith("prism: error: s/square.jpg: the station sees one side of the part "
+                                 "only") and run.stderr.strip().count("\n") == 0, run.stderr
+    assert (sample / "station.json").read_text() == before
+
